@@ -1,0 +1,3 @@
+from ivslam_cli.cli import main
+
+main()
