@@ -5,4 +5,32 @@ Data flows one way: ``logs`` (readers) -> ``slam`` (pipelines built on ``interva
 Importing this package is cheap: no numba kernel is compiled or loaded here.
 """
 
+from __future__ import annotations
+
+import hashlib
+import os
+from pathlib import Path
+
 __version__ = "0.1.0"
+
+
+def _set_numba_cache_dir() -> None:
+    """Point numba's on-disk cache at a directory keyed by the hash of all our sources.
+
+    numba invalidates a cached function only when *its own* file changes, so editing a jitted
+    callee in another module would leave callers stale. Keying the cache directory by every
+    source file of the package makes any change (or upgrade) start from a clean cache, while
+    an unchanged install reuses it across processes. ``NUMBA_CACHE_DIR`` set by the user wins.
+    """
+    if "NUMBA_CACHE_DIR" in os.environ:
+        return
+    root = Path(__file__).resolve().parent
+    digest = hashlib.sha1(__version__.encode())
+    for path in sorted(root.rglob("*.py")):
+        digest.update(path.relative_to(root).as_posix().encode())
+        digest.update(path.read_bytes())
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    os.environ["NUMBA_CACHE_DIR"] = str(base / "ivslam" / "numba" / digest.hexdigest()[:16])
+
+
+_set_numba_cache_dir()

@@ -1,0 +1,78 @@
+"""Outward rounding for float64 under the default round-to-nearest mode.
+
+``down(c)`` returns a float ``<= pred(c)`` and ``up(c)`` one ``>= succ(c)`` (one ulp, twice at
+power-of-two boundaries), using the branch-free PredSucc method of Rump, Zimmermann, Boldo and
+Melquiond ("Computing predecessor and successor in rounding to nearest", BIT 2009):
+``c -/+ (phi*|c| + eta)`` with ``phi = 2^-53 (1 + 2^-52)`` and ``eta = 2^-1074``. It costs two
+flops instead of a libm ``nextafter`` call. Since every IEEE operation (+ - * / sqrt) is
+within half an ulp of the exact result, applying ``down``/``up`` to a rounded-to-nearest result
+encloses the exact one.
+
+Transcendental functions (sin, cos, tan, atan, atan2 from libm) are not correctly rounded but
+are within one ulp on the platforms we support (glibc); ``down2``/``up2`` step two ulps.
+
+NaN never escapes: ``down(nan) = -inf`` and ``up(nan) = +inf`` (a sound, if loose, answer
+when an operation was undefined such as ``inf - inf``).
+
+Decimal constants (0.1, pi) are not doubles: ``PI_LO < pi < PI_HI`` etc. enclose them, and
+user-given bounds are widened by ``enclose`` before use.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+INF = np.inf
+_PHI = 2.0**-53 * (1.0 + 2.0**-52)
+_ETA = 2.0**-1074
+
+# math.pi is the double nearest to pi, and it is below pi.
+PI_LO = math.pi
+PI_HI = float(np.nextafter(math.pi, INF))
+TWO_PI_LO = 2.0 * PI_LO  # exact scaling by 2
+TWO_PI_HI = 2.0 * PI_HI
+HALF_PI_LO = 0.5 * PI_LO
+HALF_PI_HI = 0.5 * PI_HI
+
+
+@njit(cache=True)
+def down(c: float) -> float:
+    """A float <= the predecessor of ``c`` (``-inf`` for NaN)."""
+    r = c - (_PHI * abs(c) + _ETA)
+    if r != r:
+        return -INF
+    return r
+
+
+@njit(cache=True)
+def up(c: float) -> float:
+    """A float >= the successor of ``c`` (``+inf`` for NaN)."""
+    r = c + (_PHI * abs(c) + _ETA)
+    if r != r:
+        return INF
+    return r
+
+
+@njit(cache=True)
+def down2(c: float) -> float:
+    """Two ulps down: lower bound of a libm transcendental result."""
+    return down(down(c))
+
+
+@njit(cache=True)
+def up2(c: float) -> float:
+    """Two ulps up: upper bound of a libm transcendental result."""
+    return up(up(c))
+
+
+def enclose(value: float) -> tuple[float, float]:
+    """An interval of doubles that holds the real number the user meant by ``value``.
+
+    ``0.1`` in a config is the double nearest to 1/10, not 1/10: widen it by an ulp on
+    each side so the decimal the user wrote is inside.
+    """
+    v = float(value)
+    return float(np.nextafter(v, -INF)), float(np.nextafter(v, INF))
