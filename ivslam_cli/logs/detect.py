@@ -50,7 +50,7 @@ def _sniff_text(path: Path) -> str:
             return "carmen"
         if tok[0] in ("ODOMETRY", "LANDMARK", "VERTEX2", "EDGE2"):
             return "victoria"
-        if len(tok) > 600 and all(t.lstrip("-").isdigit() for t in tok[:30]):
+        if len(tok) == 707 and all(t.isdigit() for t in tok[:4]):  # 24 + 683 ranges
             return "urg"
     raise LogError("unknown log format (not a bag, MCAP, HDF5, CARMEN, URG .dat or "
                    "Victoria Park text; use --format)", path)
