@@ -1,0 +1,340 @@
+"""Read and write results as HDF5 (schema version 1, described in ``SCHEMA.md``).
+
+Design: one group per part of :class:`~ivslam_cli.results.model.Result`; ragged data are
+flat arrays + offsets; text columns are int32 codes + a small vocabulary dataset (never
+variable-length data that grows with the log); datasets of 4 KiB or more are chunked and
+gzip-compressed with the shuffle filter; the default libver is kept (readable by older
+HDF5 libraries). Files are written atomically (temp file + ``os.replace``).
+
+Reading checks the format marker and version first and turns any failure (not HDF5,
+truncated, missing part, wrong shape) into a one-line :class:`IvslamError`.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from ivslam_cli.errors import IvslamError
+from ivslam_cli.logs.model import Dropped, GroundTruth
+from ivslam_cli.results.atomic import atomic_path
+from ivslam_cli.results.model import (
+    Consistency,
+    EmptyEvents,
+    Landmarks,
+    MapGrid,
+    PairSubpavings,
+    Poses,
+    Rejections,
+    Result,
+    ResultProvenance,
+    WidthHistory,
+    _str_array,
+)
+
+SCHEMA_VERSION = 1
+FORMAT_NAME = "ivslam-result"
+COMPRESS_MIN_BYTES = 4096
+_STR = h5py.string_dtype("utf-8")
+
+
+# ------------------------------------------------------------------ write helpers
+def _put(g: h5py.Group, name: str, arr: Any, dtype: Any = None) -> None:
+    a = np.ascontiguousarray(arr, dtype=dtype)
+    if a.nbytes >= COMPRESS_MIN_BYTES:
+        g.create_dataset(name, data=a, chunks=True, compression="gzip", compression_opts=4, shuffle=True)
+    else:
+        g.create_dataset(name, data=a)
+
+
+def _put_text(g: h5py.Group, name: str, values: np.ndarray) -> None:
+    """A text column as ``<name>_code`` (int32) + ``<name>_vocab`` (sorted unique strings)."""
+    vocab, codes = np.unique(np.asarray(values, dtype=str), return_inverse=True)
+    _put(g, f"{name}_code", codes.reshape(-1), np.int32)
+    g.create_dataset(f"{name}_vocab", data=np.asarray(vocab, dtype=object), dtype=_STR)
+
+
+def _write(f: h5py.File, r: Result) -> None:
+    f.attrs["format"] = FORMAT_NAME
+    f.attrs["ivslam_result_version"] = np.int64(SCHEMA_VERSION)
+    f.attrs["mode"] = r.mode
+    f.attrs["runtime_s"] = np.float64(r.runtime_s)
+
+    p = r.provenance
+    g = f.create_group("provenance")
+    for key in ("ivslam_version", "command", "input_path", "input_sha256", "input_format"):
+        g.attrs[key] = getattr(p, key)
+    g.attrs["config_json"] = json.dumps(p.config, sort_keys=True)
+    g.attrs["topics_json"] = json.dumps(p.topics, sort_keys=True)
+    g.attrs["notes_json"] = json.dumps(list(p.notes))
+    d = g.create_group("dropped")
+    _put_text(d, "stream", _str_array([x.stream for x in p.dropped]))
+    _put(d, "count", np.asarray([x.count for x in p.dropped], dtype=np.int64))
+    _put_text(d, "reason", _str_array([x.reason for x in p.dropped]))
+
+    if r.poses is not None:
+        g = f.create_group("poses")
+        _put(g, "stamp", r.poses.stamp, np.float64)
+        _put(g, "box", r.poses.box, np.float64)
+    if r.landmarks is not None:
+        g = f.create_group("landmarks")
+        _put(g, "id", r.landmarks.id, np.int64)
+        _put(g, "box", r.landmarks.box, np.float64)
+        ref = r.landmarks.reference_id
+        g.attrs["reference_id"] = np.int64(-1 if ref is None else ref)
+        g.attrs["has_reference"] = np.bool_(ref is not None)
+    if r.pairs is not None:
+        g = f.create_group("pairs")
+        _put(g, "i", r.pairs.i, np.int64)
+        _put(g, "j", r.pairs.j, np.int64)
+        _put(g, "offsets", r.pairs.offsets, np.int64)
+        _put(g, "boxes", r.pairs.boxes, np.float64)
+        _put(g, "label", r.pairs.label, np.uint8)
+    if r.grid is not None:
+        g = f.create_group("map")
+        g.attrs["origin"] = np.asarray(r.grid.origin, dtype=np.float64)
+        g.attrs["resolution"] = np.float64(r.grid.resolution)
+        st = np.ascontiguousarray(r.grid.state, dtype=np.uint8)
+        if st.size:
+            chunks = (min(256, st.shape[0]), min(256, st.shape[1]))
+            g.create_dataset("state", data=st, chunks=chunks, compression="gzip", compression_opts=4, shuffle=True)
+        else:
+            g.create_dataset("state", data=st)
+
+    c = r.consistency
+    g = f.create_group("consistency")
+    g.attrs["assumption"] = c.assumption
+    g.attrs["stopped"] = c.stopped
+    q = g.create_group("q")
+    for fam, val in c.q.items():
+        q.attrs[fam] = np.int64(val)
+    e = g.create_group("empty_events")
+    _put(e, "stamp", c.empty_events.stamp, np.float64)
+    _put(e, "step", c.empty_events.step, np.int64)
+    _put_text(e, "constraint", c.empty_events.constraint)
+    _put(e, "entity", np.asarray(c.empty_events.entity).reshape(-1, 2), np.int64)
+    _put(e, "measurement", c.empty_events.measurement, np.int64)
+    _put_text(e, "text", c.empty_events.text)
+    rj = g.create_group("rejected")
+    _put_text(rj, "stream", c.rejected.stream)
+    _put(rj, "index", c.rejected.index, np.int64)
+    _put_text(rj, "reason", c.rejected.reason)
+    w = g.create_group("widths")
+    for kind, h in c.widths.items():
+        k = w.create_group(kind)
+        k.attrs["definition"] = h.definition
+        _put(k, "entity", np.asarray(h.entity).reshape(-1, 2), np.int64)
+        _put(k, "step", h.step, np.int64)
+        _put(k, "stamp", h.stamp, np.float64)
+        _put(k, "width", h.width, np.float64)
+
+    if r.truth is not None:
+        t = r.truth
+        g = f.create_group("truth")
+        for name, dt in (
+            ("pose_stamp", np.float64),
+            ("pose", np.float64),
+            ("landmark_id", np.int64),
+            ("landmark_xy", np.float64),
+            ("world", np.float64),
+        ):
+            val = getattr(t, name)
+            if val is not None:
+                _put(g, name, val, dt)
+        o = g.create_group("outliers")
+        for stream, mask in t.outliers.items():
+            _put(o, stream, np.asarray(mask, dtype=bool).astype(np.uint8))
+
+    s = f.create_group("stats")
+    for key, val in r.stats.items():
+        s.attrs[key] = val
+
+
+def write_result(path: str | Path, result: Result, *, force: bool = False) -> None:
+    """Write ``result`` to ``path`` atomically; an existing file is refused unless ``force``.
+
+    Raises ValueError if the Result is malformed (a pipeline bug) before touching the disk.
+    """
+    result.validate()
+    with atomic_path(path, force=force) as tmp:
+        with h5py.File(tmp, "w") as f:
+            _write(f, result)
+
+
+# ------------------------------------------------------------------- read helpers
+class _Corrupt(Exception):
+    pass
+
+
+def _get(g: h5py.Group, name: str, dtype: Any) -> np.ndarray:
+    if name not in g:
+        raise _Corrupt(f"missing dataset {g.name.rstrip('/')}/{name}")
+    return np.asarray(g[name][()], dtype=dtype)
+
+
+def _get_text(g: h5py.Group, name: str) -> np.ndarray:
+    codes = _get(g, f"{name}_code", np.int64)
+    if f"{name}_vocab" not in g:
+        raise _Corrupt(f"missing dataset {g.name}/{name}_vocab")
+    vocab = np.asarray(g[f"{name}_vocab"].asstr()[()], dtype=object)
+    if codes.size == 0:
+        return _str_array()
+    if codes.min() < 0 or codes.max() >= vocab.shape[0]:
+        raise _Corrupt(f"{g.name}/{name}_code out of range of its vocabulary")
+    return np.asarray(vocab[codes], dtype=str)
+
+
+def _attr(g: h5py.Group | h5py.File, name: str) -> Any:
+    if name not in g.attrs:
+        raise _Corrupt(f"missing attribute {name!r} on {g.name}")
+    v = g.attrs[name]
+    if isinstance(v, bytes):
+        return v.decode("utf-8")
+    if isinstance(v, np.ndarray):
+        return v
+    return v.item() if isinstance(v, np.generic) else v
+
+
+def _group(f: h5py.File, name: str) -> h5py.Group:
+    if name not in f:
+        raise _Corrupt(f"missing group /{name}")
+    return f[name]
+
+
+def _read(f: h5py.File) -> Result:
+    g = _group(f, "provenance")
+    d = _group(g, "dropped")
+    streams, counts, reasons = _get_text(d, "stream"), _get(d, "count", np.int64), _get_text(d, "reason")
+    if not (streams.shape == counts.shape == reasons.shape):
+        raise _Corrupt("provenance/dropped columns differ in length")
+    prov = ResultProvenance(
+        ivslam_version=str(_attr(g, "ivslam_version")),
+        command=str(_attr(g, "command")),
+        config=json.loads(_attr(g, "config_json")),
+        input_path=str(_attr(g, "input_path")),
+        input_sha256=str(_attr(g, "input_sha256")),
+        input_format=str(_attr(g, "input_format")),
+        topics=json.loads(_attr(g, "topics_json")),
+        dropped=[Dropped(str(s), int(n), str(why)) for s, n, why in zip(streams, counts, reasons)],
+        notes=list(json.loads(_attr(g, "notes_json"))),
+    )
+    r = Result(mode=str(_attr(f, "mode")), provenance=prov, runtime_s=float(_attr(f, "runtime_s")))
+    if "poses" in f:
+        g = f["poses"]
+        r.poses = Poses(stamp=_get(g, "stamp", np.float64), box=_get(g, "box", np.float64))
+    if "landmarks" in f:
+        g = f["landmarks"]
+        ref = int(_attr(g, "reference_id")) if bool(_attr(g, "has_reference")) else None
+        r.landmarks = Landmarks(id=_get(g, "id", np.int64), box=_get(g, "box", np.float64), reference_id=ref)
+    if "pairs" in f:
+        g = f["pairs"]
+        r.pairs = PairSubpavings(
+            i=_get(g, "i", np.int64),
+            j=_get(g, "j", np.int64),
+            offsets=_get(g, "offsets", np.int64),
+            boxes=_get(g, "boxes", np.float64),
+            label=_get(g, "label", np.uint8),
+        )
+    if "map" in f:
+        g = f["map"]
+        r.grid = MapGrid(
+            origin=np.asarray(_attr(g, "origin"), dtype=np.float64),
+            resolution=float(_attr(g, "resolution")),
+            state=_get(g, "state", np.uint8),
+        )
+
+    g = _group(f, "consistency")
+    e = _group(g, "empty_events")
+    rj = _group(g, "rejected")
+    widths = {}
+    for kind, k in _group(g, "widths").items():
+        widths[kind] = WidthHistory(
+            entity=_get(k, "entity", np.int64).reshape(-1, 2),
+            step=_get(k, "step", np.int64),
+            stamp=_get(k, "stamp", np.float64),
+            width=_get(k, "width", np.float64),
+            definition=str(_attr(k, "definition")),
+        )
+    r.consistency = Consistency(
+        empty_events=EmptyEvents(
+            stamp=_get(e, "stamp", np.float64),
+            step=_get(e, "step", np.int64),
+            constraint=_get_text(e, "constraint"),
+            entity=_get(e, "entity", np.int64).reshape(-1, 2),
+            measurement=_get(e, "measurement", np.int64),
+            text=_get_text(e, "text"),
+        ),
+        q={str(k): int(v) for k, v in _group(g, "q").attrs.items()},
+        rejected=Rejections(
+            stream=_get_text(rj, "stream"), index=_get(rj, "index", np.int64), reason=_get_text(rj, "reason")
+        ),
+        widths=widths,
+        assumption=str(_attr(g, "assumption")),
+        stopped=str(_attr(g, "stopped")),
+    )
+
+    if "truth" in f:
+        g = f["truth"]
+        t = GroundTruth()
+        for name, dt in (
+            ("pose_stamp", np.float64),
+            ("pose", np.float64),
+            ("landmark_id", np.int64),
+            ("landmark_xy", np.float64),
+            ("world", np.float64),
+        ):
+            if name in g:
+                setattr(t, name, _get(g, name, dt))
+        if "outliers" in g:
+            t.outliers = {str(k): np.asarray(v[()]).astype(bool) for k, v in g["outliers"].items()}
+        r.truth = t
+    if "stats" in f:
+        r.stats = {}
+        for key in f["stats"].attrs:
+            r.stats[str(key)] = _attr(f["stats"], key)
+    r.validate()
+    return r
+
+
+def read_result(path: str | Path) -> Result:
+    """Read a result file; any problem becomes a one-line :class:`IvslamError` naming ``path``."""
+    path = Path(path)
+    if not path.exists():
+        raise IvslamError("no such file", path)
+    if path.is_dir():
+        raise IvslamError("is a directory, not a result file", path)
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise IvslamError(f"not an ivslam result (not a readable HDF5 file: {_first_line(exc)})", path) from exc
+    with f:
+        fmt = f.attrs.get("format")
+        version = f.attrs.get("ivslam_result_version")
+        if version is None or (fmt.decode() if isinstance(fmt, bytes) else fmt) != FORMAT_NAME:
+            raise IvslamError("not an ivslam result (HDF5 file without the ivslam_result_version marker)", path)
+        try:
+            version = int(version)
+        except (TypeError, ValueError) as exc:
+            raise IvslamError("corrupt result: bad ivslam_result_version attribute", path) from exc
+        if version > SCHEMA_VERSION:
+            raise IvslamError(
+                f"result schema version {version} is newer than this ivslam reads ({SCHEMA_VERSION}); upgrade ivslam",
+                path,
+            )
+        if version < 1:
+            raise IvslamError(f"corrupt result: unknown schema version {version}", path)
+        try:
+            return _read(f)
+        except _Corrupt as exc:
+            raise IvslamError(f"corrupt result: {exc}", path) from exc
+        except (OSError, KeyError, ValueError, TypeError, json.JSONDecodeError) as exc:
+            raise IvslamError(f"corrupt or truncated result ({type(exc).__name__}: {_first_line(exc)})", path) from exc
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__

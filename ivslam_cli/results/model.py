@@ -1,0 +1,279 @@
+"""The in-memory result every pipeline fills and ``ivslam report`` reads.
+
+Conventions (the same on disk, see ``SCHEMA.md``):
+
+- A *box* is a float64 array ``[..., 2]`` of closed intervals, ``[..., 0]`` = lo and
+  ``[..., 1]`` = hi. A box is **empty** when any of its intervals has ``not lo <= hi``
+  (the kernels write empty as ``lo = +inf, hi = -inf``); infinite bounds are allowed.
+- Ragged data are flat arrays plus ``offsets`` of length ``n + 1``: the boxes of pair ``p``
+  are ``boxes[offsets[p]:offsets[p+1]]``.
+- Text columns (constraint kinds, reasons) are numpy unicode arrays in memory; the HDF5
+  writer stores them as integer codes plus a vocabulary so no variable-length data is big.
+
+Every enclosure here is an *outer* approximation of the true quantity (if the stated bounds
+hold, possibly relaxed by q as ``Consistency.assumption`` says), except the ``inner`` boxes
+of a pair subpaving (proven to be inside the set) and ``MapGrid`` cells in state ``EMPTY``
+(proven free). Nothing in this module computes; it only holds and checks shapes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ivslam_cli.logs.model import Dropped, GroundTruth
+
+MODES = ("pairs", "landmarks", "lidar")
+
+# Pair-subpaving box labels. The outer approximation is inner ∪ boundary.
+LABEL_INNER = 1
+LABEL_BOUNDARY = 2
+
+# Map-grid cell states.
+CELL_UNKNOWN = 0
+CELL_EMPTY = 1
+CELL_OBSTACLE = 2
+
+# Width-history kinds (keys of ``Consistency.widths``).
+WIDTH_KINDS = ("pair", "landmark", "pose")
+
+
+def _str_array(values: Any = ()) -> np.ndarray:
+    """A 1-D numpy unicode array (``<U1`` when empty)."""
+    arr = np.asarray(list(values) if not isinstance(values, np.ndarray) else values, dtype=str)
+    return arr.reshape(-1) if arr.size else np.zeros(0, dtype="<U1")
+
+
+def box_is_empty(box: np.ndarray) -> np.ndarray:
+    """Boolean mask over the leading axes: True where some interval has ``not lo <= hi``."""
+    box = np.asarray(box, dtype=np.float64)
+    return ~np.all(box[..., 0] <= box[..., 1], axis=-1)
+
+
+@dataclass
+class ResultProvenance:
+    """Where a result comes from: enough to rerun it.
+
+    ``config`` is the resolved configuration (every bound actually used, see
+    ``ivslam_cli.config``); ``input_sha256`` is of the file, or for a directory (bag
+    directories, MRCLAM) of its files as computed by ``results.checksum.input_sha256``.
+    """
+
+    ivslam_version: str
+    command: str
+    config: dict[str, Any]
+    input_path: str
+    input_sha256: str
+    input_format: str
+    topics: dict[str, str] = field(default_factory=dict)
+    dropped: list[Dropped] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+
+@dataclass
+class Poses:
+    """Pose enclosures: ``box[k]`` holds (x, y, θ) of the robot at ``stamp[k]``.
+
+    θ is an interval on the real line (it may extend beyond ±π); the true heading modulo 2π
+    is in it. Between two stamps the pipelines do not (yet) give a tube; ``report`` uses the
+    hull of the two neighbouring boxes there (see ``report.core``).
+    """
+
+    stamp: np.ndarray  # (N,) float64, non-decreasing
+    box: np.ndarray  # (N, 3, 2) float64
+
+    def __len__(self) -> int:
+        return int(self.stamp.shape[0])
+
+
+@dataclass
+class Landmarks:
+    """Landmark boxes: ``box[l]`` holds (x, y) of landmark ``id[l]``.
+
+    ``reference_id`` is None for an absolute (anchored / world-frame) map; otherwise the map
+    is relative and ``box[l]`` holds ``m_id[l] − m_reference_id``.
+    """
+
+    id: np.ndarray  # (L,) int64
+    box: np.ndarray  # (L, 2, 2) float64
+    reference_id: int | None = None
+
+    def __len__(self) -> int:
+        return int(self.id.shape[0])
+
+
+@dataclass
+class PairSubpavings:
+    """Per landmark pair (i, j): a subpaving enclosing dl = m_i − m_j.
+
+    The boxes of pair ``p`` are ``boxes[offsets[p]:offsets[p+1]]`` with ``label`` ∈
+    {LABEL_INNER, LABEL_BOUNDARY}; the outer approximation (it contains dl) is the union of
+    all of them, the inner approximation (contained in the set) the inner-labelled ones.
+    A pair with no box has an empty set (an inconsistency, recorded as an empty event).
+    """
+
+    i: np.ndarray  # (P,) int64
+    j: np.ndarray  # (P,) int64
+    offsets: np.ndarray  # (P+1,) int64
+    boxes: np.ndarray  # (B, 2, 2) float64
+    label: np.ndarray  # (B,) uint8
+
+    def __len__(self) -> int:
+        return int(self.i.shape[0])
+
+    def pair_boxes(self, p: int) -> np.ndarray:
+        return self.boxes[self.offsets[p] : self.offsets[p + 1]]
+
+
+@dataclass
+class MapGrid:
+    """A cell-state grid (lidar mode).
+
+    Cell ``state[r, c]`` covers ``[ox + c·res, ox + (c+1)·res] × [oy + r·res, oy + (r+1)·res]``
+    (row = y index from the origin upwards). States: CELL_UNKNOWN, CELL_EMPTY (proven free
+    for every pose in the enclosures: an inner approximation of free space), CELL_OBSTACLE
+    (may hold a surface hit by a beam: the obstacle set is an outer approximation).
+    """
+
+    origin: np.ndarray  # (2,) float64: x, y of the corner of cell (0, 0)
+    resolution: float
+    state: np.ndarray  # (H, W) uint8
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (int(self.state.shape[0]), int(self.state.shape[1]))
+
+
+@dataclass
+class EmptyEvents:
+    """Every empty intersection: a proof that the data contradict the stated model.
+
+    ``constraint`` names the constraint family (e.g. ``"pair_intersection"``,
+    ``"observation"``, ``"motion"``); ``entity`` identifies what became empty: pair (i, j),
+    landmark (id, −1) or pose (k, −1); ``measurement`` is the index of the offending
+    measurement in its stream (−1 if none); ``text`` a short human description.
+    """
+
+    stamp: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    step: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    constraint: np.ndarray = field(default_factory=_str_array)
+    entity: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
+    measurement: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    text: np.ndarray = field(default_factory=_str_array)
+
+    def __len__(self) -> int:
+        return int(self.stamp.shape[0])
+
+
+@dataclass
+class Rejections:
+    """Measurements left out by the q-relaxed intersection: ``stream``, ``index``, ``reason``."""
+
+    stream: np.ndarray = field(default_factory=_str_array)
+    index: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    reason: np.ndarray = field(default_factory=_str_array)
+
+    def __len__(self) -> int:
+        return int(self.index.shape[0])
+
+
+@dataclass
+class WidthHistory:
+    """Widths of one kind of enclosure over time, flat: one record per update.
+
+    ``entity`` as in ``EmptyEvents``; ``definition`` states what the width is (e.g. "largest
+    side of the hull of the outer approximation, metres"). The width of an empty set is
+    recorded as NaN.
+    """
+
+    entity: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), np.int64))
+    step: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    stamp: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    width: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    definition: str = ""
+
+    def __len__(self) -> int:
+        return int(self.width.shape[0])
+
+
+@dataclass
+class Consistency:
+    """The consistency record of a run.
+
+    ``q`` is the q of the q-relaxed intersection per constraint family (0 = plain
+    intersection); ``assumption`` states when the guarantee holds, e.g. "bounds hold for all
+    but at most q observations per pair"; ``stopped`` is non-empty if the run stopped early
+    (``--strict``) and says why.
+    """
+
+    empty_events: EmptyEvents = field(default_factory=EmptyEvents)
+    q: dict[str, int] = field(default_factory=dict)
+    rejected: Rejections = field(default_factory=Rejections)
+    widths: dict[str, WidthHistory] = field(default_factory=dict)
+    assumption: str = ""
+    stopped: str = ""
+
+
+@dataclass
+class Result:
+    """One run of one pipeline. Parts a mode does not produce are None."""
+
+    mode: str
+    provenance: ResultProvenance
+    runtime_s: float
+    poses: Poses | None = None
+    landmarks: Landmarks | None = None
+    pairs: PairSubpavings | None = None
+    grid: MapGrid | None = None
+    consistency: Consistency = field(default_factory=Consistency)
+    truth: GroundTruth | None = None
+    stats: dict[str, float | int | str] = field(default_factory=dict)
+
+    def validate(self) -> None:
+        """Raise ValueError if shapes/dtypes are inconsistent (a pipeline bug, not user input)."""
+        _validate(self)
+
+
+def _check(cond: bool, what: str) -> None:
+    if not cond:
+        raise ValueError(f"invalid Result: {what}")
+
+
+def _validate(r: Result) -> None:
+    _check(r.mode in MODES, f"mode {r.mode!r} not in {MODES}")
+    if r.poses is not None:
+        n = len(r.poses)
+        _check(r.poses.stamp.shape == (n,), "poses.stamp must be (N,)")
+        _check(r.poses.box.shape == (n, 3, 2), "poses.box must be (N, 3, 2)")
+    if r.landmarks is not None:
+        n = len(r.landmarks)
+        _check(r.landmarks.id.shape == (n,), "landmarks.id must be (L,)")
+        _check(r.landmarks.box.shape == (n, 2, 2), "landmarks.box must be (L, 2, 2)")
+    if r.pairs is not None:
+        p = r.pairs
+        n = len(p)
+        _check(p.j.shape == (n,), "pairs.j must be (P,)")
+        _check(p.offsets.shape == (n + 1,), "pairs.offsets must be (P+1,)")
+        _check(p.boxes.ndim == 3 and p.boxes.shape[1:] == (2, 2), "pairs.boxes must be (B, 2, 2)")
+        _check(p.label.shape == (p.boxes.shape[0],), "pairs.label must be (B,)")
+        _check(int(p.offsets[0]) == 0 and int(p.offsets[-1]) == p.boxes.shape[0], "pairs.offsets ends")
+        _check(bool(np.all(np.diff(p.offsets) >= 0)), "pairs.offsets must be non-decreasing")
+        _check(bool(np.all(np.isin(p.label, (LABEL_INNER, LABEL_BOUNDARY)))), "pairs.label values")
+    if r.grid is not None:
+        _check(r.grid.state.ndim == 2 and r.grid.state.dtype == np.uint8, "grid.state must be (H, W) uint8")
+        _check(np.asarray(r.grid.origin).shape == (2,), "grid.origin must be (2,)")
+        _check(r.grid.resolution > 0, "grid.resolution must be > 0")
+    e = r.consistency.empty_events
+    n = len(e)
+    for name in ("step", "constraint", "measurement", "text"):
+        _check(getattr(e, name).shape == (n,), f"empty_events.{name} must be (E,)")
+    _check(e.entity.shape == (n, 2), "empty_events.entity must be (E, 2)")
+    rej = r.consistency.rejected
+    _check(rej.stream.shape == rej.index.shape == rej.reason.shape, "rejected columns differ in length")
+    for kind, w in r.consistency.widths.items():
+        _check(kind in WIDTH_KINDS, f"width kind {kind!r} not in {WIDTH_KINDS}")
+        m = len(w)
+        _check(w.entity.shape == (m, 2), f"widths[{kind}].entity must be (W, 2)")
+        _check(w.step.shape == w.stamp.shape == (m,), f"widths[{kind}] columns differ in length")
