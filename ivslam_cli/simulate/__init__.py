@@ -1,0 +1,75 @@
+"""Synthetic logs with ground truth: ``ivslam simulate``.
+
+Three scenarios (:func:`simulate` dispatches on ``SimConfig.scenario``):
+
+- ``pairs``: holonomic robot that never rotates (true heading 0, bound ``heading`` = 0)
+  among point landmarks; range and bearing of every landmark within ``[min_range,
+  max_range]`` all around; every step sees at least two landmarks, at least one of them
+  already seen at an earlier step (landmarks are added by construction where needed and
+  the property is checked). No odometry (the seed's method needs none).
+- ``landmarks``: unicycle robot (v, omega) with twist odometry, landmarks seen within a
+  field of view ``|bearing| <= fov`` and ``[min_range, max_range]`` (MRCLAM's camera:
+  fov 0.6 rad, 0.9-8 m).
+- ``lidar``: unicycle robot in a world of wall segments (:mod:`.worlds`), ray-cast 2D
+  LiDAR (:mod:`.sensors`: ``urg-04lx``, ``sick``), twist odometry.
+
+Noise bound keys (config-style names, reused by the pipelines' config; all half-widths,
+the error ``e = z - g(truth)`` of an in-bound measurement satisfies ``|e| <= bound``):
+
+==============  =====================================================================
+``range_abs``   range error, absolute part [m]
+``range_rel``   range error, part proportional to the true range [m/m]:
+                ``|z_range - rho| <= range_abs + range_rel * rho``
+``bearing``     bearing error [rad], on the circle: ``|wrap(z - alpha)| <= bearing``
+``heading``     (pairs) the known heading interval half-width around 0 [rad]
+``odom_v``      twist linear speed error, absolute part [m/s]
+``odom_v_rel``  ... proportional to the true speed [(m/s)/(m/s)]:
+                ``|z_v - v| <= odom_v + odom_v_rel * |v|``
+``odom_w``      twist angular speed error, absolute part [rad/s]
+``odom_w_rel``  ... proportional to distance travelled [rad/m]:
+                ``|z_w - w| <= odom_w + odom_w_rel * |v|``
+``beam_angle``  LiDAR beam angle error [rad] (0: beams are exactly at their nominal angle)
+==============  =====================================================================
+
+Bound semantics are exact in floating point: in-bound errors are drawn inside
+``INSIDE * bound`` (``INSIDE = 0.999``), so the residual recomputed from the written
+values (float32 LaserScan ranges included) is still inside ``bound``; the generator checks
+this before returning. Distributions (``noise``): ``uniform`` (default), ``triangular``
+(mode 0), ``edges`` (``+-INSIDE * bound``, the worst case for soundness tests).
+
+Gross outliers (``outlier_rate``, ``outlier_magnitude`` = a multiple of the bound) have
+``|e| = bound * (1 + U(0.1, 1) * magnitude)``; wrong associations relabel an observation
+with another landmark whose prediction is out of bounds. Both are recorded in
+``GroundTruth.outliers[stream]`` (True = breaks the stated bounds), and only those break
+them. LiDAR outliers are phantom returns (short of the true range, or a return where
+there is none).
+
+Motion model (twist odometry): the twist at stamp ``t_k`` is the constant (v, omega)
+over ``[t_k, t_{k+1})``; ``s_{k+1} = h(s_k, u_k, t_{k+1} - t_k)`` with the exact arc
+(:func:`.motion.unicycle_step`). True poses are at the odometry stamps, the initial pose
+is known exactly (odometry frame = world frame at ``t_0``).
+
+Time: every stamp lies on a 1/512 s grid (``t_0`` = 1.7e9 s), so float seconds, ROS
+``(sec, nanosec)`` and MCAP nanoseconds are exact images of each other.
+"""
+
+from __future__ import annotations
+
+from ivslam_cli.simulate.config import SimConfig
+
+__all__ = ["SimConfig", "simulate"]
+
+
+def simulate(config: SimConfig, progress=None):
+    """Run the scenario of ``config``; returns a :class:`~ivslam_cli.logs.model.LogData`.
+
+    ``progress(n)`` (optional) is called with the number of steps just completed.
+    """
+    config.validate()
+    if config.scenario == "pairs":
+        from ivslam_cli.simulate.pairs import simulate_pairs as run
+    elif config.scenario == "landmarks":
+        from ivslam_cli.simulate.landmarks import simulate_landmarks as run
+    else:
+        from ivslam_cli.simulate.lidar import simulate_lidar as run
+    return run(config, progress)
