@@ -1,0 +1,276 @@
+"""The resolved run configuration: documented defaults ← log-stated bounds ← TOML file ← options.
+
+Every key lives in one table, :data:`KEYS` (section, name, default, type, unit, one-line
+doc); the README table is generated from it (``python -m ivslam_cli.config --markdown``).
+Sections: shared ``[bounds]`` (noise bounds) and ``[robust]`` (q-relaxation, strictness),
+and one per mode: ``[pairs]``, ``[landmarks]``, ``[lidar]``. An unknown section or key, or a
+value of the wrong type, is a one-line :class:`ConfigError` naming the key and the file.
+
+Precedence, lowest first: the defaults below; bounds the log states about itself
+(simulated logs record the bounds they were generated with: ``LogData.bounds``); the
+``--config FILE``; command-line options. The resolved values (every key) go into the
+result's provenance so a run can be reproduced.
+
+Rounding: decimal constants such as ``0.1`` are not exact doubles. The loader returns the
+nearest float; the interval kernels enclose every bound value by widening it outward by
+one ulp before use, so the interval they use contains the decimal one.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ivslam_cli.errors import ConfigError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+SECTIONS: dict[str, str] = {
+    "bounds": "noise bounds shared by every mode (the kernels widen each by one ulp outward)",
+    "robust": "robust handling of inconsistent data (q-relaxed intersection, strictness)",
+    "pairs": "the pairs pipeline (seed 000): pairwise landmark displacement subpavings",
+    "landmarks": "the landmark CSP pipeline (seed 001 with landmarks)",
+    "lidar": "the feature-less LiDAR pipeline (seed 001)",
+}
+
+# Value types: "float" (int accepted), "int", "bool", "str", "int?" (int, unset = None),
+# "float2" (two floats), "interval" (two floats lo <= hi).
+TYPES = ("float", "int", "bool", "str", "int?", "float2", "interval")
+
+
+@dataclass(frozen=True)
+class Key:
+    """One configuration key. ``minimum`` (with ``strict_min``) bounds numeric values."""
+
+    section: str
+    name: str
+    default: Any
+    type: str
+    doc: str
+    unit: str = ""
+    minimum: float | None = None
+    strict_min: bool = False
+
+    @property
+    def dotted(self) -> str:
+        return f"{self.section}.{self.name}"
+
+
+KEYS: tuple[Key, ...] = (
+    # --- [bounds]: |true − measured| ≤ bound
+    Key("bounds", "range_abs", 0.1, "float", "absolute range bound: |ρ − z_ρ| ≤ range_abs + range_rel·z_ρ", "m", 0.0),
+    Key("bounds", "range_rel", 0.0, "float", "range bound proportional to the measured range", "", 0.0),
+    Key("bounds", "bearing", 0.05, "float", "bearing bound: |α − z_α| ≤ bearing", "rad", 0.0),
+    Key("bounds", "odom_trans_abs", 0.0, "float", "odometry translation bound per step (absolute)", "m", 0.0),
+    Key("bounds", "odom_trans_rel", 0.0, "float", "odometry translation bound per metre travelled", "", 0.0),
+    Key("bounds", "odom_rot_abs", 0.0, "float", "odometry rotation bound per step (absolute)", "rad", 0.0),
+    Key("bounds", "odom_rot_rel", 0.0, "float", "odometry rotation bound per radian turned", "", 0.0),
+    # --- [robust]
+    Key("robust", "q_pair", 0, "int", "q-relaxed intersection per pair: tolerate up to q inconsistent observations (0 = plain intersection)", "", 0),
+    Key("robust", "strict", False, "bool", "stop at the first empty intersection instead of applying the q policy"),
+    # --- [pairs]
+    Key("pairs", "heading", (0.0, 0.0), "interval", "known heading interval of the robot at every step [lo, hi]", "rad"),
+    Key("pairs", "eps", 0.05, "float", "resolution ε of the subpavings: boxes narrower than ε are not bisected", "m", 0.0, True),
+    Key("pairs", "anchor_id", None, "int?", "id of the anchoring landmark (known position); unset: relative map"),
+    Key("pairs", "anchor_xy", (0.0, 0.0), "float2", "position [x, y] of the anchoring landmark", "m"),
+    Key("pairs", "reference_id", None, "int?", "landmark a relative map is expressed against; unset: the smallest id"),
+    Key("pairs", "max_pairs", 10_000, "int", "safety limit: error out beyond this many landmark pairs", "", 1),
+    Key("pairs", "max_boxes", 100_000, "int", "safety limit on the boxes of one pair's subpaving", "", 1),
+)
+
+KEYS_BY_NAME: dict[str, Key] = {k.dotted: k for k in KEYS}
+
+
+@dataclass
+class Config:
+    """Resolved values by section, and where each came from (default/log/file path/option)."""
+
+    values: dict[str, dict[str, Any]]
+    sources: dict[str, str] = field(default_factory=dict)
+    ignored_log_bounds: list[str] = field(default_factory=list)
+
+    def __getitem__(self, dotted: str) -> Any:
+        section, _, name = dotted.partition(".")
+        try:
+            return self.values[section][name]
+        except KeyError:
+            raise KeyError(f"no configuration key {dotted!r}") from None
+
+    def section(self, name: str) -> dict[str, Any]:
+        return dict(self.values[name])
+
+    def as_dict(self) -> dict[str, dict[str, Any]]:
+        """JSON-safe copy (tuples as lists) for the result's provenance."""
+        return {s: {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()} for s, d in self.values.items()}
+
+
+def _coerce(key: Key, value: Any, where: str) -> Any:
+    """Check ``value`` against ``key.type``; return it normalised (floats, tuples)."""
+    label = f"[{key.section}] {key.name}"
+
+    def bad(expected: str) -> ConfigError:
+        return ConfigError(f"{label} must be {expected}, got {value!r}", where)
+
+    def as_float(v: Any) -> float:
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise bad("a number" if key.type == "float" else "a list of two numbers")
+        x = float(v)
+        if math.isnan(x):
+            raise bad("a number (not NaN)")
+        return x
+
+    t = key.type
+    if t == "float":
+        out: Any = as_float(value)
+    elif t in ("int", "int?"):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise bad("an integer")
+        out = int(value)
+    elif t == "bool":
+        if not isinstance(value, bool):
+            raise bad("true or false")
+        out = value
+    elif t == "str":
+        if not isinstance(value, str):
+            raise bad("a string")
+        out = value
+    elif t in ("float2", "interval"):
+        if not isinstance(value, (list, tuple)) or len(value) != 2:
+            raise bad("a list of two numbers")
+        out = (as_float(value[0]), as_float(value[1]))
+        if t == "interval" and not out[0] <= out[1]:
+            raise bad("an interval [lo, hi] with lo <= hi")
+    else:  # pragma: no cover - table error
+        raise AssertionError(t)
+    if key.minimum is not None and isinstance(out, (int, float)) and not isinstance(out, bool):
+        if out < key.minimum or (key.strict_min and out == key.minimum):
+            raise bad(f"{'>' if key.strict_min else '>='} {key.minimum:g}")
+    return out
+
+
+def load_toml(path: str | Path) -> dict[str, Any]:
+    """Parse a TOML config file; unreadable or invalid TOML is a one-line ConfigError."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f)
+    except FileNotFoundError:
+        raise ConfigError("config file not found", path) from None
+    except IsADirectoryError:
+        raise ConfigError("is a directory, not a TOML config file", path) from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"invalid TOML: {str(exc).splitlines()[0]}", path) from None
+    except UnicodeDecodeError:
+        raise ConfigError("invalid TOML: not UTF-8 text", path) from None
+
+
+def _file_layer(data: Mapping[str, Any], where: str) -> dict[str, Any]:
+    layer: dict[str, Any] = {}
+    for section, table in data.items():
+        if section not in SECTIONS:
+            raise ConfigError(
+                f"unknown section or top-level key {section!r} (sections: {', '.join(f'[{s}]' for s in SECTIONS)})",
+                where,
+            )
+        if not isinstance(table, Mapping):
+            raise ConfigError(f"{section!r} must be a section [{section}], got {table!r}", where)
+        for name, value in table.items():
+            key = KEYS_BY_NAME.get(f"{section}.{name}")
+            if key is None:
+                known = ", ".join(k.name for k in KEYS if k.section == section) or "none yet"
+                raise ConfigError(f"unknown key {name!r} in [{section}] (known: {known})", where)
+            layer[key.dotted] = _coerce(key, value, where)
+    return layer
+
+
+def resolve_config(
+    config_file: str | Path | None = None,
+    overrides: Mapping[str, Any] | None = None,
+    log_bounds: Mapping[str, float] | None = None,
+) -> Config:
+    """Defaults ← ``log_bounds`` ← ``config_file`` ← ``overrides`` (dotted keys; None = not given).
+
+    ``log_bounds`` keys are ``[bounds]`` names (``range_abs`` or ``bounds.range_abs``);
+    those that are not config keys are listed in ``Config.ignored_log_bounds``, not applied.
+    """
+    values: dict[str, dict[str, Any]] = {s: {} for s in SECTIONS}
+    sources: dict[str, str] = {}
+    for k in KEYS:
+        values[k.section][k.name] = k.default
+        sources[k.dotted] = "default"
+
+    ignored: list[str] = []
+    for name, value in (log_bounds or {}).items():
+        dotted = name if "." in name else f"bounds.{name}"
+        key = KEYS_BY_NAME.get(dotted)
+        if key is None or key.section != "bounds":
+            ignored.append(name)
+            continue
+        values[key.section][key.name] = _coerce(key, value, "bounds stated by the log")
+        sources[dotted] = "log"
+
+    if config_file is not None:
+        where = str(config_file)
+        for dotted, value in _file_layer(load_toml(config_file), where).items():
+            key = KEYS_BY_NAME[dotted]
+            values[key.section][key.name] = value
+            sources[dotted] = where
+
+    for dotted, value in (overrides or {}).items():
+        if value is None:
+            continue
+        key = KEYS_BY_NAME.get(dotted)
+        if key is None:
+            raise ConfigError(f"unknown configuration key {dotted!r}", "command line")
+        values[key.section][key.name] = _coerce(key, value, "command line")
+        sources[dotted] = "option"
+    return Config(values=values, sources=sources, ignored_log_bounds=ignored)
+
+
+def _fmt_default(v: Any) -> str:
+    if v is None:
+        return "unset"
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, tuple):
+        return "[" + ", ".join(repr(x) for x in v) + "]"
+    return repr(v)
+
+
+def markdown_table() -> str:
+    """The configuration reference as a markdown table (one row per key, grouped by section)."""
+    lines = [
+        "| key | default | type | unit | meaning |",
+        "|---|---|---|---|---|",
+    ]
+    for section, doc in SECTIONS.items():
+        keys = [k for k in KEYS if k.section == section]
+        lines.append(f"| **[{section}]** | | | | {doc}{'' if keys else ' (no keys yet)'} |")
+        for k in keys:
+            lines.append(f"| `{k.name}` | `{_fmt_default(k.default)}` | {k.type} | {k.unit} | {k.doc} |")
+    lines.append("")
+    lines.append(
+        "Decimal values such as 0.1 are not exact doubles: the loader returns the nearest float and the "
+        "interval kernels widen every bound outward by one ulp, so the bound used contains the decimal one."
+    )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = sys.argv[1:] if argv is None else argv
+    if args != ["--markdown"]:
+        print("usage: python -m ivslam_cli.config --markdown", file=sys.stderr)
+        return 2
+    print(markdown_table())
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
