@@ -11,7 +11,8 @@ Records read (every other keyword, e.g. ``NEFF``, ``PARAM`` except the laser off
 * ``ODOM x y th tv rv accel ipc_t host logger_t`` -> odometry pose and (v, omega).
 
 Stamps are the ``ipc_t`` field. Without a stated maximum range, a value that is the
-maximum of the whole log and occurs in >= 0.5% of the beams is the "no return" value
+maximum of the whole log, above twice the median range, and occurs in >= 0.5% of
+at least 1000 beams is the "no return" value
 (81.83 m in the Intel log): ``range_max`` is set just below it, so those beams are
 invalid and counted. Without ``ODOM`` lines, the FLASER odometry poses are the odometry.
 """
@@ -93,7 +94,8 @@ def read_carmen(path: Path) -> LogData:
         allr = np.concatenate([row[4] for row in scan_rows])
         fin = allr[np.isfinite(allr)]
         vmax = float(fin.max()) if fin.size else math.inf
-        saturated = fin.size and np.count_nonzero(fin == vmax) >= 0.005 * allr.size
+        saturated = (fin.size >= 1000 and vmax > 2 * float(np.median(fin))
+                     and np.count_nonzero(fin == vmax) >= 0.005 * allr.size)
         default_max = float(np.nextafter(np.float32(vmax), np.float32(0))) if saturated \
             else math.inf
         if saturated:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gzip
 import lzma
+import zlib
 from pathlib import Path
 
 from ivslam_cli.errors import LogError
@@ -24,7 +25,7 @@ def read_text(path: Path) -> str:
     try:
         with _opener(path)(path, "rb") as f:
             raw = f.read()
-    except (OSError, EOFError, lzma.LZMAError) as exc:
+    except (OSError, EOFError, lzma.LZMAError, zlib.error) as exc:
         raise LogError(f"corrupt or truncated compressed file ({exc})", path) from None
     if b"\0" in raw:
         raise LogError("binary data in a text log (corrupt file?)", path)
@@ -41,6 +42,6 @@ def first_lines(path: Path, n: int) -> list[str]:
                 if not line:
                     break
                 out.append(line)
-    except (OSError, EOFError, lzma.LZMAError):
+    except (OSError, EOFError, lzma.LZMAError, zlib.error):
         pass
     return out
