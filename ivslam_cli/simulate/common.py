@@ -68,4 +68,5 @@ def base_meta(cfg: SimConfig, rate: float, steps: int) -> dict:
         "outlier_rate": float(cfg.outlier_rate),
         "outlier_magnitude": float(cfg.outlier_magnitude),
         "wrong_association_rate": float(cfg.wrong_association_rate),
+        "config": cfg.as_dict(),
     }

@@ -122,7 +122,13 @@ class SimConfig:
             raise ConfigError(f"bound 'range_rel' must be < 0.5, got {bounds['range_rel']}")
         if "bearing" in bounds and bounds["bearing"] >= 0.5:
             raise ConfigError(f"bound 'bearing' must be < 0.5 rad, got {bounds['bearing']}")
-        if self.scenario != "lidar":
+        if self.scenario == "lidar":
+            from ivslam_cli.simulate.sensors import get_profile
+            from ivslam_cli.simulate.worlds import load_world
+
+            get_profile(self.sensor)
+            load_world(self.world)
+        else:
             lo, hi = self.range_limits()
             if not (0 <= lo < hi and math.isfinite(hi)):
                 raise ConfigError(f"need 0 <= --min-range < --max-range, got {lo}, {hi}")
