@@ -144,3 +144,50 @@ def test_out_of_order_and_nan_odometry_are_counted(tmp_path):
     np.testing.assert_array_equal(log.odometry.stamp, [0.0, 0.1, 0.2])
     np.testing.assert_array_equal(log.odometry.pose[:, 0], [0, 2, 1])
     np.testing.assert_array_equal(log.scans.valid, [True, False, False])
+
+
+def test_ros1_profile_mcap_with_odometry(tmp_path):
+    """ros1-profile MCAP (which rosbags' AnyReader refuses) reads scans and odometry."""
+    from mcap.writer import Writer
+
+    from bench.bench_readers import _ranges, _scan
+    from ivslam_cli.logs.typestore import typestore
+
+    store = typestore(1)
+    T = store.types
+    p = tmp_path / "r1.mcap"
+    with open(p, "wb") as f:
+        w = Writer(f)
+        w.start(profile="ros1", library="test")
+        ids = {}
+        for topic, ty in (("/scan", "sensor_msgs/msg/LaserScan"), ("/odom", "nav_msgs/msg/Odometry")):
+            sid = w.register_schema(name=ty.replace("/msg/", "/"), encoding="ros1msg",
+                                    data=store.generate_msgdef(ty)[0].encode())
+            ids[topic] = w.register_channel(topic=topic, message_encoding="ros1", schema_id=sid)
+        ranges = _ranges(5)
+        for k in range(5):
+            t = k * 100_000_000
+            w.add_message(channel_id=ids["/scan"], log_time=t, publish_time=t,
+                          data=store.serialize_ros1(_scan(store, 1, k, ranges[k]),
+                                                    "sensor_msgs/msg/LaserScan"))
+            odo = T["nav_msgs/msg/Odometry"](
+                header=T["std_msgs/msg/Header"](seq=k, stamp=T["builtin_interfaces/msg/Time"](
+                    sec=k, nanosec=0), frame_id="odom"), child_frame_id="base_link",
+                pose=T["geometry_msgs/msg/PoseWithCovariance"](
+                    pose=T["geometry_msgs/msg/Pose"](
+                        position=T["geometry_msgs/msg/Point"](x=float(k), y=0.0, z=0.0),
+                        orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0)),
+                    covariance=np.zeros(36)),
+                twist=T["geometry_msgs/msg/TwistWithCovariance"](
+                    twist=T["geometry_msgs/msg/Twist"](
+                        linear=T["geometry_msgs/msg/Vector3"](x=0.5, y=0.0, z=0.0),
+                        angular=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.1)),
+                    covariance=np.zeros(36)))
+            w.add_message(channel_id=ids["/odom"], log_time=t, publish_time=t,
+                          data=store.serialize_ros1(odo, "nav_msgs/msg/Odometry"))
+        w.finish()
+    log = read_log(p)
+    assert log.provenance.format == "mcap-ros1"
+    np.testing.assert_array_equal(log.scans.ranges.reshape(5, -1), ranges)
+    np.testing.assert_array_equal(log.odometry.pose[:, 0], np.arange(5.0))
+    np.testing.assert_allclose(log.odometry.twist, [[0.5, 0.1]] * 5)

@@ -19,7 +19,7 @@ import numpy as np
 
 from ivslam_cli.errors import LogError
 from ivslam_cli.logs.model import LogData
-from ivslam_cli.logs.ros_streams import KNOWN, SCAN, StreamCollector, choose_topics, normalize_type
+from ivslam_cli.logs.ros_streams import KNOWN, StreamCollector, choose_topics, normalize_type
 from ivslam_cli.logs.typestore import typestore
 
 BATCH = 4096
