@@ -1,11 +1,64 @@
-"""`ivslam report` (not implemented yet)."""
+"""`ivslam report RESULT.h5`: the consistency report of a run (text, JSON, plot, exports)."""
+
+from __future__ import annotations
+
+from pathlib import Path
 
 import click
 
-from ivslam_cli.errors import IvslamError
-
 
 @click.command(name="report")
-def command() -> None:
-    """Not available yet in this version."""
-    raise IvslamError("'ivslam report' is not implemented yet in this version")
+@click.argument("result", type=click.Path(path_type=Path, dir_okay=True))
+@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON instead of text.")
+@click.option("--plot", type=click.Path(path_type=Path, dir_okay=False), help="Write a figure (.png or .svg).")
+@click.option("--tum", type=click.Path(path_type=Path, dir_okay=False),
+              help="Export pose box centres as a TUM trajectory (for evo).")
+@click.option("--map-pgm", "map_pgm", type=click.Path(path_type=Path),
+              help="Export the map grid as ROS map_server PREFIX.pgm + PREFIX.yaml.")
+@click.option("--force", is_flag=True, help="Overwrite existing output files.")
+def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, map_pgm: Path | None,
+            force: bool) -> None:
+    """Report on a result: bounds used, empty intersections, convergence, containment.
+
+    \b
+    Containment against ground truth below 1.0 is flagged SOUNDNESS FAILURE, unless
+    outliers were injected and the run relaxed them (q > 0).
+
+    \b
+    Examples:
+      ivslam report result.h5
+      ivslam report result.h5 --json > report.json
+      ivslam report result.h5 --plot map.png --tum traj.txt --map-pgm map
+    """
+    from ivslam_cli.errors import IvslamError
+    from ivslam_cli.report.core import compute_report
+    from ivslam_cli.results.hdf5 import read_result
+
+    res = read_result(result)
+    rep = compute_report(res)
+    if tum is not None:
+        if res.poses is None:
+            raise IvslamError(f"has no pose enclosures ({res.mode} mode): nothing to export to --tum", result)
+        from ivslam_cli.results.export import write_tum
+
+        skipped = write_tum(tum, res.poses, force=force)
+        if skipped:
+            click.echo(f"ivslam: note: {tum}: skipped {skipped} empty pose box(es)", err=True)
+    if map_pgm is not None:
+        if res.grid is None:
+            raise IvslamError(f"has no map grid ({res.mode} mode): nothing to export to --map-pgm", result)
+        from ivslam_cli.results.export import write_map_server
+
+        write_map_server(map_pgm, res.grid, force=force)
+    if plot is not None:
+        from ivslam_cli.report.plot import plot_report
+
+        plot_report(rep, plot, force=force)
+    if as_json:
+        from ivslam_cli.report.jsonout import render_json
+
+        click.echo(render_json(rep))
+    else:
+        from ivslam_cli.report.text import render_text
+
+        click.echo(render_text(rep, str(result)), nl=False)

@@ -15,6 +15,12 @@ from pathlib import Path
 from ivslam_cli.errors import IvslamError
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def refuse_existing(path: str | Path, force: bool) -> None:
     """Raise a one-line IvslamError if ``path`` exists and ``force`` is False."""
     if not force and os.path.lexists(path):
@@ -34,6 +40,7 @@ def atomic_path(path: str | Path, *, force: bool = False) -> Iterator[Path]:
         raise IvslamError(f"directory {str(parent)!r} does not exist", path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=parent)
     os.close(fd)
+    os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual mode
     try:
         yield Path(tmp)
         refuse_existing(path, force)  # someone may have created it meanwhile

@@ -1,0 +1,368 @@
+"""What ``ivslam report`` computes from a :class:`Result` (no I/O, no rendering).
+
+Containment — the check that the guarantee held — per kind of enclosure:
+
+- **landmark**: the box of landmark i holds its true position (for a relative map with
+  reference r, it holds m_i − m_r);
+- **pair**: the truth of pair (i, j) is dl = m_i − m_j; the subpaving holds it when some box
+  of its outer approximation (inner ∪ boundary boxes, closed) does;
+- **pose**: checked at the *truth's own stamps*. A truth stamp equal to a pose stamp k is
+  checked against box k; one strictly between pose stamps k and k+1 against the hull of
+  boxes k and k+1. This is the documented stand-in until the pipelines give a true tube
+  between steps, and it is generous for the check: a truth pose anywhere in that hull
+  passes, so it never flags a pose a true tube would hold as long as the robot stays in the
+  hull between the two steps (bounded motion over one step), and it can accept a pose a
+  tighter tube would exclude. Truth stamps outside the span of the pose stamps are not
+  checked (counted in ``not_checked``). Heading is compared modulo 2π.
+
+A fraction below 1.0 is a **SOUNDNESS FAILURE** — unless outliers were injected (the truth
+carries an outlier mask with some True) and the run relaxed them (some q > 0): then the
+guarantee only holds under ``Consistency.assumption`` and the report says so instead.
+
+Widths: landmark and pose boxes by the largest side in x, y (pose heading reported apart);
+pair subpavings by the largest side of the hull of their outer approximation. Empty sets
+have no width (NaN, counted as ``empty``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ivslam_cli.logs.model import GroundTruth
+from ivslam_cli.results.model import (
+    CELL_EMPTY,
+    CELL_OBSTACLE,
+    CELL_UNKNOWN,
+    Landmarks,
+    PairSubpavings,
+    Poses,
+    Result,
+    WidthHistory,
+    box_is_empty,
+)
+
+TWO_PI = 2.0 * math.pi
+SOUND = "ok"
+FAILURE = "SOUNDNESS FAILURE"
+RELAXED = "below 1.0 with injected outliers under q-relaxation (holds only under the stated assumption)"
+
+
+# ---------------------------------------------------------------- array primitives
+def in_box(box: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """``box[..., d, 2]`` closed boxes, ``point[..., d]``: True where the point is in the box."""
+    return np.all((box[..., 0] <= point) & (point <= box[..., 1]), axis=-1)
+
+
+def angle_in(lo: np.ndarray, hi: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """True where θ + 2πn ∈ [lo, hi] for some integer n (intervals on the real line)."""
+    lo, hi, theta = np.broadcast_arrays(np.asarray(lo, float), np.asarray(hi, float), np.asarray(theta, float))
+    finite = np.isfinite(lo) & np.isfinite(hi)
+    with np.errstate(invalid="ignore"):
+        n = np.ceil((lo - theta) / TWO_PI)
+        shifted = theta + TWO_PI * n
+        ok = (shifted <= hi) | (hi - lo >= TWO_PI)
+    unbounded = (lo <= hi) & ~finite  # an infinite side: contains every angle
+    return np.where(finite, ok & (lo <= hi), unbounded)
+
+
+def box_centre(box: np.ndarray) -> np.ndarray:
+    """Centres ``[..., d]``; NaN for empty boxes."""
+    c = 0.5 * (box[..., 0] + box[..., 1])
+    return np.where(box_is_empty(box)[..., None], np.nan, c)
+
+
+def box_width(box: np.ndarray) -> np.ndarray:
+    """Largest side ``[...]``; NaN for empty boxes."""
+    w = np.max(box[..., 1] - box[..., 0], axis=-1)
+    return np.where(box_is_empty(box), np.nan, w)
+
+
+def pair_hulls(pairs: PairSubpavings) -> np.ndarray:
+    """Hull ``(P, 2, 2)`` of each pair's outer approximation (empty for pairs with no box)."""
+    n = len(pairs)
+    hull = np.empty((n, 2, 2))
+    hull[..., 0] = np.inf
+    hull[..., 1] = -np.inf
+    if pairs.boxes.shape[0]:
+        owner = np.repeat(np.arange(n), np.diff(pairs.offsets))
+        ok = ~box_is_empty(pairs.boxes)
+        np.minimum.at(hull[..., 0], owner[ok], pairs.boxes[ok, :, 0])
+        np.maximum.at(hull[..., 1], owner[ok], pairs.boxes[ok, :, 1])
+    return hull
+
+
+# ---------------------------------------------------------------- containment
+@dataclass
+class Containment:
+    kind: str
+    checked: int
+    contained: int
+    not_checked: int = 0
+    failures: list[str] = field(default_factory=list)  # which entities missed the truth
+    centre_error: np.ndarray = field(default_factory=lambda: np.zeros(0))  # per checked entity [m]
+
+    @property
+    def fraction(self) -> float:
+        return self.contained / self.checked if self.checked else math.nan
+
+
+def _truth_landmarks(truth: GroundTruth) -> dict[int, np.ndarray]:
+    if truth.landmark_id is None or truth.landmark_xy is None:
+        return {}
+    return {int(i): np.asarray(xy, float) for i, xy in zip(truth.landmark_id, truth.landmark_xy)}
+
+
+def landmark_containment(lm: Landmarks, truth: GroundTruth) -> Containment | None:
+    known = _truth_landmarks(truth)
+    if not known:
+        return None
+    offset = np.zeros(2)
+    if lm.reference_id is not None:
+        if lm.reference_id not in known:
+            return Containment("landmark", 0, 0, not_checked=len(lm))
+        offset = known[lm.reference_id]
+    have = np.array([int(i) in known for i in lm.id], dtype=bool)
+    if not have.any():
+        return Containment("landmark", 0, 0, not_checked=len(lm))
+    t = np.array([known[int(i)] - offset for i in lm.id[have]])
+    box = lm.box[have]
+    ok = in_box(box, t)
+    err = np.linalg.norm(box_centre(box) - t, axis=-1)
+    return Containment(
+        "landmark",
+        int(have.sum()),
+        int(ok.sum()),
+        not_checked=int((~have).sum()),
+        failures=[f"landmark {int(i)}" for i in lm.id[have][~ok]],
+        centre_error=err,
+    )
+
+
+def pair_containment(pairs: PairSubpavings, truth: GroundTruth) -> Containment | None:
+    known = _truth_landmarks(truth)
+    if not known:
+        return None
+    have = np.array([int(a) in known and int(b) in known for a, b in zip(pairs.i, pairs.j)], dtype=bool)
+    if not have.any():
+        return Containment("pair", 0, 0, not_checked=len(pairs))
+    dl = np.zeros((len(pairs), 2))
+    dl[have] = [known[int(a)] - known[int(b)] for a, b in zip(pairs.i[have], pairs.j[have])]
+    counts = np.diff(pairs.offsets)
+    owner = np.repeat(np.arange(len(pairs)), counts)
+    hit = in_box(pairs.boxes, dl[owner]) if pairs.boxes.shape[0] else np.zeros(0, bool)
+    held = np.bincount(owner[hit], minlength=len(pairs)) > 0
+    ok = held[have]
+    err = np.linalg.norm(box_centre(pair_hulls(pairs))[have] - dl[have], axis=-1)
+    return Containment(
+        "pair",
+        int(have.sum()),
+        int(ok.sum()),
+        not_checked=int((~have).sum()),
+        failures=[f"pair ({int(a)},{int(b)})" for a, b in zip(pairs.i[have][~ok], pairs.j[have][~ok])],
+        centre_error=err,
+    )
+
+
+def pose_containment(poses: Poses, truth: GroundTruth) -> Containment | None:
+    if truth.pose_stamp is None or truth.pose is None or len(poses) == 0:
+        return None
+    s, ts = poses.stamp, np.asarray(truth.pose_stamp, float)
+    span = (ts >= s[0]) & (ts <= s[-1])
+    ts, tp = ts[span], np.asarray(truth.pose, float)[span]
+    k = np.clip(np.searchsorted(s, ts, side="right") - 1, 0, len(s) - 1)
+    exact = s[k] == ts
+    k1 = np.where(exact, k, np.minimum(k + 1, len(s) - 1))
+    b0, b1 = poses.box[k], poses.box[k1]
+    hull = np.stack([np.minimum(b0[..., 0], b1[..., 0]), np.maximum(b0[..., 1], b1[..., 1])], axis=-1)
+    ok = in_box(hull[:, :2], tp[:, :2]) & angle_in(hull[:, 2, 0], hull[:, 2, 1], tp[:, 2])
+    # centre error: box centres interpolated linearly in time
+    c0, c1 = box_centre(b0[:, :2]), box_centre(b1[:, :2])
+    dt = s[k1] - s[k]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        a = np.where(dt > 0, (ts - s[k]) / np.where(dt > 0, dt, 1.0), 0.0)
+    err = np.linalg.norm(c0 + a[:, None] * (c1 - c0) - tp[:, :2], axis=-1)
+    return Containment(
+        "pose",
+        int(ts.shape[0]),
+        int(ok.sum()),
+        not_checked=int((~span).sum()),
+        failures=[f"truth pose at t={t:.6g}" for t in ts[~ok]],
+        centre_error=err,
+    )
+
+
+# ---------------------------------------------------------------- widths
+@dataclass
+class WidthStat:
+    median: float
+    max: float
+    count: int
+    empty: int
+
+
+def width_stat(w: np.ndarray) -> WidthStat:
+    w = np.asarray(w, float)
+    fin = w[~np.isnan(w)]
+    if fin.size == 0:
+        return WidthStat(math.nan, math.nan, int(w.size), int(w.size))
+    return WidthStat(float(np.median(fin)), float(np.max(fin)), int(w.size), int(w.size - fin.size))
+
+
+@dataclass
+class Convergence:
+    """Per kind: widths at each entity's first and last update, and a binned curve."""
+
+    definition: str
+    entities: int
+    updates: int
+    initial: WidthStat
+    final: WidthStat
+    increases: int  # consecutive updates of one entity where the width grew
+    curve_step: np.ndarray  # bin centres (step)
+    curve_median: np.ndarray
+    curve_max: np.ndarray
+
+
+def convergence(h: WidthHistory, bins: int = 50) -> Convergence:
+    n = len(h)
+    if n == 0:
+        nan = WidthStat(math.nan, math.nan, 0, 0)
+        z = np.zeros(0)
+        return Convergence(h.definition, 0, 0, nan, nan, 0, z, z, z)
+    order = np.lexsort((h.step, h.entity[:, 1], h.entity[:, 0]))
+    ent, w = h.entity[order], h.width[order]
+    new = np.ones(n, dtype=bool)
+    new[1:] = np.any(ent[1:] != ent[:-1], axis=1)
+    first = np.flatnonzero(new)
+    last = np.append(first[1:] - 1, n - 1)
+    with np.errstate(invalid="ignore"):
+        grew = (~new[1:]) & (w[1:] > w[:-1])
+    # binned curve over steps
+    step = h.step.astype(float)
+    lo, hi = float(step.min()), float(step.max())
+    nb = max(1, min(bins, int(hi - lo) + 1))
+    edges = np.linspace(lo, hi + 1.0, nb + 1)
+    which = np.clip(np.searchsorted(edges, step, side="right") - 1, 0, nb - 1)
+    med, mx = np.full(nb, np.nan), np.full(nb, np.nan)
+    for b in range(nb):  # ≤ 50 bins: reporting, not a hot path
+        vals = h.width[(which == b) & ~np.isnan(h.width)]
+        if vals.size:
+            med[b], mx[b] = np.median(vals), np.max(vals)
+    keep = ~np.isnan(med)
+    centres = 0.5 * (edges[:-1] + edges[1:]) - 0.5
+    return Convergence(
+        h.definition,
+        int(first.size),
+        n,
+        width_stat(w[first]),
+        width_stat(w[last]),
+        int(grew.sum()),
+        centres[keep],
+        med[keep],
+        mx[keep],
+    )
+
+
+# ---------------------------------------------------------------- the report
+@dataclass
+class Report:
+    result: Result
+    containment: dict[str, Containment]
+    soundness: dict[str, str]
+    final_width: dict[str, WidthStat]
+    convergence: dict[str, Convergence]
+    outliers_injected: int
+    relaxed: bool
+    intersections: int  # set updates recorded (width-history records)
+    non_empty: int  # ... of which stayed non-empty
+    rejected_by_reason: dict[str, int]
+    map_cells: dict[str, int]
+    map_area_m2: dict[str, float]
+
+    @property
+    def empty_events(self) -> int:
+        return len(self.result.consistency.empty_events)
+
+    @property
+    def sound(self) -> bool:
+        return all(v != FAILURE for v in self.soundness.values())
+
+
+def final_widths(r: Result) -> dict[str, WidthStat]:
+    out: dict[str, WidthStat] = {}
+    if r.landmarks is not None and len(r.landmarks):
+        out["landmark"] = width_stat(box_width(r.landmarks.box))
+    if r.pairs is not None and len(r.pairs):
+        out["pair"] = width_stat(box_width(pair_hulls(r.pairs)))
+    if r.poses is not None and len(r.poses):
+        out["pose"] = width_stat(box_width(r.poses.box[:, :2]))
+        th = r.poses.box[:, 2, 1] - r.poses.box[:, 2, 0]
+        out["pose_heading"] = width_stat(np.where(box_is_empty(r.poses.box), np.nan, th))
+    return out
+
+
+def compute_report(r: Result) -> Report:
+    """Everything ``ivslam report`` shows, computed from the result alone."""
+    cont: dict[str, Containment] = {}
+    truth = r.truth
+    if truth is not None:
+        for c in (
+            landmark_containment(r.landmarks, truth) if r.landmarks is not None else None,
+            pair_containment(r.pairs, truth) if r.pairs is not None else None,
+            pose_containment(r.poses, truth) if r.poses is not None else None,
+        ):
+            if c is not None and c.checked:
+                cont[c.kind] = c
+    injected = int(sum(int(np.count_nonzero(m)) for m in (truth.outliers.values() if truth else ())))
+    relaxed = any(int(q) > 0 for q in r.consistency.q.values())
+    soundness = {
+        k: SOUND if c.contained == c.checked else (RELAXED if injected and relaxed else FAILURE)
+        for k, c in cont.items()
+    }
+    widths = r.consistency.widths
+    updates = sum(len(h) for h in widths.values())
+    non_empty = sum(int(np.count_nonzero(~np.isnan(h.width))) for h in widths.values())
+    if "intersections" in r.stats:  # a pipeline may count its own intersections
+        updates = int(r.stats["intersections"])
+        non_empty = updates - len(r.consistency.empty_events)
+    cells: dict[str, int] = {}
+    area: dict[str, float] = {}
+    if r.grid is not None:
+        for name, code in (("unknown", CELL_UNKNOWN), ("empty", CELL_EMPTY), ("obstacle", CELL_OBSTACLE)):
+            cells[name] = int(np.count_nonzero(r.grid.state == code))
+            area[name] = cells[name] * r.grid.resolution**2
+    return Report(
+        result=r,
+        containment=cont,
+        soundness=soundness,
+        final_width=final_widths(r),
+        convergence={k: convergence(h) for k, h in widths.items()},
+        outliers_injected=injected,
+        relaxed=relaxed,
+        intersections=updates,
+        non_empty=non_empty,
+        rejected_by_reason=dict(Counter(str(x) for x in r.consistency.rejected.reason)),
+        map_cells=cells,
+        map_area_m2=area,
+    )
+
+
+def event_dicts(r: Result) -> list[dict[str, Any]]:
+    """Every empty event as a plain dict (text and JSON output)."""
+    e = r.consistency.empty_events
+    return [
+        {
+            "stamp": float(e.stamp[k]),
+            "step": int(e.step[k]),
+            "constraint": str(e.constraint[k]),
+            "entity": [int(x) for x in e.entity[k]],
+            "measurement": int(e.measurement[k]),
+            "text": str(e.text[k]),
+        }
+        for k in range(len(e))
+    ]

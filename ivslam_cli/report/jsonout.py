@@ -1,0 +1,110 @@
+"""``ivslam report --json``: the report as a JSON document (keys are a stable interface).
+
+Top-level keys: ``mode``, ``runtime_s``, ``empty_events`` (int: how many), ``empty_event_list``
+(each: stamp, step, constraint, entity, measurement, text), ``intersections`` (total,
+non_empty), ``containment`` (kind → fraction, only kinds checkable against the truth),
+``containment_detail`` (kind → checked, contained, not_checked, failures), ``soundness``
+(kind → "ok" / "SOUNDNESS FAILURE" / relaxed note), ``sound`` (bool), ``centre_error``
+(kind → median, max [m]), ``final_width`` (kind → median, max, count, empty),
+``convergence`` (kind → initial/final median and max, increases, curve), ``rejected``,
+``q``, ``assumption``, ``stopped``, ``outliers_injected``, ``input``, ``config``, ``map``.
+NaN becomes null, ±inf the strings "inf"/"-inf".
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Any
+
+import numpy as np
+
+from ivslam_cli.report.core import Report, WidthStat, event_dicts
+from ivslam_cli.results.hdf5 import SCHEMA_VERSION
+
+
+def _num(x: float) -> float | None:
+    return None if x is None or (isinstance(x, float) and math.isnan(x)) else float(x)
+
+
+def _ws(w: WidthStat) -> dict[str, Any]:
+    return {"median": _num(w.median), "max": _num(w.max), "count": w.count, "empty": w.empty}
+
+
+def _arr(a: np.ndarray) -> list[float | None]:
+    return [_num(float(x)) for x in a]
+
+
+def report_dict(rep: Report) -> dict[str, Any]:
+    r = rep.result
+    p = r.provenance
+    c = r.consistency
+    out: dict[str, Any] = {
+        "ivslam_result_version": SCHEMA_VERSION,
+        "mode": r.mode,
+        "runtime_s": float(r.runtime_s),
+        "input": {"path": p.input_path, "format": p.input_format, "sha256": p.input_sha256, "topics": p.topics},
+        "command": p.command,
+        "ivslam_version": p.ivslam_version,
+        "config": p.config,
+        "q": dict(c.q),
+        "assumption": c.assumption,
+        "stopped": c.stopped,
+        "empty_events": rep.empty_events,
+        "empty_event_list": event_dicts(r),
+        "intersections": {"total": rep.intersections, "non_empty": rep.non_empty},
+        "rejected": {"count": len(c.rejected), "by_reason": rep.rejected_by_reason},
+        "outliers_injected": rep.outliers_injected,
+        "containment": {k: _num(v.fraction) for k, v in rep.containment.items()},
+        "containment_detail": {
+            k: {"checked": v.checked, "contained": v.contained, "not_checked": v.not_checked, "failures": v.failures}
+            for k, v in rep.containment.items()
+        },
+        "soundness": dict(rep.soundness),
+        "sound": rep.sound,
+        "centre_error": {
+            k: {
+                "median": _num(float(np.nanmedian(v.centre_error))) if np.any(~np.isnan(v.centre_error)) else None,
+                "max": _num(float(np.nanmax(v.centre_error))) if np.any(~np.isnan(v.centre_error)) else None,
+            }
+            for k, v in rep.containment.items()
+        },
+        "final_width": {k: _ws(v) for k, v in rep.final_width.items()},
+        "convergence": {
+            k: {
+                "definition": v.definition,
+                "entities": v.entities,
+                "updates": v.updates,
+                "initial": _ws(v.initial),
+                "final": _ws(v.final),
+                "increases": v.increases,
+                "curve": {"step": _arr(v.curve_step), "median": _arr(v.curve_median), "max": _arr(v.curve_max)},
+            }
+            for k, v in rep.convergence.items()
+        },
+        "dropped": [{"stream": d.stream, "count": d.count, "reason": d.reason} for d in p.dropped],
+    }
+    if r.grid is not None:
+        out["map"] = {
+            "origin": [float(x) for x in r.grid.origin],
+            "resolution": float(r.grid.resolution),
+            "shape": list(r.grid.shape),
+            "cells": rep.map_cells,
+            "area_m2": rep.map_area_m2,
+        }
+    return out
+
+
+def _clean(x: Any) -> Any:
+    """Strict JSON: NaN → null, ±inf → the strings "inf"/"-inf" (e.g. unbounded config values)."""
+    if isinstance(x, dict):
+        return {str(k): _clean(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_clean(v) for v in x]
+    if isinstance(x, float) and not math.isfinite(x):
+        return None if math.isnan(x) else ("inf" if x > 0 else "-inf")
+    return x
+
+
+def render_json(rep: Report) -> str:
+    return json.dumps(_clean(report_dict(rep)), indent=2, allow_nan=False)

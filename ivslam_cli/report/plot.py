@@ -1,0 +1,137 @@
+"""``ivslam report --plot FILE.png|.svg``: the map with the truth, and widths over time.
+
+matplotlib is imported lazily (only here, only when plotting) with the Agg backend, so the
+CLI never needs a display. Left panel, in world coordinates: the map grid (if any), the
+pose tube (x, y of the pose boxes), pair subpavings drawn where they place landmark i given
+landmark j (dl(i,j) + position of j: its truth when known, else its box centre; inner boxes
+darker), landmark boxes, and the truth (landmarks as crosses, trajectory as a line). Right
+panel: width-over-time curves per kind (median and max per step bin).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ivslam_cli.errors import IvslamError
+from ivslam_cli.report.core import Report, box_centre
+from ivslam_cli.results.atomic import atomic_path
+from ivslam_cli.results.model import CELL_EMPTY, CELL_OBSTACLE, LABEL_INNER, box_is_empty
+
+FORMATS = {".png": "png", ".svg": "svg"}
+MAX_BOXES = 20_000  # per layer; beyond, an even subsample is drawn (said in the legend)
+
+
+def _rects(ax, boxes: np.ndarray, **style) -> int:
+    from matplotlib.collections import PatchCollection
+    from matplotlib.patches import Rectangle
+
+    boxes = boxes[~box_is_empty(boxes) & np.all(np.isfinite(boxes.reshape(len(boxes), -1)), axis=1)]
+    if boxes.shape[0] > MAX_BOXES:
+        boxes = boxes[np.linspace(0, boxes.shape[0] - 1, MAX_BOXES).astype(int)]
+    patches = [Rectangle((b[0, 0], b[1, 0]), b[0, 1] - b[0, 0], b[1, 1] - b[1, 0]) for b in boxes]
+    if patches:
+        ax.add_collection(PatchCollection(patches, **style))
+    return len(patches)
+
+
+def _draw_map(ax, rep: Report) -> None:
+    r = rep.result
+    t = r.truth
+    if r.grid is not None and r.grid.state.size:
+        g = r.grid
+        img = np.full(g.state.shape + (4,), 0.0)
+        img[g.state == CELL_EMPTY] = (1.0, 1.0, 1.0, 1.0)
+        img[g.state == CELL_OBSTACLE] = (0.0, 0.0, 0.0, 1.0)
+        img[(g.state != CELL_EMPTY) & (g.state != CELL_OBSTACLE)] = (0.75, 0.75, 0.75, 1.0)
+        h, w = g.shape
+        ax.imshow(img, origin="lower", interpolation="nearest",
+                  extent=(g.origin[0], g.origin[0] + w * g.resolution, g.origin[1], g.origin[1] + h * g.resolution))
+    if r.poses is not None and len(r.poses):
+        _rects(ax, r.poses.box[:, :2], facecolor="tab:blue", alpha=0.15, edgecolor="tab:blue", linewidth=0.3)
+        c = box_centre(r.poses.box[:, :2])
+        ax.plot(c[:, 0], c[:, 1], color="tab:blue", lw=0.8, label="pose box centres")
+    known: dict[int, np.ndarray] = {}
+    if t is not None and t.landmark_id is not None and t.landmark_xy is not None:
+        known = {int(i): np.asarray(xy, float) for i, xy in zip(t.landmark_id, t.landmark_xy)}
+    offset = np.zeros(2)
+    if r.landmarks is not None and r.landmarks.reference_id is not None:
+        offset = known.get(r.landmarks.reference_id, np.zeros(2))  # draw a relative map at its reference
+    centres = {}
+    if r.landmarks is not None:
+        centres = {int(i): box_centre(b) + offset for i, b in zip(r.landmarks.id, r.landmarks.box)}
+    if r.pairs is not None and len(r.pairs):
+        shifted, inner = [], []
+        for p in range(len(r.pairs)):
+            j = int(r.pairs.j[p])
+            at = known.get(j, centres.get(j))
+            if at is None or np.any(np.isnan(at)):
+                continue
+            b = r.pairs.pair_boxes(p) + at[:, None]
+            shifted.append(b)
+            inner.append(r.pairs.label[r.pairs.offsets[p] : r.pairs.offsets[p + 1]] == LABEL_INNER)
+        if shifted:
+            b, m = np.concatenate(shifted), np.concatenate(inner)
+            _rects(ax, b[~m], facecolor="gold", alpha=0.5, edgecolor="none")
+            _rects(ax, b[m], facecolor="darkorange", alpha=0.8, edgecolor="none")
+            ax.plot([], [], "s", color="gold", label="pair subpavings (boundary / inner), placed at m_j")
+    if r.landmarks is not None and len(r.landmarks):
+        box = r.landmarks.box + offset[:, None]
+        _rects(ax, box, facecolor="none", edgecolor="tab:green", linewidth=1.0)
+        ax.plot([], [], "s", mfc="none", color="tab:green", label="landmark boxes")
+    if t is not None:
+        if t.pose is not None and len(t.pose):
+            ax.plot(t.pose[:, 0], t.pose[:, 1], color="tab:red", lw=0.8, ls="--", label="true trajectory")
+        if known:
+            xy = np.array(list(known.values()))
+            ax.plot(xy[:, 0], xy[:, 1], "x", color="tab:red", label="true landmarks")
+        if t.world is not None and len(t.world):
+            for x0, y0, x1, y1 in t.world:
+                ax.plot([x0, x1], [y0, y1], color="tab:red", lw=0.6)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.autoscale_view()
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(f"{r.mode}: enclosures and truth")
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize="x-small", loc="best")
+
+
+def _draw_widths(ax, rep: Report) -> None:
+    drawn = False
+    for kind, cv in rep.convergence.items():
+        if cv.curve_step.size:
+            line = ax.plot(cv.curve_step, cv.curve_median, label=f"{kind} median")[0]
+            ax.plot(cv.curve_step, cv.curve_max, ls=":", color=line.get_color(), label=f"{kind} max")
+            drawn = True
+    if drawn:
+        if all(np.all(cv.curve_max[~np.isnan(cv.curve_max)] > 0) for cv in rep.convergence.values()):
+            ax.set_yscale("log")
+        ax.legend(fontsize="x-small")
+    else:
+        ax.text(0.5, 0.5, "no width history", ha="center", va="center", transform=ax.transAxes)
+    ax.set_xlabel("step")
+    ax.set_ylabel("width [m]")
+    ax.set_title("widths over time")
+
+
+def plot_report(rep: Report, path: str | Path, *, force: bool = False) -> None:
+    """Write the figure to ``path`` (format from the suffix: .png or .svg), atomically."""
+    path = Path(path)
+    fmt = FORMATS.get(path.suffix.lower())
+    if fmt is None:
+        raise IvslamError(f"unsupported plot format {path.suffix or '(none)'!r}: use .png or .svg", path)
+    try:
+        import matplotlib
+    except ImportError:  # pragma: no cover - optional extra
+        raise IvslamError("plotting needs matplotlib (pip install 'ivslam[plot]')", path) from None
+    matplotlib.use("Agg", force=True)
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(12, 5.5), layout="constrained")
+    ax_map, ax_w = fig.subplots(1, 2, width_ratios=(1.3, 1))
+    _draw_map(ax_map, rep)
+    _draw_widths(ax_w, rep)
+    with atomic_path(path, force=force) as tmp:
+        fig.savefig(tmp, format=fmt, dpi=120)

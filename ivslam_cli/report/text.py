@@ -1,0 +1,121 @@
+"""``ivslam report``'s default output: the report as plain text for a terminal."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ivslam_cli.report.core import FAILURE, SOUND, Report, WidthStat, event_dicts
+
+MAX_LISTED = 20  # failures listed per kind (all empty events are always listed)
+
+
+def _g(x: float) -> str:
+    return "n/a" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.4g}"
+
+
+def _ws(w: WidthStat) -> str:
+    s = f"median {_g(w.median)}, max {_g(w.max)}"
+    return s + (f" ({w.empty} empty)" if w.empty else "")
+
+
+def _value(v: object) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return f"{v:g}"
+    if isinstance(v, list):
+        return "[" + ", ".join(_value(x) for x in v) + "]"
+    return "unset" if v is None else str(v)
+
+
+def _entity(constraint: str, entity: list[int]) -> str:
+    a, b = entity
+    if b >= 0:
+        return f"pair ({a},{b})"
+    return f"{'pose' if 'motion' in constraint or 'pose' in constraint else 'entity'} {a}"
+
+
+def render_text(rep: Report, source: str = "") -> str:
+    r = rep.result
+    p = r.provenance
+    c = r.consistency
+    out: list[str] = []
+    add = out.append
+    add(f"ivslam report{': ' + source if source else ''}")
+    add(f"run:        mode {r.mode}, ivslam {p.ivslam_version}, {r.runtime_s:.3g} s")
+    if p.command:
+        add(f"command:    {p.command}")
+    add(f"input:      {p.input_path} ({p.input_format}, sha256 {p.input_sha256[:16]}…)")
+    if p.topics:
+        add("topics:     " + ", ".join(f"{k}={v}" for k, v in sorted(p.topics.items())))
+    for d in p.dropped:
+        add(f"dropped:    {d.stream}: {d.count} ({d.reason})")
+    for section, values in p.config.items():
+        if isinstance(values, dict) and values:
+            add(f"[{section}]".ljust(12) + " ".join(f"{k}={_value(v)}" for k, v in values.items()))
+    add("q used:     " + (", ".join(f"{k}={v}" for k, v in c.q.items()) or "none (plain intersection)"))
+    if c.assumption:
+        add(f"guarantee:  {c.assumption}")
+
+    add("")
+    add(f"consistency: {rep.intersections} set updates, {rep.non_empty} stayed non-empty; "
+        f"{rep.empty_events} empty event{'s' if rep.empty_events != 1 else ''}")
+    for e in event_dicts(r):
+        meas = f" measurement {e['measurement']}" if e["measurement"] >= 0 else ""
+        add(f"  EMPTY step {e['step']} t={e['stamp']:.6g} {e['constraint']} {_entity(e['constraint'], e['entity'])}"
+            f"{meas}: {e['text']}")
+    if len(c.rejected):
+        add(f"  rejected {len(c.rejected)} measurement(s): "
+            + "; ".join(f"{why} ×{n}" for why, n in sorted(rep.rejected_by_reason.items())))
+    if c.stopped:
+        add(f"  STOPPED EARLY: {c.stopped}")
+
+    if rep.convergence:
+        add("")
+        add("convergence (widths, initial → final per entity):")
+        for kind, cv in rep.convergence.items():
+            add(f"  {kind:<9} {cv.entities} entities, {cv.updates} updates: initial {_ws(cv.initial)} → "
+                f"final {_ws(cv.final)}; widened {cv.increases} time(s)")
+            if cv.curve_median.size:
+                at = np.unique(np.round(np.linspace(0, cv.curve_median.size - 1, 5)).astype(int))
+                pts = ", ".join(f"step {cv.curve_step[i]:.0f}: {_g(cv.curve_median[i])}" for i in at)
+                add(f"            median curve: {pts}")
+            if cv.definition:
+                add(f"            width = {cv.definition}")
+    if rep.final_width:
+        add("final widths:")
+        for kind, w in rep.final_width.items():
+            add(f"  {kind:<13}{w.count} enclosures: {_ws(w)}")
+
+    add("")
+    if not rep.containment:
+        add("containment: no ground truth to check against")
+    else:
+        add("containment against ground truth:")
+        for kind, cn in rep.containment.items():
+            status = rep.soundness[kind]
+            err = cn.centre_error[~np.isnan(cn.centre_error)] if cn.centre_error.size else cn.centre_error
+            e = f"; centre error median {_g(float(np.median(err)))}, max {_g(float(np.max(err)))} m" if err.size else ""
+            skip = f" ({cn.not_checked} not checked)" if cn.not_checked else ""
+            add(f"  {kind:<9} {cn.contained}/{cn.checked} = {cn.fraction:.4f}  "
+                f"{'ok' if status == SOUND else status}{skip}{e}")
+            for f in cn.failures[:MAX_LISTED]:
+                add(f"            truth outside: {f}")
+            if len(cn.failures) > MAX_LISTED:
+                add(f"            … and {len(cn.failures) - MAX_LISTED} more")
+        if "pose" in rep.containment:
+            add("  (poses: truth between two steps checked against the hull of the two pose boxes)")
+        if rep.outliers_injected:
+            add(f"  outliers injected: {rep.outliers_injected}; relaxed: {'yes' if rep.relaxed else 'no'}")
+        if any(v == FAILURE for v in rep.soundness.values()):
+            add("SOUNDNESS FAILURE: an enclosure lost the truth although the stated bounds should hold")
+
+    if r.grid is not None:
+        g = r.grid
+        add("")
+        add(f"map grid:   {g.shape[1]}×{g.shape[0]} cells of {g.resolution:g} m at origin "
+            f"({g.origin[0]:g}, {g.origin[1]:g})")
+        add("            " + ", ".join(f"{k} {rep.map_cells[k]} cells = {rep.map_area_m2[k]:.4g} m²" for k in rep.map_cells))
+    return "\n".join(out) + "\n"

@@ -1,0 +1,82 @@
+"""Exports for other tools: TUM trajectories (evo) and ROS ``map_server`` maps.
+
+Both are derived views, not enclosures: a TUM line is the *centre* of a pose box; a PGM
+map shows the cell states. Files are written atomically and never overwrite without force.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+
+from ivslam_cli.results.atomic import refuse_existing, write_bytes_atomic, write_text_atomic
+from ivslam_cli.results.model import CELL_EMPTY, CELL_OBSTACLE, MapGrid, Poses, box_is_empty
+
+# map_server trinary PGM values (negate = 0): p = (255 − value) / 255 is the occupancy.
+PGM_FREE = 254
+PGM_OCCUPIED = 0
+PGM_UNKNOWN = 205
+OCCUPIED_THRESH = 0.65
+FREE_THRESH = 0.196
+
+
+def tum_text(poses: Poses) -> tuple[str, int]:
+    """TUM lines ``stamp x y z qx qy qz qw`` of box centres (z = 0, yaw-only quaternion).
+
+    Empty pose boxes have no centre and are skipped; returns (text, number skipped).
+    """
+    keep = ~box_is_empty(poses.box)
+    b = poses.box[keep]
+    c = 0.5 * (b[..., 0] + b[..., 1])
+    half = 0.5 * c[:, 2]
+    rows = np.column_stack(
+        [poses.stamp[keep], c[:, 0], c[:, 1], np.zeros(len(c)), np.zeros(len(c)), np.zeros(len(c)),
+         np.sin(half), np.cos(half)]
+    )
+    buf = io.StringIO()
+    buf.write("# timestamp x y z qx qy qz qw (centres of ivslam pose boxes)\n")
+    np.savetxt(buf, rows, fmt="%.17g")
+    return buf.getvalue(), int((~keep).sum())
+
+
+def write_tum(path: str | Path, poses: Poses, *, force: bool = False) -> int:
+    """Write a TUM trajectory; returns how many empty pose boxes were skipped."""
+    text, skipped = tum_text(poses)
+    write_text_atomic(path, text, force=force)
+    return skipped
+
+
+def pgm_bytes(grid: MapGrid) -> bytes:
+    """Binary (P5) trinary PGM; image row 0 is the top (largest y), as map_server expects."""
+    img = np.full(grid.state.shape, PGM_UNKNOWN, dtype=np.uint8)
+    img[grid.state == CELL_EMPTY] = PGM_FREE
+    img[grid.state == CELL_OBSTACLE] = PGM_OCCUPIED
+    img = np.ascontiguousarray(img[::-1])
+    h, w = img.shape
+    return f"P5\n# ivslam map\n{w} {h}\n255\n".encode("ascii") + img.tobytes()
+
+
+def map_yaml(grid: MapGrid, image_name: str) -> str:
+    ox, oy = (float(v) for v in grid.origin)
+    return (
+        f"image: {image_name}\n"
+        "mode: trinary\n"
+        f"resolution: {float(grid.resolution)!r}\n"
+        f"origin: [{ox!r}, {oy!r}, 0.0]\n"
+        "negate: 0\n"
+        f"occupied_thresh: {OCCUPIED_THRESH}\n"
+        f"free_thresh: {FREE_THRESH}\n"
+    )
+
+
+def write_map_server(prefix: str | Path, grid: MapGrid, *, force: bool = False) -> tuple[Path, Path]:
+    """Write ``PREFIX.pgm`` and ``PREFIX.yaml`` (the YAML names the PGM relative to itself)."""
+    prefix = Path(prefix)
+    pgm, yml = prefix.with_name(prefix.name + ".pgm"), prefix.with_name(prefix.name + ".yaml")
+    refuse_existing(pgm, force)
+    refuse_existing(yml, force)
+    write_bytes_atomic(pgm, pgm_bytes(grid), force=force)
+    write_text_atomic(yml, map_yaml(grid, pgm.name), force=force)
+    return pgm, yml
