@@ -72,7 +72,8 @@ def angle_in(lo: np.ndarray, hi: np.ndarray, theta: np.ndarray) -> np.ndarray:
 
 def box_centre(box: np.ndarray) -> np.ndarray:
     """Centres ``[..., d]``; NaN for empty boxes."""
-    c = 0.5 * (box[..., 0] + box[..., 1])
+    with np.errstate(invalid="ignore"):  # inf + (−inf) for empty boxes, masked below
+        c = 0.5 * (box[..., 0] + box[..., 1])
     return np.where(box_is_empty(box)[..., None], np.nan, c)
 
 

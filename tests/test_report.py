@@ -1,0 +1,241 @@
+"""`ivslam report`: computation on hand-made results with known containment, text, JSON, plots."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ivslam_cli.report.core import (
+    FAILURE,
+    RELAXED,
+    SOUND,
+    angle_in,
+    compute_report,
+    convergence,
+    pair_hulls,
+)
+from ivslam_cli.report.jsonout import report_dict
+from ivslam_cli.report.text import render_text
+from ivslam_cli.results.example import TRUE_LANDMARKS, example_result
+from ivslam_cli.results.hdf5 import write_result
+from ivslam_cli.results.model import WidthHistory
+
+
+def test_consistent_example_is_fully_contained():
+    rep = compute_report(example_result())
+    assert {k: c.fraction for k, c in rep.containment.items()} == {"landmark": 1.0, "pair": 1.0, "pose": 1.0}
+    assert rep.soundness == {"landmark": SOUND, "pair": SOUND, "pose": SOUND} and rep.sound
+    # 3 landmarks, 3 pairs, truth every 0.5 s over 5 s = 11 stamps
+    assert [rep.containment[k].checked for k in ("landmark", "pair", "pose")] == [3, 3, 11]
+    # landmark boxes are centred 0.05 off in x and y
+    np.testing.assert_allclose(rep.containment["landmark"].centre_error, math.hypot(0.05, 0.05))
+    np.testing.assert_allclose(rep.containment["pair"].centre_error, math.hypot(0.03, 0.03), atol=1e-12)
+    assert rep.final_width["landmark"].median == pytest.approx(0.4)
+    assert rep.final_width["pair"].max == pytest.approx(0.2)
+    assert rep.empty_events == 1
+
+
+def test_landmark_box_missing_truth_is_a_soundness_failure():
+    r = example_result()
+    r.landmarks.box[1, 0] += 1.0  # landmark 2's x interval moves 1 m right: truth outside
+    rep = compute_report(r)
+    assert rep.containment["landmark"].fraction == pytest.approx(2 / 3)
+    assert rep.containment["landmark"].failures == ["landmark 2"]
+    assert rep.soundness["landmark"] == FAILURE and not rep.sound
+    assert rep.soundness["pair"] == SOUND
+    text = render_text(rep)
+    assert "2/3 = 0.6667  SOUNDNESS FAILURE" in text
+    assert "truth outside: landmark 2" in text
+
+
+def test_injected_and_relaxed_outliers_are_not_a_failure():
+    r = example_result()
+    r.landmarks.box[1, 0] += 1.0
+    r.truth.outliers["observations"][4] = True
+    rep = compute_report(r)
+    assert rep.outliers_injected == 1 and rep.relaxed
+    assert rep.soundness["landmark"] == RELAXED
+    # ... but not when nothing was relaxed
+    r.consistency.q = {"pair": 0}
+    assert compute_report(r).soundness["landmark"] == FAILURE
+
+
+def test_pair_held_only_by_a_boundary_box_counts():
+    r = example_result()
+    p = r.pairs
+    # pair 0: drop every box but the inner one (corner 0.03 off the truth): truth is outside it
+    keep = np.ones(len(p.boxes), bool)
+    keep[1:4] = False
+    p.boxes, p.label = p.boxes[keep], p.label[keep]
+    p.offsets = np.array([0, 1, 5, 9])
+    rep = compute_report(r)
+    assert rep.containment["pair"].contained == 2 and rep.containment["pair"].failures == ["pair (1,2)"]
+    # the boundary box alone (the lower-left one) holds dl: contained
+    r2 = example_result()
+    keep = np.ones(len(r2.pairs.boxes), bool)
+    keep[0:3] = False
+    r2.pairs.boxes, r2.pairs.label = r2.pairs.boxes[keep], r2.pairs.label[keep]
+    r2.pairs.offsets = np.array([0, 1, 5, 9])
+    assert compute_report(r2).containment["pair"].fraction == 1.0
+
+
+def test_pair_with_empty_set_is_not_contained():
+    r = example_result()
+    p = r.pairs
+    p.boxes, p.label = p.boxes[4:], p.label[4:]
+    p.offsets = np.array([0, 0, 4, 8])
+    rep = compute_report(r)
+    assert rep.containment["pair"].failures == ["pair (1,2)"]
+    assert np.isnan(pair_hulls(p)[0]).sum() == 0 and np.isinf(pair_hulls(p)[0]).all()
+    assert rep.final_width["pair"].empty == 1
+
+
+def test_relative_map_is_checked_relative_to_its_reference():
+    r = example_result()
+    ref = np.array(TRUE_LANDMARKS[2])
+    r.landmarks.reference_id = 2
+    assert compute_report(r).containment["landmark"].fraction == pytest.approx(0.0)
+    r.landmarks.box = r.landmarks.box - ref[None, :, None]
+    assert compute_report(r).containment["landmark"].fraction == 1.0
+
+
+def test_pose_between_steps_uses_the_hull_of_neighbours():
+    r = example_result()
+    # box 2 (t = 2 s) shrinks to x in [2.25, 2.3]: the truth at t=1.5 (x=1.5) is still inside the
+    # hull of boxes 1 and 2 (x from 0.7), the truth at t=2 (x=2.0) is not inside box 2 itself.
+    r.poses.box[2, 0] = [2.25, 2.3]
+    rep = compute_report(r)
+    assert rep.containment["pose"].failures == ["truth pose at t=2"]
+    assert rep.containment["pose"].contained == 10
+
+
+def test_pose_heading_wraps_around():
+    r = example_result()
+    r.truth.pose[:, 2] = 0.1 + 2 * np.pi  # the same heading, one turn later
+    assert compute_report(r).containment["pose"].fraction == 1.0
+    r.truth.pose[3, 2] = 0.1 + np.pi
+    assert compute_report(r).containment["pose"].contained == 10
+
+
+def test_truth_outside_the_time_span_is_not_checked():
+    r = example_result()
+    r.truth.pose_stamp = r.truth.pose_stamp + 1.0  # last two stamps after the last pose
+    c = compute_report(r).containment["pose"]
+    assert c.not_checked == 2 and c.checked == 9
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    lo=st.floats(-20, 20),
+    w=st.floats(0, 8),
+    theta=st.floats(-20, 20),
+)
+def test_angle_in_matches_a_brute_force_search(lo, w, theta):
+    hi = lo + w
+    brute = any(lo <= theta + 2 * math.pi * n <= hi for n in range(-10, 11))
+    assert bool(angle_in(lo, hi, theta)) == brute
+
+
+def test_convergence_summary_and_increases():
+    h = WidthHistory(
+        entity=np.array([[1, 2]] * 4 + [[1, 3]] * 3),
+        step=np.array([0, 1, 2, 3, 0, 2, 4]),
+        stamp=np.zeros(7),
+        width=np.array([4.0, 2.0, 3.0, 1.0, 8.0, 2.0, 0.5]),
+    )
+    cv = convergence(h)
+    assert cv.entities == 2 and cv.updates == 7
+    assert cv.initial.median == 6.0 and cv.initial.max == 8.0
+    assert cv.final.median == 0.75 and cv.final.max == 1.0
+    assert cv.increases == 1  # 2.0 -> 3.0 for pair (1,2)
+    assert cv.curve_step.tolist() == [0, 1, 2, 3, 4]
+    assert cv.curve_median.tolist() == [6.0, 2.0, 2.5, 1.0, 0.5]
+
+
+def test_no_truth_means_no_containment():
+    r = example_result()
+    r.truth = None
+    rep = compute_report(r)
+    assert rep.containment == {} and rep.sound
+    assert "no ground truth" in render_text(rep)
+    assert report_dict(rep)["containment"] == {}
+
+
+# ----------------------------------------------------------------- the command
+@pytest.fixture
+def result_file(tmp_path):
+    def make(r=None, name="r.h5"):
+        path = tmp_path / name
+        write_result(path, r if r is not None else example_result())
+        return path
+
+    return make
+
+
+def test_cli_text(cli_run, result_file):
+    res = cli_run("report", result_file())
+    assert res.exit_code == 0, res.output
+    out = res.output
+    assert "mode pairs" in out and "range_abs=0.1" in out and "bearing=0.0175" in out
+    assert "1 empty event" in out and "EMPTY step 3 t=1.5 pair_intersection pair (1,3) measurement 7" in out
+    assert "landmark  3/3 = 1.0000  ok" in out
+    assert "initial median 0.8, max 0.8 → final median 0.2, max 0.2" in out
+    assert "SOUNDNESS FAILURE" not in out
+
+
+def test_cli_json_keys_and_values(cli_run, result_file):
+    r = example_result()
+    r.landmarks.box[0, 1] = [10.0, 11.0]  # landmark 1's y interval no longer holds y = 1
+    res = cli_run("report", result_file(r), "--json")
+    assert res.exit_code == 0, res.output
+    j = json.loads(res.output)
+    for key in ("mode", "empty_events", "containment", "final_width", "runtime_s"):
+        assert key in j
+    assert j["mode"] == "pairs" and j["runtime_s"] == 0.25 and j["empty_events"] == 1
+    assert j["containment"]["landmark"] == pytest.approx(2 / 3)
+    assert j["containment"]["pair"] == 1.0 and j["containment"]["pose"] == 1.0
+    assert j["soundness"]["landmark"] == FAILURE and j["sound"] is False
+    assert j["containment_detail"]["landmark"]["failures"] == ["landmark 1"]
+    assert j["final_width"]["pair"]["median"] == pytest.approx(0.2)
+    assert j["final_width"]["landmark"]["max"] == pytest.approx(1.0)
+    assert j["empty_event_list"][0]["entity"] == [1, 3]
+    assert j["q"] == {"pair": 1} and j["config"]["bounds"]["range_abs"] == 0.1
+    assert j["map"]["cells"] == {"unknown": 9, "empty": 6, "obstacle": 5}
+
+
+@pytest.mark.parametrize("suffix, magic", [(".png", b"\x89PNG\r\n\x1a\n"), (".svg", b"<?xml")])
+def test_cli_plot(cli_run, result_file, tmp_path, suffix, magic):
+    out = tmp_path / f"fig{suffix}"
+    res = cli_run("report", result_file(), "--plot", out)
+    assert res.exit_code == 0, res.output
+    data = out.read_bytes()
+    assert data.startswith(magic) and len(data) > 5000
+    if suffix == ".svg":
+        assert b"<svg" in data
+    # refuses to clobber it, keeps it
+    res = cli_run("report", result_file(name="r2.h5"), "--plot", out)
+    assert res.exit_code != 0 and "--force" in res.output
+    assert out.read_bytes() == data
+
+
+def test_cli_plot_bad_suffix(cli_run, result_file, tmp_path):
+    res = cli_run("report", result_file(), "--plot", tmp_path / "fig.bmp")
+    assert res.exit_code != 0 and "use .png or .svg" in res.output and "Traceback" not in res.output
+
+
+def test_cli_plot_without_truth_or_grid(cli_run, tmp_path):
+    r = example_result(with_grid=False)
+    r.truth = None
+    write_result(tmp_path / "r.h5", r)
+    res = cli_run("report", tmp_path / "r.h5", "--plot", tmp_path / "f.png")
+    assert res.exit_code == 0 and (tmp_path / "f.png").stat().st_size > 0
+
+
+def test_cli_help_has_example(cli_run):
+    res = cli_run("report", "--help")
+    assert res.exit_code == 0 and "  ivslam report result.h5" in res.output
