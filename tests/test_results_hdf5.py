@@ -245,3 +245,28 @@ def test_consistency_defaults_are_valid(tmp_path):
                consistency=Consistency(q={"pair": 0}))
     write_result(tmp_path / "r.h5", r)
     assert read_result(tmp_path / "r.h5").consistency.q == {"pair": 0}
+
+
+def test_schema_md_documents_every_name_written(tmp_path):
+    """Every dataset and attribute the writer produces is named in SCHEMA.md."""
+    doc = (Path(hdf5.__file__).parent / "SCHEMA.md").read_text()
+    path = tmp_path / "r.h5"
+    write_result(path, example_result())
+    names: set[str] = set()
+
+    def visit(name, obj):
+        parts = name.split("/")
+        if parts[0] in ("stats",) or parts[:2] in (["consistency", "q"], ["truth", "outliers"]):
+            return  # free-form keys (counters, q families, stream names)
+        if isinstance(obj, h5py.Dataset):
+            leaf = parts[-1]
+            names.add(leaf.removesuffix("_code").removesuffix("_vocab"))
+        for a in obj.attrs:
+            names.add(a)
+
+    with h5py.File(path, "r") as f:
+        names.update(f.attrs)
+        f.visititems(visit)
+    missing = sorted(n for n in names if n not in doc)
+    assert not missing, f"not documented in SCHEMA.md: {missing}"
+    assert len(names) > 30
