@@ -160,11 +160,18 @@ def _shrink(ol, oh, nl, nh):
 
 
 @njit(cache=True)
-def polar_pass(xl, xh, yl, yh, rl, rh, tl, th):
-    """One forward-backward pass (the body of Codac's ``CtcPolar::_contract``)."""
-    xl, xh, yl, yh, tl, th = catan2(xl, xh, yl, yh, tl, th)
-    if not (xl <= xh) or not (tl <= th):
-        return EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI
+def polar_pass(xl, xh, yl, yh, rl, rh, tl, th, cl, ch, sl, sh):
+    """One forward-backward pass (the body of Codac's ``CtcPolar::_contract``).
+
+    ``[cl, ch]``, ``[sl, sh]`` are cos and sin of the incoming ``[tl, th]`` (pass NaN to have them
+    computed); returns the 8 contracted bounds then cos and sin of the outgoing theta.
+    """
+    E = EMPTY_LO
+    F = EMPTY_HI
+    ntl, nth = tl, th
+    xl, xh, yl, yh, ntl, nth = catan2(xl, xh, yl, yh, tl, th)
+    if not (xl <= xh) or not (ntl <= nth):
+        return E, F, E, F, E, F, E, F, E, F, E, F
     a1l, a1h = sqr(xl, xh)
     a2l, a2h = sqr(yl, yh)
     a3l, a3h = add(a1l, a1h, a2l, a2h)
@@ -175,31 +182,47 @@ def polar_pass(xl, xh, yl, yh, rl, rh, tl, th):
     a1l, a1h, a2l, a2h = bwd_add(a3l, a3h, a1l, a1h, a2l, a2h)
     xl, xh = bwd_sqr(a1l, a1h, xl, xh)
     yl, yh = bwd_sqr(a2l, a2h, yl, yh)
-    cl, ch = cos(tl, th)
-    sl, sh = sin(tl, th)
+    if ntl != tl or nth != th or not (cl <= ch):
+        cl, ch = cos(ntl, nth)
+        sl, sh = sin(ntl, nth)
     xl, xh = inter(xl, xh, *mul(rl, rh, cl, ch))
     yl, yh = inter(yl, yh, *mul(rl, rh, sl, sh))
     if not (xl <= xh) or not (yl <= yh) or not (rl <= rh):
-        return EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI
-    return xl, xh, yl, yh, rl, rh, tl, th
+        return E, F, E, F, E, F, E, F, E, F, E, F
+    return xl, xh, yl, yh, rl, rh, ntl, nth, cl, ch, sl, sh
 
 
 @njit(cache=True)
 def polar_scalar(xl, xh, yl, yh, rl, rh, tl, th):
-    """Contract one box ``(dx, dy, rho, theta)``; all eight bounds empty if no solution."""
+    """Contract one box ``(dx, dy, rho, theta)``; all eight bounds empty if no solution.
+
+    Passes repeat while one shrinks some width by at least ``RELATIVE_STOP`` (at least the two
+    passes Codac makes, unless the first changes nothing: the second would then be identical).
+    """
+    E = EMPTY_LO
+    F = EMPTY_HI
     rl = max(rl, 0.0)
     if not (xl <= xh) or not (yl <= yh) or not (rl <= rh) or not (tl <= th):
-        return EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI
+        return E, F, E, F, E, F, E, F
+    cl = math.nan
+    ch = math.nan
+    sl = math.nan
+    sh = math.nan
     for k in range(MAX_PASSES):
-        nxl, nxh, nyl, nyh, nrl, nrh, ntl, nth = polar_pass(xl, xh, yl, yh, rl, rh, tl, th)
-        if not (nxl <= nxh):
-            return nxl, nxh, nyl, nyh, nrl, nrh, ntl, nth
+        r = polar_pass(xl, xh, yl, yh, rl, rh, tl, th, cl, ch, sl, sh)
+        if not (r[0] <= r[1]):
+            return E, F, E, F, E, F, E, F
         progress = max(
-            max(_shrink(xl, xh, nxl, nxh), _shrink(yl, yh, nyl, nyh)),
-            max(_shrink(rl, rh, nrl, nrh), _shrink(tl, th, ntl, nth)),
+            max(_shrink(xl, xh, r[0], r[1]), _shrink(yl, yh, r[2], r[3])),
+            max(_shrink(rl, rh, r[4], r[5]), _shrink(tl, th, r[6], r[7])),
         )
-        xl, xh, yl, yh, rl, rh, tl, th = nxl, nxh, nyl, nyh, nrl, nrh, ntl, nth
-        if k >= 1 and progress < RELATIVE_STOP:
+        unchanged = (
+            r[0] == xl and r[1] == xh and r[2] == yl and r[3] == yh
+            and r[4] == rl and r[5] == rh and r[6] == tl and r[7] == th
+        )
+        xl, xh, yl, yh, rl, rh, tl, th = r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7]
+        cl, ch, sl, sh = r[8], r[9], r[10], r[11]
+        if unchanged or (k >= 1 and progress < RELATIVE_STOP):
             break
     return xl, xh, yl, yh, rl, rh, tl, th
 

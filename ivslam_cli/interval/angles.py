@@ -11,11 +11,13 @@ import math
 
 from numba import njit
 
-from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO, add, div, inter, mul, sub
+from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO, add, inter, mul, sub
 from ivslam_cli.interval.rounding import (
     HALF_PI_HI,
     HALF_PI_LO,
     INF,
+    INV_TWO_PI_HI,
+    INV_TWO_PI_LO,
     PI_HI,
     TWO_PI_HI,
     TWO_PI_LO,
@@ -112,9 +114,14 @@ def angle_meet(tl, th, al, ah):
         return EMPTY_LO, EMPTY_HI
     if ah - al >= TWO_PI_LO or tl == -INF or th == INF:
         return tl, th
+    # Fast path: when w(t) + w(a) < 2 pi at most one copy of [a] meets [t]; if k = 0 does, done.
+    if up(up(th - tl) + up(ah - al)) < TWO_PI_LO:
+        pl, ph = inter(tl, th, al, ah)
+        if pl <= ph:
+            return pl, ph
     # candidate k: (t - a) / 2pi in [k] (enclosed outward, then one extra k each side is tried)
     ql, qh = sub(tl, th, al, ah)
-    ql, qh = div(ql, qh, TWO_PI_LO, TWO_PI_HI)
+    ql, qh = mul(ql, qh, INV_TWO_PI_LO, INV_TWO_PI_HI)
     k_lo = math.ceil(ql)
     k_hi = math.floor(qh)
     if k_hi - k_lo > 1e6:

@@ -24,10 +24,10 @@ from ivslam_cli.interval.rounding import (
     HALF_PI_HI,
     HALF_PI_LO,
     INF,
+    INV_TWO_PI_HI,
+    INV_TWO_PI_LO,
     PI_HI,
     PI_LO,
-    TWO_PI_HI,
-    TWO_PI_LO,
     down,
     down2,
     up,
@@ -208,11 +208,11 @@ def sqrt(al, ah):
 
 
 @njit(cache=True)
-def _has_point(al, ah, offset_lo, offset_hi, period_lo, period_hi):
-    """May ``[a]`` contain a point ``offset + k * period`` (k integer)? Conservative: True if unsure."""
-    # k must satisfy (a - offset) / period in [k, k]; enclose the quotient outward.
+def _has_point(al, ah, offset_lo, offset_hi):
+    """May ``[a]`` contain a point ``offset + 2 k pi`` (k integer)? Conservative: True if unsure."""
+    # k must satisfy (a - offset) / (2 pi) in [k, k]; enclose the quotient outward.
     ql, qh = sub(al, ah, offset_lo, offset_hi)
-    ql, qh = div(ql, qh, period_lo, period_hi)
+    ql, qh = mul(ql, qh, INV_TWO_PI_LO, INV_TWO_PI_HI)
     return math.ceil(ql) <= math.floor(qh)
 
 
@@ -226,9 +226,9 @@ def sin(al, ah):
     s2 = math.sin(ah)
     lo = max(-1.0, down2(min(s1, s2)))
     hi = min(1.0, up2(max(s1, s2)))
-    if _has_point(al, ah, HALF_PI_LO, HALF_PI_HI, TWO_PI_LO, TWO_PI_HI):
+    if _has_point(al, ah, HALF_PI_LO, HALF_PI_HI):
         hi = 1.0
-    if _has_point(al, ah, -HALF_PI_HI, -HALF_PI_LO, TWO_PI_LO, TWO_PI_HI):
+    if _has_point(al, ah, -HALF_PI_HI, -HALF_PI_LO):
         lo = -1.0
     return lo, hi
 
@@ -243,9 +243,9 @@ def cos(al, ah):
     c2 = math.cos(ah)
     lo = max(-1.0, down2(min(c1, c2)))
     hi = min(1.0, up2(max(c1, c2)))
-    if _has_point(al, ah, 0.0, 0.0, TWO_PI_LO, TWO_PI_HI):
+    if _has_point(al, ah, 0.0, 0.0):
         hi = 1.0
-    if _has_point(al, ah, PI_LO, PI_HI, TWO_PI_LO, TWO_PI_HI):
+    if _has_point(al, ah, PI_LO, PI_HI):
         lo = -1.0
     return lo, hi
 

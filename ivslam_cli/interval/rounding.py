@@ -36,6 +36,9 @@ TWO_PI_LO = 2.0 * PI_LO  # exact scaling by 2
 TWO_PI_HI = 2.0 * PI_HI
 HALF_PI_LO = 0.5 * PI_LO
 HALF_PI_HI = 0.5 * PI_HI
+# 1 / (2 pi): the double quotient is within 2 ulps of the real number; step 2 ulps each way.
+INV_TWO_PI_LO = float(np.nextafter(np.nextafter(1.0 / (2.0 * math.pi), -INF), -INF))
+INV_TWO_PI_HI = float(np.nextafter(np.nextafter(1.0 / (2.0 * math.pi), INF), INF))
 
 
 @njit(cache=True)
