@@ -106,7 +106,7 @@ def read_carmen(path: Path) -> LogData:
             sink.add([k], [stamp], [amin], [inc], [0.0], [rm], r.reshape(1, -1))
         scans = sink.finish(dropped, zero_reason="beams equal to 0 (no return, marked invalid)",
                             mount=(mount_x, 0.0, 0.0), frame_id="laser")
-        meta["scan_odometry_pose"] = np.asarray([row[1:] for row in scan_odo])
+        meta["scan_odometry_pose"] = [list(row[1:]) for row in scan_odo]
         meta["angles"] = "FLASER: 180 deg field of view from -90 deg assumed"
     if odom:
         a = np.asarray(odom, np.float64)

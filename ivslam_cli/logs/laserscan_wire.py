@@ -120,18 +120,25 @@ def decode_laserscans(payloads: list, ros: int) -> tuple[list[ScanBlock], np.nda
                 if sub.size == 0:
                     continue
                 used[sub] = True
-                frame = bytes(rows[sub[0], 16:16 + fl]).rstrip(b"\0")
-                blocks.append(ScanBlock(
-                    index=idx[sub],
-                    stamp=recs["sec"].astype(np.float64) + recs["nsec"] * 1e-9,
-                    angle_min=recs["angle_min"].astype(np.float64),
-                    angle_max=recs["angle_max"].astype(np.float64),
-                    angle_increment=recs["angle_increment"].astype(np.float64),
-                    range_min=recs["range_min"].astype(np.float64),
-                    range_max=recs["range_max"].astype(np.float64),
-                    ranges=recs["ranges"],
-                    frame_id=frame.decode("utf-8", "replace"),
-                ))
+                # one block per distinct frame_id (same length, different bytes)
+                frames = rows[sub, 16:16 + fl]
+                _, which = np.unique(frames, axis=0, return_inverse=True)
+                which = which.reshape(-1)
+                for u in range(int(which.max()) + 1):
+                    pick = which == u
+                    r, s_ = recs[pick], sub[pick]
+                    frame = bytes(rows[s_[0], 16:16 + fl]).rstrip(b"\0")
+                    blocks.append(ScanBlock(
+                        index=idx[s_],
+                        stamp=r["sec"].astype(np.float64) + r["nsec"] * 1e-9,
+                        angle_min=r["angle_min"].astype(np.float64),
+                        angle_max=r["angle_max"].astype(np.float64),
+                        angle_increment=r["angle_increment"].astype(np.float64),
+                        range_min=r["range_min"].astype(np.float64),
+                        range_max=r["range_max"].astype(np.float64),
+                        ranges=r["ranges"],
+                        frame_id=frame.decode("utf-8", "replace"),
+                    ))
         rejected.append(idx[~used])  # whatever no block took is malformed
     bad = np.concatenate(rejected) if rejected else np.zeros(0, np.int64)
     return blocks, np.sort(bad)

@@ -70,4 +70,4 @@ def read_urg(path: Path) -> LogData:
                       notes=["odometry integrated from wheel ticks with the rover geometry "
                              "in meta['rover']"])
     return LogData(provenance=prov, scans=scans, odometry=odometry,
-                   meta={"rover": dict(ROVER), "ticks": a[:, 2:4].astype(np.int64)})
+                   meta={"rover": dict(ROVER), "ticks": a[:, 2:4].astype(np.int64).tolist()})

@@ -67,4 +67,4 @@ def read_victoria(path: Path) -> LogData:
                       notes=["no timestamps: stamps are pose ids",
                              "odometry poses composed from the ODOMETRY increments"])
     return LogData(provenance=prov, odometry=odometry, observations=obs,
-                   meta={"stamps": "pose id", "increments": inc})
+                   meta={"stamps": "pose id", "increments": inc.tolist()})
