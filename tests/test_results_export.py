@@ -126,3 +126,20 @@ def test_input_sha256_file_and_directory(tmp_path):
     assert h1 != h0
     (d / "x.db3").rename(d / "y.db3")
     assert input_sha256(d) != h1
+
+
+def test_make_provenance_from_a_log(tmp_path):
+    from ivslam_cli.config import resolve_config
+    from ivslam_cli.logs.model import Dropped, Provenance
+    from ivslam_cli.results.provenance import make_provenance
+
+    log = tmp_path / "x.log"
+    log.write_bytes(b"abc")
+    p = make_provenance(
+        Provenance(str(log), "carmen", {"scans": "FLASER"}, [Dropped("scans", 3, "NaN range")], ["n"]),
+        resolve_config(overrides={"robust.q_pair": 2}).as_dict(),
+        ["run", str(log), "--mode", "pairs", "-o", "a b.h5"],
+    )
+    assert p.input_sha256 == "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
+    assert p.command == f"ivslam run {log} --mode pairs -o 'a b.h5'"
+    assert p.config["robust"]["q_pair"] == 2 and p.dropped[0].count == 3 and p.input_format == "carmen"
