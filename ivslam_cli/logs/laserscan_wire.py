@@ -122,8 +122,10 @@ def decode_laserscans(payloads: list, ros: int) -> tuple[list[ScanBlock], np.nda
                 used[sub] = True
                 # one block per distinct frame_id (same length, different bytes)
                 frames = rows[sub, 16:16 + fl]
-                _, which = np.unique(frames, axis=0, return_inverse=True)
-                which = which.reshape(-1)
+                if (frames == frames[:1]).all():  # the usual case: one frame
+                    which = np.zeros(sub.size, np.int64)
+                else:
+                    which = np.unique(frames, axis=0, return_inverse=True)[1].reshape(-1)
                 for u in range(int(which.max()) + 1):
                     pick = which == u
                     r, s_ = recs[pick], sub[pick]
