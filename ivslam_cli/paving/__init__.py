@@ -1,0 +1,17 @@
+"""Subpavings on a regular grid (SIVIA), and set operations on them.
+
+    >>> from ivslam_cli import paving
+    >>> sector = paving.polar_set((0.0, 0.0), rho=(4.9, 5.1), theta=(0.3, 0.32))
+    >>> p = paving.pave(sector, [[-10, 10], [-10, 10]], eps=0.01)
+    >>> p.inner_area() <= 0.02 <= p.outer_area()
+    True
+"""
+
+from ivslam_cli.paving.classifiers import Intersection, KernelClassifier, box_set, polar_set
+from ivslam_cli.paving.grid import BOUNDARY, INNER, Grid, GridPaving, PavingLimitError, empty_paving
+from ivslam_cli.paving.sivia import pave
+
+__all__ = [
+    "BOUNDARY", "INNER", "Grid", "GridPaving", "Intersection", "KernelClassifier",
+    "PavingLimitError", "box_set", "empty_paving", "pave", "polar_set",
+]

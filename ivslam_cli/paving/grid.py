@@ -1,0 +1,193 @@
+"""The regular grid and the subpaving stored on it (:class:`GridPaving`).
+
+A grid is an origin ``(ox, oy)`` and a resolution ``eps``. Cell ``(i, j)`` is the box
+``[x(i), x(i+1)] x [y(j), y(j+1)]`` with ``x(i) = ox + i * eps`` evaluated in float64, always with
+that same expression, so neighbouring cells share their float boundary exactly: the cells tile
+the plane with no gap whatever the rounding (``x(i)`` is non-decreasing in ``i``).
+
+A :class:`GridPaving` keeps the cells that are not proven outside its set, as a structure of
+arrays sorted by a 64-bit key of ``(i, j)``:
+
+- ``label`` INNER (the whole cell is proven inside the set) or BOUNDARY (the cell may hold points
+  of the set);
+- ``box``: a box inside the cell that holds every point of the set lying in the cell (for INNER
+  cells, the cell itself).
+
+Outer approximation = union of the boxes; inner approximation = union of the INNER cells.
+Pavings on the same grid (same origin and resolution) combine cell by cell.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+INNER = 1  # same codes as ivslam_cli.results.model LABEL_INNER / LABEL_BOUNDARY
+BOUNDARY = 2
+
+_BIAS = 1 << 31
+MAX_INDEX = (1 << 31) - 1  # |i|, |j| must stay below this to fit the 64-bit key
+
+
+class PavingLimitError(ValueError):
+    """A paving would exceed its cell limit (raise the limit or coarsen ``eps``)."""
+
+
+@njit(cache=True)
+def cell_key(i, j):
+    """64-bit key of cell ``(i, j)``; keys sort as ``(i, j)`` lexicographically."""
+    return ((i + _BIAS) << 32) | (j + _BIAS)
+
+
+@njit(cache=True)
+def key_i(k):
+    return (k >> 32) - _BIAS
+
+
+@njit(cache=True)
+def key_j(k):
+    return (k & 0xFFFFFFFF) - _BIAS
+
+
+@njit(cache=True)
+def coord(o, i, eps):
+    """Float boundary ``o + i * eps`` of the grid (the one expression used everywhere)."""
+    return o + float(i) * eps
+
+
+@njit(cache=True)
+def cell_of(o, eps, x):
+    """Index range ``(i_lo, i_hi)`` of the cells whose closed float interval holds ``x``.
+
+    Usually one cell, two when ``x`` is on a boundary. The division only gives a guess; the
+    answer is checked against :func:`coord` so rounding cannot place ``x`` in the wrong cell.
+    """
+    g = math.floor((x - o) / eps)
+    i = np.int64(g)
+    while coord(o, i, eps) > x:
+        i -= 1
+    while coord(o, i + 1, eps) < x:
+        i += 1
+    lo = i - 1 if coord(o, i, eps) == x else i  # x on the left edge: cell i-1 holds it too
+    hi = i + 1 if coord(o, i + 1, eps) == x else i  # on the right edge: cell i+1 too
+    return lo, hi
+
+
+@dataclass(frozen=True)
+class Grid:
+    """A regular grid: origin ``(ox, oy)`` and resolution ``eps > 0`` (both exact doubles)."""
+
+    ox: float
+    oy: float
+    eps: float
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.ox) and math.isfinite(self.oy)):
+            raise ValueError(f"grid origin must be finite, got ({self.ox}, {self.oy})")
+        if not (math.isfinite(self.eps) and self.eps > 0.0):
+            raise ValueError(f"grid resolution eps must be finite and > 0, got {self.eps}")
+
+    def cell_range(self, lo: float, hi: float, axis: int) -> tuple[int, int]:
+        """Inclusive cell indices ``(a, b)`` whose cells cover ``[lo, hi]`` on ``axis`` (snapped outward)."""
+        o = self.ox if axis == 0 else self.oy
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+            raise ValueError(f"domain bounds must be finite with lo <= hi, got [{lo}, {hi}]")
+        if max(abs(lo - o), abs(hi - o)) / self.eps >= MAX_INDEX - 2:
+            raise PavingLimitError(f"[{lo}, {hi}] is too far from the grid origin at eps={self.eps}")
+        a = cell_of(o, self.eps, lo)[1]  # on an edge: the cell to the right of it
+        b = max(a, cell_of(o, self.eps, hi)[0])  # on an edge: the cell to the left of it
+        if max(abs(a), abs(b)) >= MAX_INDEX:
+            raise PavingLimitError(f"[{lo}, {hi}] is too far from the grid origin at eps={self.eps}")
+        return int(a), int(b)
+
+
+@dataclass(frozen=True, eq=False)
+class GridPaving:
+    """Cells of ``grid`` that may hold points of a set, with their labels and boxes.
+
+    ``key`` (N,) int64 strictly increasing (see :func:`cell_key`); ``label`` (N,) uint8 in
+    {INNER, BOUNDARY}; ``box`` (N, 2, 2) float64, ``box[k, d] = [lo, hi]`` on axis d (x, y),
+    a non-empty box inside cell ``k`` (the cell itself when INNER).
+    """
+
+    grid: Grid
+    key: np.ndarray
+    label: np.ndarray
+    box: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.key.shape[0])
+
+    @property
+    def i(self) -> np.ndarray:
+        return (self.key >> 32) - _BIAS
+
+    @property
+    def j(self) -> np.ndarray:
+        return (self.key & 0xFFFFFFFF) - _BIAS
+
+    @property
+    def inner_mask(self) -> np.ndarray:
+        return self.label == INNER
+
+    def cells(self) -> np.ndarray:
+        """The (N, 2, 2) cell boxes of the stored cells."""
+        g = self.grid
+        i = self.i.astype(np.float64)
+        j = self.j.astype(np.float64)
+        out = np.empty((len(self), 2, 2))
+        out[:, 0, 0] = g.ox + i * g.eps
+        out[:, 0, 1] = g.ox + (i + 1.0) * g.eps
+        out[:, 1, 0] = g.oy + j * g.eps
+        out[:, 1, 1] = g.oy + (j + 1.0) * g.eps
+        return out
+
+    # ----------------------------------------------------------------- measures
+    def is_empty(self) -> bool:
+        """True when the outer approximation is empty (then the set is proven empty)."""
+        return len(self) == 0
+
+    def outer_area(self) -> float:
+        """Area of the outer approximation (>= the area of the set, up to float summation)."""
+        b = self.box
+        return float(np.sum((b[:, 0, 1] - b[:, 0, 0]) * (b[:, 1, 1] - b[:, 1, 0])))
+
+    def inner_area(self) -> float:
+        """Area of the inner approximation (<= the area of the set, up to float summation)."""
+        b = self.box[self.inner_mask]
+        return float(np.sum((b[:, 0, 1] - b[:, 0, 0]) * (b[:, 1, 1] - b[:, 1, 0])))
+
+    def hull(self) -> np.ndarray:
+        """Bounding box (2, 2) of the outer approximation: an outer approximation of the set's
+        hull. Empty paving: ``[[inf, -inf], [inf, -inf]]``."""
+        out = np.empty((2, 2))
+        if len(self) == 0:
+            out[:, 0] = np.inf
+            out[:, 1] = -np.inf
+            return out
+        out[:, 0] = self.box[:, :, 0].min(axis=0)
+        out[:, 1] = self.box[:, :, 1].max(axis=0)
+        return out
+
+    def to_boxes(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(boxes (B, 2, 2) float64, label (B,) uint8)``, 1 inner / 2 boundary (HDF5 layout).
+
+        The union of the boxes is the outer approximation; the label-1 boxes form the inner one.
+        """
+        return self.box.copy(), self.label.copy()
+
+    def same_grid(self, other: GridPaving) -> None:
+        if self.grid != other.grid:
+            raise ValueError(f"pavings are on different grids: {self.grid} vs {other.grid}")
+
+    def __repr__(self) -> str:
+        n_in = int(np.count_nonzero(self.inner_mask))
+        return (f"GridPaving(eps={self.grid.eps}, origin=({self.grid.ox}, {self.grid.oy}), "
+                f"{n_in} inner + {len(self) - n_in} boundary cells)")
+
+
+def empty_paving(grid: Grid) -> GridPaving:
+    return GridPaving(grid, np.empty(0, np.int64), np.empty(0, np.uint8), np.empty((0, 2, 2)))
