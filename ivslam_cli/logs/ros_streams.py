@@ -18,6 +18,7 @@ from ivslam_cli.logs.conventions import ScanSink, make_observations, make_odomet
 from ivslam_cli.logs.laserscan_wire import decode_laserscans
 from ivslam_cli.logs.model import Dropped, GroundTruth, LogData, Provenance
 from ivslam_cli.logs.msgdefs import LANDMARK_MSG_ROS2
+from ivslam_cli.simulate.meta import META_TOPIC, decode_meta
 
 SCAN = "sensor_msgs/msg/LaserScan"
 ODOM = "nav_msgs/msg/Odometry"
@@ -26,7 +27,8 @@ TWIST_STAMPED = "geometry_msgs/msg/TwistStamped"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 TF_TYPES = ("tf2_msgs/msg/TFMessage", "tf/msg/tfMessage")
 LANDMARKS = LANDMARK_MSG_ROS2
-KNOWN = (SCAN, ODOM, TWIST, TWIST_STAMPED, POSE_STAMPED, LANDMARKS, *TF_TYPES)
+STRING = "std_msgs/msg/String"
+KNOWN = (SCAN, ODOM, TWIST, TWIST_STAMPED, POSE_STAMPED, LANDMARKS, STRING, *TF_TYPES)
 
 
 def normalize_type(name: str) -> str:
@@ -88,6 +90,8 @@ def choose_topics(path, topics: dict[str, tuple[str, int]], *, scan_topic=None,
         roles["landmarks"] = t
     for tf in of(*TF_TYPES):
         roles["tf_static" if "static" in tf else "tf"] = tf  # at most one of each used
+    if topics.get(META_TOPIC, ("",))[0] == STRING:
+        roles["meta"] = META_TOPIC  # what simulated logs know of their truth and bounds
     return roles
 
 
@@ -123,6 +127,7 @@ class StreamCollector:
         self.lm: list[tuple] = []
         self.bad_lm = 0
         self.tf: dict[str, tuple[str, float, float, float]] = {}
+        self.meta_text: str | None = None
 
     # -- scans: raw payloads, decoded in batches ---------------------------------
     def add_scan_payloads(self, payloads: list, log_times: np.ndarray) -> None:
@@ -162,6 +167,9 @@ class StreamCollector:
                 return
             self.lm.append((_stamp(msg.header), np.asarray(msg.id), np.asarray(msg.range),
                             np.asarray(msg.bearing)))
+        elif role == "meta":
+            if self.meta_text is None:
+                self.meta_text = msg.data
         elif role in ("tf", "tf_static"):
             for t in msg.transforms:
                 child = t.child_frame_id.lstrip("/")
@@ -234,5 +242,25 @@ class StreamCollector:
                           topics={r: t for r, t in self.roles.items()}, dropped=dropped,
                           notes=self.notes)
         meta = {"topics": {t: {"type": ty, "count": c} for t, (ty, c) in self.topics.items()}}
-        return LogData(provenance=prov, scans=scans, odometry=odometry,
-                       observations=observations, truth=truth, meta=meta)
+        log = LogData(provenance=prov, scans=scans, odometry=odometry,
+                      observations=observations, truth=truth, meta=meta)
+        if self.meta_text is not None:
+            self._apply_meta(log)
+        return log
+
+    def _apply_meta(self, log: LogData) -> None:
+        """Recover the bounds, true map and outlier masks a simulated log carries."""
+        try:
+            rec = decode_meta(self.meta_text)
+        except ValueError as exc:
+            self.notes.append(f"{META_TOPIC} ignored: {exc}")
+            return
+        log.bounds = dict(rec.bounds)
+        log.meta.update(rec.meta)
+        truth = log.truth if log.truth is not None else GroundTruth()
+        if rec.landmark_id is not None:
+            truth.landmark_id, truth.landmark_xy = rec.landmark_id, rec.landmark_xy
+        if rec.world is not None:
+            truth.world = rec.world
+        truth.outliers.update(rec.outliers)
+        log.truth = truth

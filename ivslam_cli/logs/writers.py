@@ -108,14 +108,8 @@ def _quat(ts, yaw: float):
 
 
 def _store(ros: int):
-    """The project typestore; the ROS 1 (Noetic) store of rosbags lacks ``tf2_msgs``,
-    whose one-line definition is registered here (additive, same as upstream)."""
-    ts = typestore(ros)
-    if T_TF not in ts.types:
-        from rosbags.typesys import get_types_from_msg
-
-        ts.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", T_TF))
-    return ts
+    """The project typestore (it registers ``tf2_msgs`` for ROS 1 too)."""
+    return typestore(ros)
 
 
 class _Builder:
