@@ -9,9 +9,20 @@
 
 from ivslam_cli.paving.classifiers import Intersection, KernelClassifier, box_set, polar_set
 from ivslam_cli.paving.grid import BOUNDARY, INNER, Grid, GridPaving, PavingLimitError, empty_paving
+from ivslam_cli.paving.ops import (
+    affine,
+    contains_points,
+    from_boxes,
+    intersection,
+    minkowski_sub,
+    negate,
+    translate,
+    union,
+)
 from ivslam_cli.paving.sivia import pave
 
 __all__ = [
     "BOUNDARY", "INNER", "Grid", "GridPaving", "Intersection", "KernelClassifier",
-    "PavingLimitError", "box_set", "empty_paving", "pave", "polar_set",
+    "PavingLimitError", "affine", "box_set", "contains_points", "empty_paving", "from_boxes",
+    "intersection", "minkowski_sub", "negate", "pave", "polar_set", "translate", "union",
 ]

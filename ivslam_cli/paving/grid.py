@@ -28,8 +28,8 @@ from numba import njit
 INNER = 1  # same codes as ivslam_cli.results.model LABEL_INNER / LABEL_BOUNDARY
 BOUNDARY = 2
 
-_BIAS = 1 << 31
-MAX_INDEX = (1 << 31) - 1  # |i|, |j| must stay below this to fit the 64-bit key
+_BIAS = 1 << 30  # (i + _BIAS) < 2^31, so the key stays a positive int64
+MAX_INDEX = (1 << 30) - 1  # |i|, |j| must stay below this to fit the 64-bit key
 
 
 class PavingLimitError(ValueError):

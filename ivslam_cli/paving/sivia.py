@@ -26,6 +26,8 @@ from ivslam_cli.paving.grid import (
     GridPaving,
     PavingLimitError,
     cell_key,
+    key_i,
+    key_j,
     coord,
     empty_paving,
 )
@@ -182,8 +184,8 @@ def _inner_cells(keys, ox, oy, h):
     n = keys.shape[0]
     b = np.empty((n, 2, 2))
     for k in range(n):
-        i = (keys[k] >> 32) - (1 << 31)
-        j = (keys[k] & 0xFFFFFFFF) - (1 << 31)
+        i = key_i(keys[k])
+        j = key_j(keys[k])
         b[k, 0, 0] = coord(ox, i, h)
         b[k, 0, 1] = coord(ox, i + 1, h)
         b[k, 1, 0] = coord(oy, j, h)
