@@ -19,16 +19,19 @@ def _set_numba_cache_dir() -> None:
 
     numba invalidates a cached function only when *its own* file changes, so editing a jitted
     callee in another module would leave callers stale. Keying the cache directory by every
-    source file of the package makes any change (or upgrade) start from a clean cache, while
-    an unchanged install reuses it across processes. ``NUMBA_CACHE_DIR`` set by the user wins.
+    source file that holds numba code makes any kernel change (or upgrade) start from a clean
+    cache, while an unchanged install reuses it across processes. ``NUMBA_CACHE_DIR`` set by
+    the user wins.
     """
     if "NUMBA_CACHE_DIR" in os.environ:
         return
     root = Path(__file__).resolve().parent
     digest = hashlib.sha1(__version__.encode())
     for path in sorted(root.rglob("*.py")):
-        digest.update(path.relative_to(root).as_posix().encode())
-        digest.update(path.read_bytes())
+        text = path.read_bytes()
+        if b"numba" in text:
+            digest.update(path.relative_to(root).as_posix().encode())
+            digest.update(text)
     base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
     os.environ["NUMBA_CACHE_DIR"] = str(base / "ivslam" / "numba" / digest.hexdigest()[:16])
 

@@ -239,3 +239,17 @@ def test_cli_plot_without_truth_or_grid(cli_run, tmp_path):
 def test_cli_help_has_example(cli_run):
     res = cli_run("report", "--help")
     assert res.exit_code == 0 and "  ivslam report result.h5" in res.output
+
+
+def test_plot_with_no_inner_boxes(tmp_path):
+    """A pair subpaving with only boundary boxes (no inner layer) still plots."""
+    from ivslam_cli.report.core import compute_report
+    from ivslam_cli.report.plot import plot_report
+    from ivslam_cli.results.example import example_result
+    from ivslam_cli.results.model import LABEL_BOUNDARY
+
+    r = example_result()
+    if r.pairs is not None:
+        r.pairs.label[:] = LABEL_BOUNDARY
+    plot_report(compute_report(r), tmp_path / "p.png")
+    assert (tmp_path / "p.png").stat().st_size > 0

@@ -1,11 +1,83 @@
-"""`ivslam run` (not implemented yet)."""
+"""``ivslam run LOG``: read a log, run a pipeline, write the HDF5 result."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
 
 import click
 
-from ivslam_cli.errors import IvslamError
+MODES = ("pairs", "landmarks", "lidar")
+
+
+def _default_output(log: str, mode: str) -> Path:
+    p = Path(log.rstrip("/"))
+    return p.with_name(f"{p.name.split('.')[0]}.{mode}.h5")
 
 
 @click.command(name="run")
-def command() -> None:
-    """Not available yet in this version."""
-    raise IvslamError("'ivslam run' is not implemented yet in this version")
+@click.argument("log", type=click.Path(exists=False))
+@click.option("--mode", type=click.Choice(MODES), default="pairs", show_default=True,
+              help="pairs: landmark displacement subpavings (seed 000); landmarks: pose/landmark CSP; "
+                   "lidar: feature-less P_EMPTY/P_OBSTACLE (seed 001).")
+@click.option("-o", "--output", type=click.Path(), default=None,
+              help="Result file [default: LOG name + .MODE.h5 beside the log].")
+@click.option("--config", "config_file", type=click.Path(), default=None, help="TOML configuration file.")
+@click.option("--force", is_flag=True, help="Overwrite an existing result.")
+@click.option("--format", "fmt", default=None, help="Force the log reader (see `ivslam inspect --help`).")
+@click.option("--robot", type=int, default=None, help="MRCLAM robot number.")
+@click.option("--scan-topic", default=None)
+@click.option("--odom-topic", default=None)
+@click.option("--landmark-topic", default=None)
+@click.option("--truth-topic", default=None)
+@click.option("--range-abs", type=float, default=None, help="bounds.range_abs [m].")
+@click.option("--range-rel", type=float, default=None, help="bounds.range_rel.")
+@click.option("--bearing", type=float, default=None, help="bounds.bearing [rad].")
+@click.option("--q", "q_pair", type=int, default=None, help="robust.q_pair: inconsistent observations tolerated per pair.")
+@click.option("--strict", is_flag=True, default=None, help="Fail (exit 3) on the first empty intersection.")
+@click.option("--eps", type=float, default=None, help="pairs.eps: subpaving resolution [m].")
+@click.option("--heading", type=(float, float), default=None, metavar="LO HI",
+              help="pairs.heading: known heading interval [rad].")
+@click.option("--anchor", type=(int, float, float), default=None, metavar="ID X Y",
+              help="Anchoring landmark and its known position (absolute map).")
+@click.option("--reference", type=int, default=None, help="pairs.reference_id for a relative map.")
+@click.pass_context
+def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, odom_topic, landmark_topic,
+            truth_topic, range_abs, range_rel, bearing, q_pair, strict, eps, heading, anchor, reference):
+    """Run a guaranteed SLAM pipeline over LOG and write the result (HDF5).
+
+    \b
+    Examples:
+      ivslam run sample_logs/pairs.mcap --mode pairs -o pairs.h5
+      ivslam run log.bag --mode pairs --q 1 --anchor 6 1.5 2.0 --force
+      ivslam run log.mcap --config configs/mrclam.toml -o out.h5
+    """
+    from ivslam_cli.config import resolve_config
+    from ivslam_cli.errors import InconsistentData, IvslamError
+    from ivslam_cli.logs import read_log
+    from ivslam_cli.slam import run_pipeline
+
+    out = Path(output) if output else _default_output(log, mode)
+    if out.exists() and not force:
+        raise IvslamError("result exists; use --force to overwrite it", out)
+    data = read_log(log, fmt, scan_topic=scan_topic, odom_topic=odom_topic, landmark_topic=landmark_topic,
+                    truth_topic=truth_topic, robot=robot)
+    overrides = {
+        "bounds.range_abs": range_abs, "bounds.range_rel": range_rel, "bounds.bearing": bearing,
+        "robust.q_pair": q_pair, "robust.strict": strict, "pairs.eps": eps,
+        "pairs.heading": heading, "pairs.reference_id": reference,
+        "pairs.anchor_id": anchor[0] if anchor else None,
+        "pairs.anchor_xy": (anchor[1], anchor[2]) if anchor else None,
+    }
+    cfg = resolve_config(config_file, overrides, log_bounds=data.bounds)
+    result = run_pipeline(data, cfg, mode, argv=sys.argv[1:] if ctx.parent else None)
+    from ivslam_cli.results.hdf5 import write_result
+
+    write_result(out, result, force=force)
+    s = result.stats
+    events = len(result.consistency.empty_events)
+    click.echo(f"{mode}: {s.get('intersections', 0)} intersections, {s.get('pairs', 0)} pairs, "
+               f"{len(result.landmarks) if result.landmarks is not None else 0} landmarks, "
+               f"{events} empty event(s), {result.runtime_s:.2f} s -> {out}", err=True)
+    if result.consistency.stopped:
+        raise InconsistentData(f"stopped (--strict): {result.consistency.stopped}; result written to {out}")

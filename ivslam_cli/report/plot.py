@@ -27,7 +27,8 @@ def _rects(ax, boxes: np.ndarray, **style) -> int:
     from matplotlib.collections import PatchCollection
     from matplotlib.patches import Rectangle
 
-    boxes = boxes[~box_is_empty(boxes) & np.all(np.isfinite(boxes.reshape(len(boxes), -1)), axis=1)]
+    finite = np.isfinite(boxes).all(axis=tuple(range(1, boxes.ndim))) if boxes.ndim > 1 else np.isfinite(boxes)
+    boxes = boxes[~box_is_empty(boxes) & finite]
     if boxes.shape[0] > MAX_BOXES:
         boxes = boxes[np.linspace(0, boxes.shape[0] - 1, MAX_BOXES).astype(int)]
     patches = [Rectangle((b[0, 0], b[1, 0]), b[0, 1] - b[0, 0], b[1, 1] - b[1, 0]) for b in boxes]

@@ -1,0 +1,217 @@
+"""The pairs pipeline (seed 000): landmark displacement subpavings, intersected over time.
+
+For every pair (i, j) of landmarks observed at the same step, the displacement
+``dl = m_i − m_j`` lies in the displacement set ``S_dl(i,j),t`` built from the two range-bearing
+observations and the heading interval (Eq. 1–4); the sets of a pair are intersected over time
+(Eq. 5) with tolerance q (q-relaxed intersection). Landmarks follow from an anchor (Eq. 6) by
+contracting the whole network ``m_i − m_j ∈ S_dl(i,j)`` to a fixpoint, or, without an anchor,
+relative to a reference landmark.
+
+Assumption under which the output is guaranteed (stated in every result): each range and
+bearing error is within its bound and the true heading is in the heading interval, for all but
+at most q observation pairs per landmark pair; observation pairs rejected as empty events are
+proven to break that assumption and are left out.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ivslam_cli import interval as iv
+from ivslam_cli.config import Config
+from ivslam_cli.errors import IvslamError
+from ivslam_cli.logs.model import LogData
+from ivslam_cli.results.model import (
+    LABEL_BOUNDARY,
+    LABEL_INNER,
+    Consistency,
+    EmptyEvents,
+    Landmarks,
+    PairSubpavings,
+    Rejections,
+    WidthHistory,
+)
+from ivslam_cli.slam import pairs_kernel as K
+
+MAX_NETWORK_SWEEPS = 200
+NETWORK_STOP = 1e-4
+
+
+@dataclass
+class PairsOutput:
+    """What the pairs pipeline adds to a result."""
+
+    pairs: PairSubpavings
+    landmarks: Landmarks
+    consistency: Consistency
+    stats: dict
+
+
+def heading_interval(cfg: Config, log: LogData) -> tuple[float, float]:
+    """The heading interval: ``pairs.heading`` if set, else ±``heading`` the log states, else 0."""
+    lo, hi = cfg["pairs.heading"]
+    if cfg.sources.get("pairs.heading", "default") == "default" and "heading" in log.bounds:
+        h = float(log.bounds["heading"])
+        lo, hi = -h, h
+    return float(lo), float(hi)
+
+
+def observation_intervals(log: LogData, cfg: Config) -> tuple[np.ndarray, np.ndarray]:
+    """``rho`` and world-frame ``beta`` intervals (N, 2) of every observation, rounded outward.
+
+    ``rho ∈ z ± (range_abs + range_rel z)`` (and ``rho >= 0``), ``beta ∈ z_alpha ± bearing + heading``.
+    Every bound is first enclosed (a decimal such as 0.05 is not a double).
+    """
+    obs = log.observations
+    n = len(obs)
+    z = np.column_stack([obs.range, obs.range]).astype(np.float64)
+    a = np.column_stack([obs.bearing, obs.bearing]).astype(np.float64)
+
+    def const(value: float) -> np.ndarray:
+        lo, hi = iv.enclose(value)
+        return np.tile([-hi, hi], (n, 1)) if value >= 0 else np.tile([lo, hi], (n, 1))
+
+    rel_lo, rel_hi = iv.enclose(cfg["bounds.range_rel"])
+    rel = iv.mul(z, np.tile([rel_lo, rel_hi], (n, 1)))
+    half = iv.add(rel, np.tile(list(iv.enclose(cfg["bounds.range_abs"])), (n, 1)))
+    half_sym = np.column_stack([-half[:, 1], half[:, 1]])
+    rho = iv.add(z, half_sym)
+    rho[:, 0] = np.maximum(rho[:, 0], 0.0)
+    h_lo, h_hi = heading_interval(cfg, log)
+    head = np.tile([iv.enclose(h_lo)[0], iv.enclose(h_hi)[1]], (n, 1))
+    beta = iv.add(iv.add(a, const(cfg["bounds.bearing"])), head)
+    return rho, beta
+
+
+def _step_offsets(stamp: np.ndarray) -> np.ndarray:
+    """Offsets of runs of equal stamps (observations are time-sorted by the readers)."""
+    change = np.flatnonzero(np.diff(stamp) != 0.0) + 1
+    return np.concatenate([[0], change, [stamp.shape[0]]]).astype(np.int64)
+
+
+def network_map(ids: np.ndarray, pair_i, pair_j, offsets, boxes, anchor_id, anchor_xy, reference_id):
+    """Landmark boxes from the pair subpavings by contracting ``m_i − m_j ∈ S_ij`` to a fixpoint.
+
+    With an anchor (id, position) the boxes are absolute; otherwise relative to ``reference_id``
+    (its box is the point 0). Returns ``(box (L, 4), reference or None, sweeps, consistent)``.
+    """
+    index = {int(v): k for k, v in enumerate(ids)}
+    m = np.tile([-np.inf, np.inf, -np.inf, np.inf], (len(ids), 1)).astype(np.float64)
+    if anchor_id is not None:
+        if int(anchor_id) not in index:
+            raise IvslamError(f"anchor landmark {anchor_id} is never observed together with another")
+        x_lo, x_hi = iv.enclose(anchor_xy[0])
+        y_lo, y_hi = iv.enclose(anchor_xy[1])
+        m[index[int(anchor_id)]] = [x_lo, x_hi, y_lo, y_hi]
+        reference = None
+    else:
+        reference = int(ids.min()) if reference_id is None else int(reference_id)
+        if reference not in index:
+            raise IvslamError(f"reference landmark {reference} is never observed together with another")
+        m[index[reference]] = [0.0, 0.0, 0.0, 0.0]
+    pi = np.array([index[int(v)] for v in pair_i], dtype=np.int64)
+    pj = np.array([index[int(v)] for v in pair_j], dtype=np.int64)
+    sweeps = 0
+    consistent = True
+    for sweeps in range(1, MAX_NETWORK_SWEEPS + 1):
+        progress = K.network_pass(m, pi, pj, offsets, boxes)
+        if progress < 0.0:
+            consistent = False
+            break
+        if progress < NETWORK_STOP:
+            break
+    return m, reference, sweeps, consistent
+
+
+def run_pairs(log: LogData, cfg: Config, progress=None) -> PairsOutput:
+    """The pairs pipeline over a log's landmark observations (see the module docstring)."""
+    obs = log.observations
+    if obs is None or len(obs) == 0:
+        raise IvslamError("no landmark observations: --mode pairs needs range-bearing observations", log.provenance.path)
+    t0 = time.perf_counter()
+    q = int(cfg["robust.q_pair"])
+    eps = float(cfg["pairs.eps"])
+    rho, beta = observation_intervals(log, cfg)
+    steps = _step_offsets(obs.stamp)
+    pi, pj, pa, pb, rows = K.pair_rows(steps, obs.landmark_id.astype(np.int64), rho, beta)
+    if rows.shape[0] == 0:
+        raise IvslamError("no step observes two landmarks: no pair to build", log.provenance.path)
+    order = np.lexsort((obs.stamp[pa], pj, pi))
+    pi, pj, pa, pb, rows = pi[order], pj[order], pa[order], pb[order], np.ascontiguousarray(rows[order])
+    key_change = np.flatnonzero((np.diff(pi) != 0) | (np.diff(pj) != 0)) + 1
+    pair_offsets = np.concatenate([[0], key_change, [pi.shape[0]]]).astype(np.int64)
+    n_pairs = pair_offsets.shape[0] - 1
+    if n_pairs > int(cfg["pairs.max_pairs"]):
+        raise IvslamError(f"{n_pairs} landmark pairs exceed pairs.max_pairs = {cfg['pairs.max_pairs']}")
+    boxes, inner, box_offsets, width, rejected, truncated = K.process_pairs(
+        rows, pair_offsets, q, eps, int(cfg["pairs.max_boxes"])
+    )
+    if progress:
+        progress(1.0)
+    first_i = pi[pair_offsets[:-1]]
+    first_j = pj[pair_offsets[:-1]]
+    ids = np.unique(np.concatenate([first_i, first_j]))
+    anchor_id = cfg["pairs.anchor_id"]
+    m, reference, sweeps, consistent = network_map(
+        ids, first_i, first_j, box_offsets, boxes, anchor_id, cfg["pairs.anchor_xy"], cfg["pairs.reference_id"]
+    )
+    step_of_obs = np.repeat(np.arange(steps.shape[0] - 1), np.diff(steps))
+
+    # consistency record
+    ev = np.flatnonzero(rejected)
+    ev = ev[np.argsort(obs.stamp[pa[ev]], kind="stable")]
+    events = EmptyEvents(
+        stamp=obs.stamp[pa[ev]].astype(np.float64),
+        step=step_of_obs[pa[ev]].astype(np.int64),
+        constraint=np.array(["pair_intersection"] * ev.shape[0], dtype=str).reshape(-1),
+        entity=np.column_stack([pi[ev], pj[ev]]).astype(np.int64).reshape(-1, 2),
+        measurement=pa[ev].astype(np.int64),
+        text=np.array(
+            [f"observations {a} and {b} (landmarks {i}, {j}) contradict earlier ones beyond q={q}"
+             for a, b, i, j in zip(pa[ev], pb[ev], pi[ev], pj[ev])], dtype=str).reshape(-1),
+    )
+    rejected_obs = np.unique(np.concatenate([pa[ev], pb[ev]]))
+    rejections = Rejections(
+        stream=np.array(["observations"] * rejected_obs.shape[0], dtype=str).reshape(-1),
+        index=rejected_obs.astype(np.int64),
+        reason=np.array(["in a pair observation rejected as an empty event"] * rejected_obs.shape[0], dtype=str).reshape(-1),
+    )
+    widths = WidthHistory(
+        entity=np.column_stack([pi, pj]).astype(np.int64).reshape(-1, 2),
+        step=step_of_obs[pa].astype(np.int64),
+        stamp=obs.stamp[pa].astype(np.float64),
+        width=width,
+        definition="largest side of the bounding box of the pair's outer subpaving after the update, metres",
+    )
+    h_lo, h_hi = heading_interval(cfg, log)
+    assumption = (
+        f"every range error within ±(range_abs + range_rel·range), bearing error within ±bearing, and the true "
+        f"heading in [{h_lo}, {h_hi}] rad, for all but at most q={q} observation pairs per landmark pair"
+    )
+    if ev.shape[0]:
+        assumption += f"; {ev.shape[0]} observation pair(s) proven to break it were left out (empty events)"
+    if not consistent:
+        assumption += "; the landmark network is inconsistent (some landmark box became empty)"
+    consistency = Consistency(
+        empty_events=events, q={"pair": q}, rejected=rejections, widths={"pair": widths}, assumption=assumption
+    )
+    label = np.where(inner, LABEL_INNER, LABEL_BOUNDARY).astype(np.uint8)
+    pairs = PairSubpavings(
+        i=first_i.astype(np.int64), j=first_j.astype(np.int64), offsets=box_offsets.astype(np.int64),
+        boxes=boxes.reshape(-1, 2, 2).copy(), label=label,
+    )
+    landmarks = Landmarks(id=ids.astype(np.int64), box=m.reshape(-1, 2, 2).copy(), reference_id=reference)
+    stats = {
+        "intersections": int(rows.shape[0]),
+        "pairs": int(n_pairs),
+        "steps": int(steps.shape[0] - 1),
+        "boxes": int(boxes.shape[0]),
+        "pairs_truncated": int(truncated.sum()),
+        "network_sweeps": int(sweeps),
+        "pair_observations_per_s": float(rows.shape[0] / max(time.perf_counter() - t0, 1e-9)),
+        "eps": eps,
+    }
+    return PairsOutput(pairs=pairs, landmarks=landmarks, consistency=consistency, stats=stats)

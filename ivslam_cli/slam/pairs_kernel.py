@@ -1,0 +1,461 @@
+"""Kernels of the pairs pipeline (seed 000): displacement sets of landmark pairs.
+
+At a step where landmarks i and j are both observed, with ranges ``rho_i, rho_j`` and
+world-frame bearings ``beta_i, beta_j`` (bearing + heading, all intervals), the robot-to-
+landmark vectors lie in annular sectors ``d_i ∈ A_i``, ``d_j ∈ A_j`` and the displacement
+``dl = m_i − m_j = d_i − d_j`` lies in the *displacement set* ``S_t = A_i − A_j`` (Eq. 1–4).
+The robot position cancels: nothing but the two observations and the heading is used.
+
+A pair's subpaving is a list of boxes on the global grid of resolution ``eps`` (cell
+``[a eps, (a+1) eps] x [b eps, (b+1) eps]``); each box is a union of whole cells or, once it
+is a single cell, a box contracted inside its cell. Per box we count ``fails`` (sets proven
+disjoint from it) and ``notin`` (sets it was not proven inside). With tolerance ``q`` the
+q-relaxed intersection keeps a box while ``fails <= q`` and labels it inner when
+``notin <= q``. A box is contracted by a set only when its ``fails`` already equals ``q``
+(then every later set must hold its points).
+
+Guarantee: if at most ``q`` of a pair's sets miss the true ``dl``, some kept box holds it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ivslam_cli.contractors.ctc_polar import polar_scalar
+from ivslam_cli.interval.angles import arg_box
+from ivslam_cli.interval.arith import add, cos, inter, mul, sin, sqr, sqrt, sub
+from ivslam_cli.interval.rounding import INF, TWO_PI_HI, TWO_PI_LO, down, up
+
+OUT = 0
+BOUNDARY = 1
+INSIDE = 2
+
+# columns of a pair-observation row: rho_i lo/hi, beta_i lo/hi, rho_j lo/hi, beta_j lo/hi
+N_OBS_COLS = 8
+CSP_PASSES = 3
+
+
+@njit(cache=True)
+def sector_hull(rl, rh, bl, bh):
+    """Bounding box of the annular sector ``{r (cos b, sin b)}`` (outer)."""
+    cl, ch = cos(bl, bh)
+    sl, sh = sin(bl, bh)
+    xl, xh = mul(rl, rh, cl, ch)
+    yl, yh = mul(rl, rh, sl, sh)
+    return xl, xh, yl, yh
+
+
+@njit(cache=True)
+def _angle_inside(al, ah, bl, bh):
+    """Is ``[a] ⊂ [b] + 2 k pi`` for some integer k? (False when unsure: an inner test)."""
+    if not (al <= ah) or not (bl <= bh):
+        return False
+    if bh - bl >= TWO_PI_LO:
+        return True
+    k = float(math.floor((0.5 * (al + ah) - 0.5 * (bl + bh)) / (0.5 * (TWO_PI_LO + TWO_PI_HI)) + 0.5))
+    for d in range(-1, 2):
+        kk = k + d
+        sl, sh = mul(kk, kk, TWO_PI_LO, TWO_PI_HI)
+        lo_l, lo_h = add(bl, bl, sl, sh)  # encloses bl + 2 kk pi
+        hi_l, hi_h = add(bh, bh, sl, sh)  # encloses bh + 2 kk pi
+        if al >= lo_h and ah <= hi_l:
+            return True
+    return False
+
+
+@njit(cache=True)
+def box_inside_sector(xl, xh, yl, yh, rl, rh, bl, bh):
+    """Is every point of the box in the sector ``rho ∈ [r], arg ∈ [b] mod 2 pi``? (sound inner test)."""
+    ql, qh = add(*sqr(xl, xh), *sqr(yl, yh))
+    nl, nh = sqrt(ql, qh)
+    if not (nl >= rl and nh <= rh):
+        return False
+    al, ah = arg_box(xl, xh, yl, yh)
+    if ah - al >= TWO_PI_LO:
+        return False
+    return _angle_inside(al, ah, bl, bh)
+
+
+@njit(cache=True)
+def _centre_point(rl, rh, bl, bh):
+    """Enclosure of one real point of the sector: radius and angle at the (float) midpoints."""
+    r = 0.5 * (rl + rh)
+    b = 0.5 * (bl + bh)
+    if not (rl <= r <= rh):
+        r = rl
+    if not (bl <= b <= bh):
+        b = bl
+    cl, ch = cos(b, b)
+    sl, sh = sin(b, b)
+    xl, xh = mul(r, r, cl, ch)
+    yl, yh = mul(r, r, sl, sh)
+    return xl, xh, yl, yh
+
+
+@njit(cache=True)
+def classify(xl, xh, yl, yh, obs, contract):
+    """Classify the box ``[dl]`` against ``S = A_i − A_j``; optionally contract it.
+
+    Returns ``(state, xl, xh, yl, yh)``: OUT (box ∩ S = ∅, proven), INSIDE (box ⊂ S, proven)
+    or BOUNDARY; the box is contracted (outer: no point of S in the box is lost) only when
+    ``contract`` is True.
+    """
+    ril, rih, bil, bih, rjl, rjh, bjl, bjh = (
+        obs[0], obs[1], obs[2], obs[3], obs[4], obs[5], obs[6], obs[7],
+    )
+    # forward-backward on dl = d_i - d_j, d_i ∈ A_i, d_j ∈ A_j
+    ixl, ixh, iyl, iyh = sector_hull(ril, rih, bil, bih)
+    jxl, jxh, jyl, jyh = sector_hull(rjl, rjh, bjl, bjh)
+    cxl, cxh, cyl, cyh = xl, xh, yl, yh
+    for _ in range(CSP_PASSES):
+        cxl, cxh = inter(cxl, cxh, *sub(ixl, ixh, jxl, jxh))
+        cyl, cyh = inter(cyl, cyh, *sub(iyl, iyh, jyl, jyh))
+        if not (cxl <= cxh) or not (cyl <= cyh):
+            return OUT, xl, xh, yl, yh
+        ixl, ixh = inter(ixl, ixh, *add(cxl, cxh, jxl, jxh))
+        iyl, iyh = inter(iyl, iyh, *add(cyl, cyh, jyl, jyh))
+        jxl, jxh = inter(jxl, jxh, *sub(ixl, ixh, cxl, cxh))
+        jyl, jyh = inter(jyl, jyh, *sub(iyl, iyh, cyl, cyh))
+        r = polar_scalar(ixl, ixh, iyl, iyh, ril, rih, bil, bih)
+        ixl, ixh, iyl, iyh = r[0], r[1], r[2], r[3]
+        r = polar_scalar(jxl, jxh, jyl, jyh, rjl, rjh, bjl, bjh)
+        jxl, jxh, jyl, jyh = r[0], r[1], r[2], r[3]
+        if not (ixl <= ixh) or not (jxl <= jxh):
+            return OUT, xl, xh, yl, yh
+    cxl, cxh = inter(cxl, cxh, *sub(ixl, ixh, jxl, jxh))
+    cyl, cyh = inter(cyl, cyh, *sub(iyl, iyh, jyl, jyh))
+    if not (cxl <= cxh) or not (cyl <= cyh):
+        return OUT, xl, xh, yl, yh
+    # inner tests: box + p_j ⊂ A_i for a point p_j of A_j, or p_i − box ⊂ A_j
+    pxl, pxh, pyl, pyh = _centre_point(rjl, rjh, bjl, bjh)
+    sxl, sxh = add(xl, xh, pxl, pxh)
+    syl, syh = add(yl, yh, pyl, pyh)
+    inside = box_inside_sector(sxl, sxh, syl, syh, ril, rih, bil, bih)
+    if not inside:
+        pxl, pxh, pyl, pyh = _centre_point(ril, rih, bil, bih)
+        sxl, sxh = sub(pxl, pxh, xl, xh)
+        syl, syh = sub(pyl, pyh, yl, yh)
+        inside = box_inside_sector(sxl, sxh, syl, syh, rjl, rjh, bjl, bjh)
+    if inside:
+        return INSIDE, xl, xh, yl, yh
+    if contract:
+        return BOUNDARY, cxl, cxh, cyl, cyh
+    return BOUNDARY, xl, xh, yl, yh
+
+
+@njit(cache=True)
+def set_hull(obs):
+    """Bounding box of ``S = A_i − A_j`` (outer)."""
+    ixl, ixh, iyl, iyh = sector_hull(obs[0], obs[1], obs[2], obs[3])
+    jxl, jxh, jyl, jyh = sector_hull(obs[4], obs[5], obs[6], obs[7])
+    xl, xh = sub(ixl, ixh, jxl, jxh)
+    yl, yh = sub(iyl, iyh, jyl, jyh)
+    return xl, xh, yl, yh
+
+
+@njit(cache=True)
+def _cells(lo, hi, eps):
+    """Grid cell index range ``[a, b)`` whose cells cover ``[lo, hi]``."""
+    return float(math.floor(lo / eps)), float(math.floor(hi / eps)) + 1.0
+
+
+@njit(cache=True)
+def refine(boxes, cells, fails, notin, obs, q, eps, max_boxes):
+    """Intersect a pair's subpaving with one more displacement set (SIVIA on the grid).
+
+    ``boxes`` (B, 4) = xl, xh, yl, yh; ``cells`` (B, 4) = integer cell range a0, a1, b0, b1
+    (as floats) of the grid cells the box lies in; ``fails``/``notin`` (B,) counters.
+    Returns the new arrays, and a flag that is True when ``max_boxes`` cut the refinement
+    short (then boundary boxes larger than a cell were kept whole: still an outer approximation).
+    """
+    n = boxes.shape[0]
+    cap = max(16, 4 * n)
+    ob = np.empty((cap, 4))
+    oc = np.empty((cap, 4))
+    of = np.empty(cap, dtype=np.int64)
+    on = np.empty(cap, dtype=np.int64)
+    stack_b = np.empty((64 + 4 * n, 4))
+    stack_c = np.empty((64 + 4 * n, 4))
+    stack_f = np.empty(64 + 4 * n, dtype=np.int64)
+    stack_n = np.empty(64 + 4 * n, dtype=np.int64)
+    m = 0
+    truncated = False
+    for k in range(n):
+        top = 0
+        stack_b[0] = boxes[k]
+        stack_c[0] = cells[k]
+        stack_f[0] = fails[k]
+        stack_n[0] = notin[k]
+        top = 1
+        while top > 0:
+            top -= 1
+            b = stack_b[top].copy()
+            c = stack_c[top].copy()
+            f = stack_f[top]
+            nn = stack_n[top]
+            contract = f == q
+            state, xl, xh, yl, yh = classify(b[0], b[1], b[2], b[3], obs, contract)
+            single = (c[1] - c[0] <= 1.0) and (c[3] - c[2] <= 1.0)
+            if state == OUT:
+                f += 1
+                if f > q:
+                    continue
+                nn += 1
+            elif state == BOUNDARY:
+                nn += 1
+                if not single and m + top < max_boxes:
+                    # bisect along the longer side at a grid line
+                    if c[1] - c[0] >= c[3] - c[2]:
+                        mid = float(math.floor(0.5 * (c[0] + c[1])))
+                        split = mid * eps
+                        lo_b = b.copy()
+                        hi_b = b.copy()
+                        lo_b[1] = min(b[1], up(split))
+                        hi_b[0] = max(b[0], down(split))
+                        lo_c = c.copy()
+                        hi_c = c.copy()
+                        lo_c[1] = mid
+                        hi_c[0] = mid
+                    else:
+                        mid = float(math.floor(0.5 * (c[2] + c[3])))
+                        split = mid * eps
+                        lo_b = b.copy()
+                        hi_b = b.copy()
+                        lo_b[3] = min(b[3], up(split))
+                        hi_b[2] = max(b[2], down(split))
+                        lo_c = c.copy()
+                        hi_c = c.copy()
+                        lo_c[3] = mid
+                        hi_c[2] = mid
+                    if top + 2 > stack_b.shape[0]:
+                        grow = stack_b.shape[0] * 2
+                        sb = np.empty((grow, 4))
+                        sc = np.empty((grow, 4))
+                        sf = np.empty(grow, dtype=np.int64)
+                        sn = np.empty(grow, dtype=np.int64)
+                        sb[:top] = stack_b[:top]
+                        sc[:top] = stack_c[:top]
+                        sf[:top] = stack_f[:top]
+                        sn[:top] = stack_n[:top]
+                        stack_b, stack_c, stack_f, stack_n = sb, sc, sf, sn
+                    # children inherit the counters (the new set is re-checked on them)
+                    stack_b[top] = lo_b
+                    stack_c[top] = lo_c
+                    stack_f[top] = f
+                    stack_n[top] = nn - 1
+                    top += 1
+                    stack_b[top] = hi_b
+                    stack_c[top] = hi_c
+                    stack_f[top] = f
+                    stack_n[top] = nn - 1
+                    top += 1
+                    continue
+                if not single:
+                    truncated = True
+                if contract:
+                    b[0], b[1], b[2], b[3] = xl, xh, yl, yh
+            # INSIDE: counters unchanged
+            if m >= ob.shape[0]:
+                grow = ob.shape[0] * 2
+                nb = np.empty((grow, 4))
+                nc = np.empty((grow, 4))
+                nf = np.empty(grow, dtype=np.int64)
+                nn2 = np.empty(grow, dtype=np.int64)
+                nb[:m] = ob[:m]
+                nc[:m] = oc[:m]
+                nf[:m] = of[:m]
+                nn2[:m] = on[:m]
+                ob, oc, of, on = nb, nc, nf, nn2
+            ob[m] = b
+            oc[m] = c
+            of[m] = f
+            on[m] = nn
+            m += 1
+    return ob[:m].copy(), oc[:m].copy(), of[:m].copy(), on[:m].copy(), truncated
+
+
+@njit(cache=True)
+def initial_domain(obs_rows, eps):
+    """One box (snapped outward to the grid) holding the hull of the given sets."""
+    xl = INF
+    xh = -INF
+    yl = INF
+    yh = -INF
+    for k in range(obs_rows.shape[0]):
+        a, b, c, d = set_hull(obs_rows[k])
+        xl = min(xl, a)
+        xh = max(xh, b)
+        yl = min(yl, c)
+        yh = max(yh, d)
+    a0, a1 = _cells(xl, xh, eps)
+    b0, b1 = _cells(yl, yh, eps)
+    box = np.array([[down(a0 * eps), up(a1 * eps), down(b0 * eps), up(b1 * eps)]])
+    cell = np.array([[a0, a1, b0, b1]])
+    return box, cell
+
+
+@njit(cache=True)
+def hull_width(boxes):
+    """Largest side of the bounding box of the boxes (NaN when there is none)."""
+    if boxes.shape[0] == 0:
+        return math.nan
+    xl = boxes[:, 0].min()
+    xh = boxes[:, 1].max()
+    yl = boxes[:, 2].min()
+    yh = boxes[:, 3].max()
+    return max(up(xh - xl), up(yh - yl))
+
+
+@njit(cache=True)
+def network_pass(m_box, pair_i, pair_j, offsets, boxes):
+    """One sweep of ``m_j ∈ m_i − S_ij`` and ``m_i ∈ m_j + S_ij`` over every pair.
+
+    ``m_box`` (L, 4) landmark boxes (indices, not ids), contracted in place; each pair's set is
+    the union of its boxes ``boxes[offsets[p]:offsets[p+1]]``. Returns the largest relative
+    width reduction (for the fixpoint loop) or -1 if some landmark box became empty.
+    """
+    best = 0.0
+    for p in range(pair_i.shape[0]):
+        i = pair_i[p]
+        j = pair_j[p]
+        s0 = offsets[p]
+        s1 = offsets[p + 1]
+        if s1 == s0:
+            continue
+        for target in range(2):
+            a = j if target == 0 else i  # contracted
+            b = i if target == 0 else j  # source
+            nxl = INF
+            nxh = -INF
+            nyl = INF
+            nyh = -INF
+            for k in range(s0, s1):
+                if target == 0:  # m_j = m_i - dl
+                    cxl, cxh = sub(m_box[b, 0], m_box[b, 1], boxes[k, 0], boxes[k, 1])
+                    cyl, cyh = sub(m_box[b, 2], m_box[b, 3], boxes[k, 2], boxes[k, 3])
+                else:  # m_i = m_j + dl
+                    cxl, cxh = add(m_box[b, 0], m_box[b, 1], boxes[k, 0], boxes[k, 1])
+                    cyl, cyh = add(m_box[b, 2], m_box[b, 3], boxes[k, 2], boxes[k, 3])
+                cxl, cxh = inter(cxl, cxh, m_box[a, 0], m_box[a, 1])
+                cyl, cyh = inter(cyl, cyh, m_box[a, 2], m_box[a, 3])
+                if cxl <= cxh and cyl <= cyh:
+                    nxl = min(nxl, cxl)
+                    nxh = max(nxh, cxh)
+                    nyl = min(nyl, cyl)
+                    nyh = max(nyh, cyh)
+            if not (nxl <= nxh):
+                return -1.0
+            wx0 = m_box[a, 1] - m_box[a, 0]
+            wy0 = m_box[a, 3] - m_box[a, 2]
+            wx1 = nxh - nxl
+            wy1 = nyh - nyl
+            if wx0 == INF and wx1 < INF:
+                best = 1.0
+            elif wx0 > 0.0 and wx0 < INF:
+                best = max(best, (wx0 - wx1) / wx0)
+            if wy0 == INF and wy1 < INF:
+                best = 1.0
+            elif wy0 > 0.0 and wy0 < INF:
+                best = max(best, (wy0 - wy1) / wy0)
+            m_box[a, 0] = nxl
+            m_box[a, 1] = nxh
+            m_box[a, 2] = nyl
+            m_box[a, 3] = nyh
+    return best
+
+
+@njit(cache=True)
+def pair_rows(step_offsets, obs_id, rho, beta):
+    """Every pair of observations made at the same step, as displacement-set rows.
+
+    Rows are oriented so that ``i < j`` (``dl = m_i − m_j``); two observations of the same id
+    at one step make no pair. Returns ``(i, j, a, b, rows)``: landmark ids, the indices of the
+    two observations, and the (R, 8) row ``rho_i, beta_i, rho_j, beta_j`` (each lo, hi).
+    """
+    count = 0
+    for s in range(step_offsets.shape[0] - 1):
+        k = step_offsets[s + 1] - step_offsets[s]
+        count += k * (k - 1) // 2
+    pi = np.empty(count, dtype=np.int64)
+    pj = np.empty(count, dtype=np.int64)
+    pa = np.empty(count, dtype=np.int64)
+    pb = np.empty(count, dtype=np.int64)
+    rows = np.empty((count, N_OBS_COLS))
+    r = 0
+    for s in range(step_offsets.shape[0] - 1):
+        for u in range(step_offsets[s], step_offsets[s + 1]):
+            for v in range(u + 1, step_offsets[s + 1]):
+                if obs_id[u] == obs_id[v]:
+                    continue
+                a, b = (u, v) if obs_id[u] < obs_id[v] else (v, u)
+                pi[r] = obs_id[a]
+                pj[r] = obs_id[b]
+                pa[r] = a
+                pb[r] = b
+                rows[r, 0], rows[r, 1] = rho[a, 0], rho[a, 1]
+                rows[r, 2], rows[r, 3] = beta[a, 0], beta[a, 1]
+                rows[r, 4], rows[r, 5] = rho[b, 0], rho[b, 1]
+                rows[r, 6], rows[r, 7] = beta[b, 0], beta[b, 1]
+                r += 1
+    return pi[:r], pj[:r], pa[:r], pb[:r], rows[:r]
+
+
+@njit(cache=True)
+def process_pairs(rows, pair_offsets, q, eps, max_boxes):
+    """Run every pair's history: the q-relaxed intersection of its displacement sets over time.
+
+    ``rows`` are grouped by pair and time-ordered within a pair (``pair_offsets``). Returns
+    flat boxes (B, 4), their ``inner`` flags, per-pair ``box_offsets``, the width of the pair's
+    set after each row (NaN-free: the set never ends empty), a per-row ``rejected`` flag (the
+    row would have emptied the set beyond q: an empty event, the row is left out) and a
+    per-pair ``truncated`` flag (``max_boxes`` stopped a bisection: still outer, less tight).
+    A pair seen at most ``q`` times has no bounded enclosure: one box ``R^2``.
+    """
+    n_rows = rows.shape[0]
+    n_pairs = pair_offsets.shape[0] - 1
+    width = np.empty(n_rows)
+    rejected = np.zeros(n_rows, dtype=np.bool_)
+    truncated = np.zeros(n_pairs, dtype=np.bool_)
+    out = np.empty((max(16, 4 * n_pairs), 4))
+    inner = np.empty(out.shape[0], dtype=np.bool_)
+    box_offsets = np.zeros(n_pairs + 1, dtype=np.int64)
+    m = 0
+    for p in range(n_pairs):
+        r0 = pair_offsets[p]
+        r1 = pair_offsets[p + 1]
+        if r1 - r0 <= q:
+            bx = np.array([[-INF, INF, -INF, INF]])
+            bi = np.zeros(1, dtype=np.bool_)
+            for k in range(r0, r1):
+                width[k] = INF
+        else:
+            boxes, cells = initial_domain(rows[r0 : r0 + q + 1], eps)
+            fails = np.zeros(1, dtype=np.int64)
+            notin = np.zeros(1, dtype=np.int64)
+            for k in range(r0, r1):
+                nb, nc, nf, nn, trunc = refine(boxes, cells, fails, notin, rows[k], q, eps, max_boxes)
+                if trunc:
+                    truncated[p] = True
+                if nb.shape[0] == 0:
+                    rejected[k] = True
+                else:
+                    boxes, cells, fails, notin = nb, nc, nf, nn
+                width[k] = hull_width(boxes)
+            bx = boxes
+            bi = notin <= q
+        nbx = bx.shape[0]
+        if m + nbx > out.shape[0]:
+            grow = max(2 * out.shape[0], m + nbx)
+            o2 = np.empty((grow, 4))
+            i2 = np.empty(grow, dtype=np.bool_)
+            o2[:m] = out[:m]
+            i2[:m] = inner[:m]
+            out, inner = o2, i2
+        out[m : m + nbx] = bx
+        inner[m : m + nbx] = bi
+        m += nbx
+        box_offsets[p + 1] = m
+    return out[:m].copy(), inner[:m].copy(), box_offsets, width, rejected, truncated
