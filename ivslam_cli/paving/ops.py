@@ -28,7 +28,6 @@ from ivslam_cli.paving.grid import (
 )
 from ivslam_cli.paving.sivia import DEFAULT_MAX_CELLS
 
-_EMPTY_KEYS = np.empty(0, np.int64)
 
 
 # ----------------------------------------------------------------- kernels
