@@ -21,9 +21,12 @@ def input_sha256(path: str | Path) -> str:
 
     Directory rule: sha256 over, for every file in sorted POSIX relative-path order,
     ``relpath`` + NUL + sha256(content) + NUL. Renaming, adding, removing or changing any
-    file changes it; the directory's own name and timestamps do not.
+    file changes it; the directory's own name and timestamps do not. A log that is not on
+    disk (built in memory, e.g. by the simulator in tests) has no checksum: ``""``.
     """
     path = Path(path)
+    if not path.exists():
+        return ""
     if path.is_dir():
         h = hashlib.sha256()
         files = sorted((p for p in path.rglob("*") if p.is_file()), key=lambda p: p.relative_to(path).as_posix())
