@@ -151,14 +151,12 @@ class GridPaving:
         return len(self) == 0
 
     def outer_area(self) -> float:
-        """Area of the outer approximation (>= the area of the set, up to float summation)."""
-        b = self.box
-        return float(np.sum((b[:, 0, 1] - b[:, 0, 0]) * (b[:, 1, 1] - b[:, 1, 0])))
+        """Area of the outer approximation, rounded up: >= the area of the set ∩ domain."""
+        return _area(self.box, up=True)
 
     def inner_area(self) -> float:
-        """Area of the inner approximation (<= the area of the set, up to float summation)."""
-        b = self.box[self.inner_mask]
-        return float(np.sum((b[:, 0, 1] - b[:, 0, 0]) * (b[:, 1, 1] - b[:, 1, 0])))
+        """Area of the inner approximation, rounded down: <= the area of the set."""
+        return _area(self.box[self.inner_mask], up=False)
 
     def hull(self) -> np.ndarray:
         """Bounding box (2, 2) of the outer approximation: an outer approximation of the set's
@@ -187,6 +185,17 @@ class GridPaving:
         n_in = int(np.count_nonzero(self.inner_mask))
         return (f"GridPaving(eps={self.grid.eps}, origin=({self.grid.ox}, {self.grid.oy}), "
                 f"{n_in} inner + {len(self) - n_in} boundary cells)")
+
+
+def _area(box: np.ndarray, up: bool) -> float:
+    """Sum of box areas with directed rounding (one ulp per operation, correctly rounded sum)."""
+    if box.shape[0] == 0:
+        return 0.0
+    to = np.inf if up else -np.inf
+    w = np.nextafter(box[:, 0, 1] - box[:, 0, 0], to)
+    v = np.nextafter(box[:, 1, 1] - box[:, 1, 0], to)
+    a = np.nextafter(w * v, to)
+    return float(np.nextafter(math.fsum(a), to))
 
 
 def empty_paving(grid: Grid) -> GridPaving:
