@@ -47,3 +47,13 @@ def test_unknown_command_fails_cleanly(cli_run):
     res = cli_run("frobnicate")
     assert res.exit_code != 0
     assert "Traceback" not in res.output
+
+
+def test_readme_generated_sections_are_current():
+    """The README's config table and HDF5 schema are generated from the code: never stale."""
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    out = subprocess.run([sys.executable, str(repo / "scripts" / "sync_readme.py"), "--check"],
+                         capture_output=True, text=True)
+    assert out.returncode == 0, out.stdout + out.stderr
