@@ -196,3 +196,20 @@ def test_mode_without_observations_is_a_clear_error(tmp_path, cli_run):
     res = cli_run("run", path, "--mode", "pairs", "-o", tmp_path / "x.h5")
     assert res.exit_code != 0
     assert "observations" in res.output and "Traceback" not in res.output
+
+
+def test_landmark_widths_are_recorded_over_time_and_end_at_the_final_map():
+    log = small_log(31, steps=60)
+    result = run(log)
+    w = result.consistency.widths["landmark"]
+    assert len(w) > 0
+    last = w.stamp == w.stamp.max()
+    final = np.max(result.landmarks.box[:, :, 1] - result.landmarks.box[:, :, 0], axis=1)
+    by_id = dict(zip(w.entity[last, 0].tolist(), w.width[last].tolist()))
+    for lid, fw in zip(result.landmarks.id.tolist(), final.tolist()):
+        assert by_id[lid] == pytest.approx(fw, rel=1e-9, abs=1e-12)
+    for lid in np.unique(w.entity[:, 0]):
+        seq = w.width[w.entity[:, 0] == lid]
+        finite = seq[np.isfinite(seq)]
+        assert np.all(np.diff(finite) <= 0.01 * finite[:-1] + 1e-12), f"landmark {lid} box grew over time"
+        assert np.isfinite(seq[-1])

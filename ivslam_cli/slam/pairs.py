@@ -38,6 +38,7 @@ from ivslam_cli.slam import pairs_kernel as K
 
 MAX_NETWORK_SWEEPS = 200
 NETWORK_STOP = 1e-4
+CHECKPOINTS = 20  # landmark widths are recorded at this many stamps over the log
 
 
 @dataclass
@@ -126,6 +127,38 @@ def network_map(ids: np.ndarray, pair_i, pair_j, offsets, boxes, anchor_id, anch
     return m, reference, sweeps, consistent
 
 
+def _landmark_width_history(ids, pair_i, pair_j, snap_boxes, snap_offsets, checkpoints, cp_index, n_pairs,
+                            cfg, final_m, reference) -> WidthHistory:
+    """Width of every landmark box at each checkpoint (the network rebuilt from the pair sets then).
+
+    The last checkpoint is the end of the log; its widths are those of the final map. A landmark
+    not yet tied to the anchor/reference by any bounded pair set has infinite width.
+    """
+    ent, stp, stm, wid = [], [], [], []
+    for c in range(checkpoints.shape[0]):
+        offs = snap_offsets[c * n_pairs : (c + 1) * n_pairs + 1] - snap_offsets[c * n_pairs]
+        seg = snap_boxes[snap_offsets[c * n_pairs] : snap_offsets[(c + 1) * n_pairs]]
+        try:
+            m, _, _, _ = network_map(ids, pair_i, pair_j, np.ascontiguousarray(offs), np.ascontiguousarray(seg),
+                                     cfg["pairs.anchor_id"], cfg["pairs.anchor_xy"],
+                                     reference if cfg["pairs.anchor_id"] is None else None)
+        except IvslamError:  # anchor/reference not yet observed at this time
+            m = np.tile([-np.inf, np.inf, -np.inf, np.inf], (len(ids), 1))
+        w = np.maximum(m[:, 1] - m[:, 0], m[:, 3] - m[:, 2])
+        ent.append(np.column_stack([ids, np.full(len(ids), -1)]))
+        stp.append(np.full(len(ids), cp_index[c]))
+        stm.append(np.full(len(ids), checkpoints[c]))
+        wid.append(w)
+    return WidthHistory(
+        entity=np.concatenate(ent).astype(np.int64).reshape(-1, 2),
+        step=np.concatenate(stp).astype(np.int64),
+        stamp=np.concatenate(stm).astype(np.float64),
+        width=np.concatenate(wid).astype(np.float64),
+        definition="largest side of the landmark box (network of the pair sets at that time), metres; "
+                   "inf: not yet tied to the anchor/reference",
+    )
+
+
 def run_pairs(log: LogData, cfg: Config, progress=None) -> PairsOutput:
     """The pairs pipeline over a log's landmark observations (see the module docstring)."""
     obs = log.observations
@@ -146,8 +179,12 @@ def run_pairs(log: LogData, cfg: Config, progress=None) -> PairsOutput:
     n_pairs = pair_offsets.shape[0] - 1
     if n_pairs > int(cfg["pairs.max_pairs"]):
         raise IvslamError(f"{n_pairs} landmark pairs exceed pairs.max_pairs = {cfg['pairs.max_pairs']}")
-    boxes, inner, box_offsets, width, rejected, truncated = K.process_pairs(
-        rows, pair_offsets, q, eps, int(cfg["pairs.max_boxes"])
+    row_stamp = np.ascontiguousarray(obs.stamp[pa], dtype=np.float64)
+    step_stamps = obs.stamp[steps[:-1]]
+    cp_index = np.unique(np.linspace(0, step_stamps.shape[0] - 1, CHECKPOINTS).round().astype(np.int64))
+    checkpoints = np.ascontiguousarray(step_stamps[cp_index], dtype=np.float64)
+    boxes, inner, box_offsets, width, rejected, truncated, snap_boxes, snap_offsets = K.process_pairs(
+        rows, row_stamp, pair_offsets, q, eps, int(cfg["pairs.max_boxes"]), checkpoints
     )
     if progress:
         progress(1.0)
@@ -159,6 +196,9 @@ def run_pairs(log: LogData, cfg: Config, progress=None) -> PairsOutput:
         ids, first_i, first_j, box_offsets, boxes, anchor_id, cfg["pairs.anchor_xy"], cfg["pairs.reference_id"]
     )
     step_of_obs = np.repeat(np.arange(steps.shape[0] - 1), np.diff(steps))
+    landmark_widths = _landmark_width_history(
+        ids, first_i, first_j, snap_boxes, snap_offsets, checkpoints, cp_index, n_pairs, cfg, m, reference
+    )
 
     # consistency record
     ev = np.flatnonzero(rejected)
@@ -196,7 +236,8 @@ def run_pairs(log: LogData, cfg: Config, progress=None) -> PairsOutput:
     if not consistent:
         assumption += "; the landmark network is inconsistent (some landmark box became empty)"
     consistency = Consistency(
-        empty_events=events, q={"pair": q}, rejected=rejections, widths={"pair": widths}, assumption=assumption
+        empty_events=events, q={"pair": q}, rejected=rejections,
+        widths={"pair": widths, "landmark": landmark_widths}, assumption=assumption,
     )
     label = np.where(inner, LABEL_INNER, LABEL_BOUNDARY).astype(np.uint8)
     pairs = PairSubpavings(

@@ -404,28 +404,48 @@ def pair_rows(step_offsets, obs_id, rho, beta):
 
 
 @njit(cache=True)
-def process_pairs(rows, pair_offsets, q, eps, max_boxes):
+def _append(buf, m, rows):
+    """Append ``rows`` to the growable ``buf`` holding ``m`` rows; returns (buf, m)."""
+    n = rows.shape[0]
+    if m + n > buf.shape[0]:
+        grown = np.empty((max(2 * buf.shape[0], m + n), buf.shape[1]))
+        grown[:m] = buf[:m]
+        buf = grown
+    buf[m : m + n] = rows
+    return buf, m + n
+
+
+@njit(cache=True)
+def process_pairs(rows, row_stamp, pair_offsets, q, eps, max_boxes, checkpoints):
     """Run every pair's history: the q-relaxed intersection of its displacement sets over time.
 
     ``rows`` are grouped by pair and time-ordered within a pair (``pair_offsets``). Returns
     flat boxes (B, 4), their ``inner`` flags, per-pair ``box_offsets``, the width of the pair's
-    set after each row (NaN-free: the set never ends empty), a per-row ``rejected`` flag (the
-    row would have emptied the set beyond q: an empty event, the row is left out) and a
-    per-pair ``truncated`` flag (``max_boxes`` stopped a bisection: still outer, less tight).
+    set after each row (the set never ends empty), a per-row ``rejected`` flag (the row would
+    have emptied the set beyond q: an empty event, the row is left out), a per-pair
+    ``truncated`` flag (``max_boxes`` stopped a bisection: still outer, less tight), and the
+    pair sets at each of the ``checkpoints`` stamps: ``snap_boxes`` with ``snap_offsets`` indexed
+    ``c * P + p`` (no box: the pair gives no bounded set yet at that time).
     A pair seen at most ``q`` times has no bounded enclosure: one box ``R^2``.
     """
     n_rows = rows.shape[0]
     n_pairs = pair_offsets.shape[0] - 1
+    n_cp = checkpoints.shape[0]
     width = np.empty(n_rows)
     rejected = np.zeros(n_rows, dtype=np.bool_)
     truncated = np.zeros(n_pairs, dtype=np.bool_)
-    out = np.empty((max(16, 4 * n_pairs), 4))
-    inner = np.empty(out.shape[0], dtype=np.bool_)
+    out = np.empty((max(16, 4 * n_pairs), 5))
     box_offsets = np.zeros(n_pairs + 1, dtype=np.int64)
+    snap = np.empty((max(16, 4 * n_pairs), 4))
+    snap_count = np.zeros(n_cp * n_pairs, dtype=np.int64)
+    snap_start = np.zeros(n_cp * n_pairs, dtype=np.int64)
+    ns = 0
     m = 0
+    none = np.empty((0, 4))
     for p in range(n_pairs):
         r0 = pair_offsets[p]
         r1 = pair_offsets[p + 1]
+        c = 0
         if r1 - r0 <= q:
             bx = np.array([[-INF, INF, -INF, INF]])
             bi = np.zeros(1, dtype=np.bool_)
@@ -436,6 +456,12 @@ def process_pairs(rows, pair_offsets, q, eps, max_boxes):
             fails = np.zeros(1, dtype=np.int64)
             notin = np.zeros(1, dtype=np.int64)
             for k in range(r0, r1):
+                while c < n_cp and checkpoints[c] < row_stamp[k]:
+                    cur = boxes if k - r0 > q else none
+                    snap_start[c * n_pairs + p] = ns
+                    snap_count[c * n_pairs + p] = cur.shape[0]
+                    snap, ns = _append(snap, ns, cur)
+                    c += 1
                 nb, nc, nf, nn, trunc = refine(boxes, cells, fails, notin, rows[k], q, eps, max_boxes)
                 if trunc:
                     truncated[p] = True
@@ -446,16 +472,26 @@ def process_pairs(rows, pair_offsets, q, eps, max_boxes):
                 width[k] = hull_width(boxes)
             bx = boxes
             bi = notin <= q
-        nbx = bx.shape[0]
-        if m + nbx > out.shape[0]:
-            grow = max(2 * out.shape[0], m + nbx)
-            o2 = np.empty((grow, 4))
-            i2 = np.empty(grow, dtype=np.bool_)
-            o2[:m] = out[:m]
-            i2[:m] = inner[:m]
-            out, inner = o2, i2
-        out[m : m + nbx] = bx
-        inner[m : m + nbx] = bi
-        m += nbx
+        while c < n_cp:
+            cur = bx if r1 - r0 > q else none
+            snap_start[c * n_pairs + p] = ns
+            snap_count[c * n_pairs + p] = cur.shape[0]
+            snap, ns = _append(snap, ns, cur)
+            c += 1
+        tagged = np.empty((bx.shape[0], 5))
+        tagged[:, :4] = bx
+        for r in range(bx.shape[0]):
+            tagged[r, 4] = 1.0 if bi[r] else 0.0
+        out, m = _append(out, m, tagged)
         box_offsets[p + 1] = m
-    return out[:m].copy(), inner[:m].copy(), box_offsets, width, rejected, truncated
+    # snapshots grouped by checkpoint then pair: contiguous per (c, p) already; build offsets
+    snap_offsets = np.zeros(n_cp * n_pairs + 1, dtype=np.int64)
+    snap_boxes = np.empty((ns, 4))
+    w = 0
+    for idx in range(n_cp * n_pairs):
+        cnt = snap_count[idx]
+        snap_boxes[w : w + cnt] = snap[snap_start[idx] : snap_start[idx] + cnt]
+        w += cnt
+        snap_offsets[idx + 1] = w
+    inner = out[:m, 4] > 0.5
+    return out[:m, :4].copy(), inner, box_offsets, width, rejected, truncated, snap_boxes, snap_offsets
