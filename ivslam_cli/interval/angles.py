@@ -122,10 +122,11 @@ def angle_meet(tl, th, al, ah):
     # candidate k: (t - a) / 2pi in [k] (enclosed outward, then one extra k each side is tried)
     ql, qh = sub(tl, th, al, ah)
     ql, qh = mul(ql, qh, INV_TWO_PI_LO, INV_TWO_PI_HI)
+    # decide in floats: numba's math.ceil/floor return int64, which overflows past 2^63
+    if not (qh - ql <= 1e6 and -1e15 < ql and qh < 1e15):
+        return tl, th
     k_lo = math.ceil(ql)
     k_hi = math.floor(qh)
-    if k_hi - k_lo > 1e6:
-        return tl, th
     # first non-empty piece from below
     lo = EMPTY_LO
     k = k_lo - 1.0
