@@ -76,7 +76,8 @@ KEYS: tuple[Key, ...] = (
     Key("robust", "q_pair", 0, "int", "q-relaxed intersection per pair: tolerate up to q inconsistent observations (0 = plain intersection)", "", 0),
     Key("robust", "strict", False, "bool", "stop at the first empty intersection instead of applying the q policy"),
     # --- [pairs]
-    Key("pairs", "heading", (0.0, 0.0), "interval", "known heading interval of the robot at every step [lo, hi]", "rad"),
+    Key("pairs", "heading", (0.0, 0.0), "interval", "known heading interval [lo, hi] at every step; with heading_source = odometry, the bound added to the odometry heading", "rad"),
+    Key("pairs", "heading_source", "option", "str", "where the heading comes from: option (the heading interval) or odometry (the log's odometry poses, per step)"),
     Key("pairs", "eps", 0.05, "float", "resolution ε of the subpavings: boxes narrower than ε are not bisected", "m", 0.0, True),
     Key("pairs", "anchor_id", None, "int?", "id of the anchoring landmark (known position); unset: relative map"),
     Key("pairs", "anchor_xy", (0.0, 0.0), "float2", "position [x, y] of the anchoring landmark", "m"),

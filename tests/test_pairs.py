@@ -213,3 +213,32 @@ def test_landmark_widths_are_recorded_over_time_and_end_at_the_final_map():
         finite = seq[np.isfinite(seq)]
         assert np.all(np.diff(finite) <= 0.01 * finite[:-1] + 1e-12), f"landmark {lid} box grew over time"
         assert np.isfinite(seq[-1])
+
+
+def test_heading_per_step_from_odometry():
+    """A rotating robot: the heading comes from the log's odometry poses, per step."""
+    from ivslam_cli.logs.model import Odometry
+
+    log = simulate(SimConfig(scenario="landmarks", seed=4, steps=80, landmarks=12, world_size=10.0,
+                             fov=3.1, max_range=8.0))
+    t = log.truth
+    # odometry heading = true heading + a known error within ±0.01 rad, sampled at the truth's stamps
+    err = 0.009 * np.sin(np.arange(t.pose.shape[0]))
+    log.odometry = Odometry(stamp=t.pose_stamp.copy(), pose=np.column_stack([t.pose[:, :2], t.pose[:, 2] + err]))
+    result = run(log, pairs__heading_source="odometry", pairs__heading=(-0.01, 0.01))
+    truth = truth_of(log)
+    assert "odometry heading" in result.consistency.assumption
+    assert len(result.consistency.empty_events) == 0
+    assert pair_contains(result, truth).all()
+    assert landmark_contains(result, truth).all()
+    # assuming heading 0 instead is proven wrong: the robot turns
+    wrong = run(log, pairs__heading=(0.0, 0.0))
+    assert len(wrong.consistency.empty_events) > 0 or not pair_contains(wrong, truth).all()
+
+
+def test_heading_source_errors(tmp_path, cli_run):
+    log = small_log(2)
+    with pytest.raises(Exception, match="no odometry poses"):
+        run(log, pairs__heading_source="odometry")
+    with pytest.raises(Exception, match="heading_source"):
+        run(log, pairs__heading_source="compass")

@@ -38,12 +38,15 @@ def _default_output(log: str, mode: str) -> Path:
 @click.option("--eps", type=float, default=None, help="pairs.eps: subpaving resolution [m].")
 @click.option("--heading", type=(float, float), default=None, metavar="LO HI",
               help="pairs.heading: known heading interval [rad].")
+@click.option("--heading-source", type=click.Choice(["option", "odometry"]), default=None,
+              help="pairs.heading_source: the --heading interval, or the log's odometry heading per step "
+                   "(--heading is then its error bound).")
 @click.option("--anchor", type=(int, float, float), default=None, metavar="ID X Y",
               help="Anchoring landmark and its known position (absolute map).")
 @click.option("--reference", type=int, default=None, help="pairs.reference_id for a relative map.")
 @click.pass_context
 def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, odom_topic, landmark_topic,
-            truth_topic, range_abs, range_rel, bearing, q_pair, strict, eps, heading, anchor, reference):
+            truth_topic, range_abs, range_rel, bearing, q_pair, strict, eps, heading, heading_source, anchor, reference):
     """Run a guaranteed SLAM pipeline over LOG and write the result (HDF5).
 
     \b
@@ -65,7 +68,7 @@ def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, 
     overrides = {
         "bounds.range_abs": range_abs, "bounds.range_rel": range_rel, "bounds.bearing": bearing,
         "robust.q_pair": q_pair, "robust.strict": strict, "pairs.eps": eps,
-        "pairs.heading": heading, "pairs.reference_id": reference,
+        "pairs.heading": heading, "pairs.heading_source": heading_source, "pairs.reference_id": reference,
         "pairs.anchor_id": anchor[0] if anchor else None,
         "pairs.anchor_xy": (anchor[1], anchor[2]) if anchor else None,
     }

@@ -22,7 +22,7 @@ import numpy as np
 
 from ivslam_cli import interval as iv
 from ivslam_cli.config import Config
-from ivslam_cli.errors import IvslamError
+from ivslam_cli.errors import ConfigError, IvslamError
 from ivslam_cli.logs.model import LogData
 from ivslam_cli.results.model import (
     LABEL_BOUNDARY,
@@ -81,10 +81,45 @@ def observation_intervals(log: LogData, cfg: Config) -> tuple[np.ndarray, np.nda
     half_sym = np.column_stack([-half[:, 1], half[:, 1]])
     rho = iv.add(z, half_sym)
     rho[:, 0] = np.maximum(rho[:, 0], 0.0)
-    h_lo, h_hi = heading_interval(cfg, log)
-    head = np.tile([iv.enclose(h_lo)[0], iv.enclose(h_hi)[1]], (n, 1))
-    beta = iv.add(iv.add(a, const(cfg["bounds.bearing"])), head)
+    beta = iv.add(iv.add(a, const(cfg["bounds.bearing"])), heading_intervals(log, cfg))
     return rho, beta
+
+
+def heading_intervals(log: LogData, cfg: Config) -> np.ndarray:
+    """The heading interval at every observation, (N, 2), rounded outward.
+
+    ``heading_source = option``: the constant ``pairs.heading`` (or the log's stated bound).
+    ``heading_source = odometry``: the hull of the odometry headings at the two odometry stamps
+    around the observation (unwrapped), plus ``pairs.heading`` as the bound on the odometry's
+    heading error. Assumes the heading between two odometry samples stays between their values;
+    an observation outside the odometry's time span gets the whole circle (it proves nothing
+    about the heading, the pipeline stays sound).
+    """
+    obs = log.observations
+    n = len(obs)
+    h_lo, h_hi = heading_interval(cfg, log)
+    offset = np.tile([iv.enclose(h_lo)[0], iv.enclose(h_hi)[1]], (n, 1))
+    source = cfg["pairs.heading_source"]
+    if source == "option":
+        return offset
+    if source != "odometry":
+        raise ConfigError(f"[pairs] heading_source must be 'option' or 'odometry', got {source!r}")
+    odo = log.odometry
+    if odo is None or odo.pose is None or len(odo) == 0:
+        raise IvslamError("pairs.heading_source = odometry, but the log has no odometry poses", log.provenance.path)
+    t = odo.stamp
+    th = np.unwrap(odo.pose[:, 2])
+    s = obs.stamp
+    k = np.clip(np.searchsorted(t, s, side="left"), 0, t.shape[0] - 1)
+    prev = np.clip(k - 1, 0, t.shape[0] - 1)
+    exact = t[k] == s
+    a = th[k]
+    b = np.where(exact, th[k], th[prev])
+    head = np.column_stack([np.nextafter(np.minimum(a, b), -np.inf), np.nextafter(np.maximum(a, b), np.inf)])
+    head = iv.add(head, offset)
+    outside = (s < t[0]) | (s > t[-1])
+    head[outside] = [-np.pi - 1.0, np.pi + 1.0]
+    return head
 
 
 def _step_offsets(stamp: np.ndarray) -> np.ndarray:
@@ -227,9 +262,12 @@ def run_pairs(log: LogData, cfg: Config, progress=None) -> PairsOutput:
         definition="largest side of the bounding box of the pair's outer subpaving after the update, metres",
     )
     h_lo, h_hi = heading_interval(cfg, log)
+    heading = (f"the true heading in [{h_lo}, {h_hi}] rad" if cfg["pairs.heading_source"] == "option" else
+               f"the true heading within [{h_lo}, {h_hi}] rad of the odometry heading, and between two odometry "
+               f"samples between their headings")
     assumption = (
-        f"every range error within ±(range_abs + range_rel·range), bearing error within ±bearing, and the true "
-        f"heading in [{h_lo}, {h_hi}] rad, for all but at most q={q} observation pairs per landmark pair"
+        f"every range error within ±(range_abs + range_rel·range), bearing error within ±bearing, and {heading}, "
+        f"for all but at most q={q} observation pairs per landmark pair"
     )
     if ev.shape[0]:
         assumption += f"; {ev.shape[0]} observation pair(s) proven to break it were left out (empty events)"
