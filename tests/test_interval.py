@@ -258,3 +258,13 @@ def test_backward_mul_with_zero_divisor_keeps_everything():
 def test_enclose_decimal_constants():
     lo, hi = iv.enclose(0.1)
     assert Fraction(lo) < Fraction(1, 10) < Fraction(hi)
+
+
+@pytest.mark.parametrize("x", [1e15, 3e17, 5.8e19, 1e22, 1e300, -7e20])
+def test_sin_cos_of_huge_arguments(x):
+    """Far beyond 2^63 / (2 pi): k can no longer be an int64; results must stay sound."""
+    for lo, hi in ((x, x), (x, float(np.nextafter(x, np.inf)))):
+        s = iv.sin([lo, hi])[0]
+        c = iv.cos([lo, hi])[0]
+        assert mp_in(s, mpmath.sin(mpmath.mpf(lo))) and mp_in(c, mpmath.cos(mpmath.mpf(lo)))
+        assert mp_in(s, mpmath.sin(mpmath.mpf(hi))) and mp_in(c, mpmath.cos(mpmath.mpf(hi)))

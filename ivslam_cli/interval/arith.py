@@ -213,6 +213,8 @@ def _has_point(al, ah, offset_lo, offset_hi):
     # k must satisfy (a - offset) / (2 pi) in [k, k]; enclose the quotient outward.
     ql, qh = sub(al, ah, offset_lo, offset_hi)
     ql, qh = mul(ql, qh, INV_TWO_PI_LO, INV_TWO_PI_HI)
+    if not (-1e15 < ql and qh < 1e15):  # numba's ceil/floor return int64: undecidable, say yes
+        return True
     return math.ceil(ql) <= math.floor(qh)
 
 
