@@ -162,124 +162,79 @@ def _cells(lo, hi, eps):
     return float(math.floor(lo / eps)), float(math.floor(hi / eps)) + 1.0
 
 
+# A subpaving row: box xl, xh, yl, yh | grid cell range a0, a1, b0, b1 | fails | notin
+ROW = 10
+FAILS = 8
+NOTIN = 9
+
+
 @njit(cache=True)
-def refine(boxes, cells, fails, notin, obs, q, eps, max_boxes):
+def _push(buf, m, row):
+    """Append one row to the growable ``buf`` holding ``m`` rows; returns (buf, m + 1)."""
+    if m >= buf.shape[0]:
+        grown = np.empty((2 * buf.shape[0] + 1, buf.shape[1]))
+        grown[:m] = buf[:m]
+        buf = grown
+    buf[m] = row
+    return buf, m + 1
+
+
+@njit(cache=True)
+def refine(paving, obs, q, eps, max_boxes):
     """Intersect a pair's subpaving with one more displacement set (SIVIA on the grid).
 
-    ``boxes`` (B, 4) = xl, xh, yl, yh; ``cells`` (B, 4) = integer cell range a0, a1, b0, b1
-    (as floats) of the grid cells the box lies in; ``fails``/``notin`` (B,) counters.
-    Returns the new arrays, and a flag that is True when ``max_boxes`` cut the refinement
-    short (then boundary boxes larger than a cell were kept whole: still an outer approximation).
+    ``paving`` is (B, ROW): each row a box, the integer range ``[a0, a1) x [b0, b1)`` (as
+    floats) of the grid cells it lies in, and its ``fails``/``notin`` counters. Returns the new
+    paving and a flag that is True when ``max_boxes`` cut the refinement short (boundary boxes
+    larger than a cell were then kept whole: still an outer approximation, less tight).
     """
-    n = boxes.shape[0]
-    cap = max(16, 4 * n)
-    ob = np.empty((cap, 4))
-    oc = np.empty((cap, 4))
-    of = np.empty(cap, dtype=np.int64)
-    on = np.empty(cap, dtype=np.int64)
-    stack_b = np.empty((64 + 4 * n, 4))
-    stack_c = np.empty((64 + 4 * n, 4))
-    stack_f = np.empty(64 + 4 * n, dtype=np.int64)
-    stack_n = np.empty(64 + 4 * n, dtype=np.int64)
+    out = np.empty((max(16, 2 * paving.shape[0]), ROW))
+    stack = np.empty((64, ROW))
     m = 0
     truncated = False
-    for k in range(n):
-        top = 0
-        stack_b[0] = boxes[k]
-        stack_c[0] = cells[k]
-        stack_f[0] = fails[k]
-        stack_n[0] = notin[k]
+    for k in range(paving.shape[0]):
+        stack[0] = paving[k]
         top = 1
         while top > 0:
             top -= 1
-            b = stack_b[top].copy()
-            c = stack_c[top].copy()
-            f = stack_f[top]
-            nn = stack_n[top]
-            contract = f == q
-            state, xl, xh, yl, yh = classify(b[0], b[1], b[2], b[3], obs, contract)
-            single = (c[1] - c[0] <= 1.0) and (c[3] - c[2] <= 1.0)
+            r = stack[top].copy()
+            contract = r[FAILS] == q
+            state, xl, xh, yl, yh = classify(r[0], r[1], r[2], r[3], obs, contract)
             if state == OUT:
-                f += 1
-                if f > q:
+                r[FAILS] += 1.0
+                if r[FAILS] > q:
                     continue
-                nn += 1
+                r[NOTIN] += 1.0
             elif state == BOUNDARY:
-                nn += 1
+                single = (r[5] - r[4] <= 1.0) and (r[7] - r[6] <= 1.0)
                 if not single and m + top < max_boxes:
-                    # bisect along the longer side at a grid line
-                    if c[1] - c[0] >= c[3] - c[2]:
-                        mid = float(math.floor(0.5 * (c[0] + c[1])))
-                        split = mid * eps
-                        lo_b = b.copy()
-                        hi_b = b.copy()
-                        lo_b[1] = min(b[1], up(split))
-                        hi_b[0] = max(b[0], down(split))
-                        lo_c = c.copy()
-                        hi_c = c.copy()
-                        lo_c[1] = mid
-                        hi_c[0] = mid
-                    else:
-                        mid = float(math.floor(0.5 * (c[2] + c[3])))
-                        split = mid * eps
-                        lo_b = b.copy()
-                        hi_b = b.copy()
-                        lo_b[3] = min(b[3], up(split))
-                        hi_b[2] = max(b[2], down(split))
-                        lo_c = c.copy()
-                        hi_c = c.copy()
-                        lo_c[3] = mid
-                        hi_c[2] = mid
-                    if top + 2 > stack_b.shape[0]:
-                        grow = stack_b.shape[0] * 2
-                        sb = np.empty((grow, 4))
-                        sc = np.empty((grow, 4))
-                        sf = np.empty(grow, dtype=np.int64)
-                        sn = np.empty(grow, dtype=np.int64)
-                        sb[:top] = stack_b[:top]
-                        sc[:top] = stack_c[:top]
-                        sf[:top] = stack_f[:top]
-                        sn[:top] = stack_n[:top]
-                        stack_b, stack_c, stack_f, stack_n = sb, sc, sf, sn
-                    # children inherit the counters (the new set is re-checked on them)
-                    stack_b[top] = lo_b
-                    stack_c[top] = lo_c
-                    stack_f[top] = f
-                    stack_n[top] = nn - 1
-                    top += 1
-                    stack_b[top] = hi_b
-                    stack_c[top] = hi_c
-                    stack_f[top] = f
-                    stack_n[top] = nn - 1
-                    top += 1
+                    # bisect along the longer side (in cells) at a grid line; children inherit the
+                    # counters and are classified against the same set again
+                    axis = 0 if r[5] - r[4] >= r[7] - r[6] else 1
+                    mid = float(math.floor(0.5 * (r[4 + 2 * axis] + r[5 + 2 * axis])))
+                    split = mid * eps
+                    lo_child = r.copy()
+                    hi_child = r.copy()
+                    lo_child[2 * axis + 1] = min(r[2 * axis + 1], up(split))
+                    hi_child[2 * axis] = max(r[2 * axis], down(split))
+                    lo_child[5 + 2 * axis] = mid
+                    hi_child[4 + 2 * axis] = mid
+                    stack, top = _push(stack, top, lo_child)
+                    stack, top = _push(stack, top, hi_child)
                     continue
                 if not single:
                     truncated = True
+                r[NOTIN] += 1.0
                 if contract:
-                    b[0], b[1], b[2], b[3] = xl, xh, yl, yh
+                    r[0], r[1], r[2], r[3] = xl, xh, yl, yh
             # INSIDE: counters unchanged
-            if m >= ob.shape[0]:
-                grow = ob.shape[0] * 2
-                nb = np.empty((grow, 4))
-                nc = np.empty((grow, 4))
-                nf = np.empty(grow, dtype=np.int64)
-                nn2 = np.empty(grow, dtype=np.int64)
-                nb[:m] = ob[:m]
-                nc[:m] = oc[:m]
-                nf[:m] = of[:m]
-                nn2[:m] = on[:m]
-                ob, oc, of, on = nb, nc, nf, nn2
-            ob[m] = b
-            oc[m] = c
-            of[m] = f
-            on[m] = nn
-            m += 1
-    return ob[:m].copy(), oc[:m].copy(), of[:m].copy(), on[:m].copy(), truncated
+            out, m = _push(out, m, r)
+    return out[:m].copy(), truncated
 
 
 @njit(cache=True)
 def initial_domain(obs_rows, eps):
-    """One box (snapped outward to the grid) holding the hull of the given sets."""
+    """A one-row paving: the hull of the given sets, snapped outward to the grid, counters 0."""
     xl = INF
     xh = -INF
     yl = INF
@@ -292,9 +247,9 @@ def initial_domain(obs_rows, eps):
         yh = max(yh, d)
     a0, a1 = _cells(xl, xh, eps)
     b0, b1 = _cells(yl, yh, eps)
-    box = np.array([[down(a0 * eps), up(a1 * eps), down(b0 * eps), up(b1 * eps)]])
-    cell = np.array([[a0, a1, b0, b1]])
-    return box, cell
+    row = np.zeros((1, ROW))
+    row[0, :8] = [down(a0 * eps), up(a1 * eps), down(b0 * eps), up(b1 * eps), a0, a1, b0, b1]
+    return row
 
 
 @njit(cache=True)
@@ -452,26 +407,24 @@ def process_pairs(rows, row_stamp, pair_offsets, q, eps, max_boxes, checkpoints)
             for k in range(r0, r1):
                 width[k] = INF
         else:
-            boxes, cells = initial_domain(rows[r0 : r0 + q + 1], eps)
-            fails = np.zeros(1, dtype=np.int64)
-            notin = np.zeros(1, dtype=np.int64)
+            paving = initial_domain(rows[r0 : r0 + q + 1], eps)
             for k in range(r0, r1):
                 while c < n_cp and checkpoints[c] < row_stamp[k]:
-                    cur = boxes if k - r0 > q else none
+                    cur = paving[:, :4] if k - r0 > q else none
                     snap_start[c * n_pairs + p] = ns
                     snap_count[c * n_pairs + p] = cur.shape[0]
                     snap, ns = _append(snap, ns, cur)
                     c += 1
-                nb, nc, nf, nn, trunc = refine(boxes, cells, fails, notin, rows[k], q, eps, max_boxes)
+                new, trunc = refine(paving, rows[k], q, eps, max_boxes)
                 if trunc:
                     truncated[p] = True
-                if nb.shape[0] == 0:
+                if new.shape[0] == 0:
                     rejected[k] = True
                 else:
-                    boxes, cells, fails, notin = nb, nc, nf, nn
-                width[k] = hull_width(boxes)
-            bx = boxes
-            bi = notin <= q
+                    paving = new
+                width[k] = hull_width(paving)
+            bx = paving[:, :4].copy()
+            bi = paving[:, NOTIN] <= q
         while c < n_cp:
             cur = bx if r1 - r0 > q else none
             snap_start[c * n_pairs + p] = ns
