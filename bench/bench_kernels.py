@@ -156,6 +156,8 @@ def throughput(n: int = N_POLAR, n_codac: int = N_CODAC) -> dict:
     res["ours_width"] = _mean_width(ours_sub, np.ones(n_codac, dtype=bool))
     try:
         import codac
+
+        _nearest()  # importing Codac leaves the FPU rounding upward
     except ImportError:
         res["codac"] = None
         return res
@@ -165,6 +167,7 @@ def throughput(n: int = N_POLAR, n_codac: int = N_CODAC) -> dict:
     for x in vecs:
         c.contract(x)
     t_codac = time.perf_counter() - t0
+    _nearest()  # Codac leaves the FPU in directed rounding; our kernels need round-to-nearest
     cod = np.array([[[x[j].lb(), x[j].ub()] for x in vecs] for j in range(4)])
     lost_c = np.zeros(n_codac, dtype=bool)
     for j, (v, e) in enumerate(truth):
@@ -178,6 +181,13 @@ def throughput(n: int = N_POLAR, n_codac: int = N_CODAC) -> dict:
                     "width": _mean_width(cod, common),
                     "emptied": int((~(cod[0, :, 0] <= cod[0, :, 1])).sum())}
     return res
+
+
+def _nearest() -> None:
+    import ctypes
+    import ctypes.util
+
+    ctypes.CDLL(ctypes.util.find_library("m")).fesetround(0)  # FE_TONEAREST (glibc)
 
 
 def _mean_width(b: np.ndarray, rows: np.ndarray) -> list[float]:

@@ -5,8 +5,9 @@ operation); our kernel rounds to nearest then steps outward (1-2 ulps per operat
 libm transcendental functions). Both enclose the irrational pi. A bound of ours may therefore
 sit a few ulps outside Codac's without being a looser contraction. We allow
 
-    dx, dy, rho:  TOL_ULPS * (ulp(S) + S * ulp(T) / min |sin(t) cos(t)|)
-    theta:        TOL_ULPS * ulp(T)
+    dx, dy, rho:  TOL_ULPS * (ulp(S) + C)
+    theta:        TOL_ULPS * (ulp(T) + C / rho_lo)
+    C = S * ulp(T) / min |sin(t) cos(t)|  +  S * ulp(S) / m
 
 where ``S`` is the largest magnitude among the dx, dy, rho bounds, ``T = max(|theta|, pi)``
 and the minimum is over the ends of Codac's theta (and its middle when narrower than 1 rad:
@@ -14,7 +15,11 @@ the extreme bounds are reached there). The second term is the conditioning of th
 ``dy = dx tan(phi)`` that both contractors use: an ulp of the angle (its enclosure of pi, or
 the 2 k pi moving theta to its branch) becomes ``1 / (sin cos)`` relative ulps of ``tan``, so
 near theta = ±pi/2 (or 0, pi) tens to hundreds of plain ulps of difference are rounding, not a
-looser contraction. With it, differences measured on 100,000 boxes stay within TOL_ULPS = 8.
+looser contraction. ``S ulp(S) / m``, with ``m`` the smaller of max|dx| and max|dy|, is the
+cancellation in ``dx^2 = rho^2 - dy^2``: an ulp of ``S^2`` becomes ``S ulp(S) / |dx|`` of
+``dx`` (hundreds of ulps when the box hugs an axis). Either error moves theta by ``/ rho``.
+With these terms, differences measured on 100,000 boxes stay within TOL_ULPS = 8.
+Without them both kernels would have to round identically, which is not the claim.
 
 Codac returns the empty set for some boxes holding the origin ``dx = dy = rho = 0`` (e.g.
 ``rho = [0, 0]``), which is a solution for every theta: we keep it. Boxes holding the origin are
@@ -23,6 +28,8 @@ excluded from the comparison and checked separately (ours must still hold the or
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import math
 
 import numpy as np
@@ -32,6 +39,27 @@ from ivslam_cli.contractors import polar
 
 codac = pytest.importorskip("codac")
 pytestmark = pytest.mark.codac
+
+# Importing Codac switches the FPU to upward rounding and leaves it so; its contractors set
+# it again. Our kernels assume round-to-nearest (see interval/rounding.py), as does the rest
+# of the suite (collection imports this module before any test runs): restore it now and
+# after every Codac call.
+_libm = ctypes.CDLL(ctypes.util.find_library("m"))
+_FE_TONEAREST = 0  # glibc, x86-64 and aarch64
+
+
+def nearest() -> None:
+    _libm.fesetround(_FE_TONEAREST)
+
+
+nearest()
+
+
+@pytest.fixture(autouse=True)
+def _restore_rounding():
+    nearest()
+    yield
+    nearest()
 
 TOL_ULPS = 8.0
 N = 6000
@@ -70,10 +98,12 @@ def codac_contract(boxes: list[np.ndarray]) -> np.ndarray:
         c.contract(b)
         for j in range(4):
             out[j, i] = (b[j].lb(), b[j].ub())
+    nearest()
     return out
 
 
 def test_polar_is_never_looser_than_codac(capsys):
+    assert _libm.fegetround() == _FE_TONEAREST
     boxes = random_boxes(N, seed=2024)
     cod = codac_contract(boxes)
     ours = [b.copy() for b in boxes]
@@ -100,17 +130,27 @@ def test_polar_is_never_looser_than_codac(capsys):
     sc = np.where(t_hi - t_lo < 1.0, np.minimum(sc, np.abs(np.sin(t_mid) * np.cos(t_mid))), sc)
     # error from ulps of the angle, amplified by the conditioning at theta's ends
     cond = scale * np.spacing(t_scale) / np.maximum(sc, 1e-300)
+    # cancellation in dx^2 = rho^2 - dy^2 (or dy^2): an ulp of S^2 is S ulp(S) / |dx| of dx
+    small = np.minimum(np.abs(cod[0, both]).max(1), np.abs(cod[1, both]).max(1))
+    canc = scale * np.spacing(scale) / np.maximum(small, 1e-300)
+    r_lo = np.maximum(cod[2, both, 0], 1e-300)
     tighter = np.zeros(both.sum(), dtype=bool)
+    tighter_raw = np.zeros(both.sum(), dtype=bool)
     for j in range(4):
-        tol = TOL_ULPS * (np.spacing(scale) + cond) if j < 3 else TOL_ULPS * np.spacing(t_scale)
+        if j < 3:
+            tol = TOL_ULPS * (np.spacing(scale) + cond + canc)
+        else:  # an error e in dx or dy moves the angle by e / rho
+            tol = TOL_ULPS * (np.spacing(t_scale) + (cond + canc) / r_lo)
         o, c = ours[j, both], cod[j, both]
         assert (o[:, 0] >= c[:, 0] - tol).all(), f"variable {j}: lower bound looser than Codac"
         assert (o[:, 1] <= c[:, 1] + tol).all(), f"variable {j}: upper bound looser than Codac"
         tighter |= (o[:, 0] > c[:, 0] + tol) | (o[:, 1] < c[:, 1] - tol)
+        tighter_raw |= (o[:, 0] > c[:, 0]) | (o[:, 1] < c[:, 1])
     emptier = cmp & ~ok & c_ok
     with capsys.disabled():
         print(f"\n[codac crosscheck] {N} boxes: compared {both.sum()}, strictly tighter (beyond the "
-              f"tolerance) on {tighter.mean():.1%} of them; empty where Codac is not: "
+              f"tolerance) on {tighter.mean():.1%} of them (by any amount: {tighter_raw.mean():.1%}); "
+              f"empty where Codac is not: "
               f"{emptier.sum()}; origin boxes kept: {origin.sum()}")
     assert both.sum() > N // 2  # the comparison is not vacuous
 
@@ -118,6 +158,7 @@ def test_polar_is_never_looser_than_codac(capsys):
 def test_codac_drops_the_origin_and_we_keep_it():
     b = codac.IntervalVector([[-1, 1], [-1, 1], [0, 0], [0.5, 0.6]])
     codac.CtcPolar().contract(b)
+    nearest()
     ours = [np.array([[-1.0, 1.0]]), np.array([[-1.0, 1.0]]), np.array([[0.0, 0.0]]),
             np.array([[0.5, 0.6]])]
     assert polar(*ours)[0]
