@@ -253,3 +253,12 @@ def test_plot_with_no_inner_boxes(tmp_path):
         r.pairs.label[:] = LABEL_BOUNDARY
     plot_report(compute_report(r), tmp_path / "p.png")
     assert (tmp_path / "p.png").stat().st_size > 0
+
+
+def test_angle_in_requires_both_bounds():
+    """Regression: a heading a subnormal below [0, 0] is not inside it (the quotient underflows)."""
+    from ivslam_cli.report.core import angle_in
+
+    assert not bool(angle_in(0.0, 0.0, -5e-324))
+    assert bool(angle_in(0.0, 0.0, 0.0))
+    assert bool(angle_in(6.0, 7.0, 6.5 - 2 * math.pi))

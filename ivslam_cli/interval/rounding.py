@@ -20,6 +20,8 @@ user-given bounds are widened by ``enclose`` before use.
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import math
 
 import numpy as np
@@ -79,3 +81,20 @@ def enclose(value: float) -> tuple[float, float]:
     """
     v = float(value)
     return float(np.nextafter(v, -INF)), float(np.nextafter(v, INF))
+
+
+# --- the FPU rounding mode ---------------------------------------------------------------
+# Everything above assumes round-to-nearest. Other libraries may leave another mode behind
+# (importing Codac leaves round-upward), so every Python entry point calls this first.
+_FE_TONEAREST = 0  # glibc, x86-64 and aarch64
+try:
+    _LIBM = ctypes.CDLL(ctypes.util.find_library("m") or "libm.so.6")
+    _LIBM.fegetround.restype = ctypes.c_int
+except OSError:  # pragma: no cover - no libm to ask: nothing to restore either
+    _LIBM = None
+
+
+def ensure_round_to_nearest() -> None:
+    """Restore round-to-nearest if something in this process changed the rounding mode."""
+    if _LIBM is not None and _LIBM.fegetround() != _FE_TONEAREST:
+        _LIBM.fesetround(_FE_TONEAREST)

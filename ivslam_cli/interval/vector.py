@@ -11,6 +11,7 @@ from numba import njit
 
 from ivslam_cli.interval import angles as A
 from ivslam_cli.interval import arith as K
+from ivslam_cli.interval.rounding import ensure_round_to_nearest
 
 
 @njit(cache=True)
@@ -104,6 +105,7 @@ def _width(a):
 
 
 def _arr(a) -> np.ndarray:
+    ensure_round_to_nearest()
     a = np.ascontiguousarray(a, dtype=np.float64)
     if a.ndim == 1 and a.shape[0] == 2:
         a = a.reshape(1, 2)

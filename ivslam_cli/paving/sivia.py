@@ -17,6 +17,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+from ivslam_cli.interval.rounding import ensure_round_to_nearest
 from numba import njit
 
 from ivslam_cli.paving.grid import (
@@ -213,6 +215,7 @@ def pave(classify, domain, eps: float, *, origin=(0.0, 0.0), sub: int = 0,
     Returns a :class:`GridPaving` whose outer approximation holds every point of
     ``set ∩ domain`` and whose INNER cells are inside the set.
     """
+    ensure_round_to_nearest()
     if sub < 0 or sub > 8:
         raise ValueError(f"sub must be in 0..8, got {sub}")
     grid = Grid(float(origin[0]), float(origin[1]), float(eps))

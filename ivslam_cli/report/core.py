@@ -63,9 +63,11 @@ def angle_in(lo: np.ndarray, hi: np.ndarray, theta: np.ndarray) -> np.ndarray:
     lo, hi, theta = np.broadcast_arrays(np.asarray(lo, float), np.asarray(hi, float), np.asarray(theta, float))
     finite = np.isfinite(lo) & np.isfinite(hi)
     with np.errstate(invalid="ignore"):
-        n = np.ceil((lo - theta) / TWO_PI)
-        shifted = theta + TWO_PI * n
-        ok = (shifted <= hi) | (hi - lo >= TWO_PI)
+        n = np.ceil((lo - theta) / TWO_PI)  # may be off by one (rounding, underflow): try n ± 1
+        ok = hi - lo >= TWO_PI
+        for d in (-1.0, 0.0, 1.0):
+            shifted = theta + TWO_PI * (n + d)
+            ok |= (lo <= shifted) & (shifted <= hi)
     unbounded = (lo <= hi) & ~finite  # an infinite side: contains every angle
     return np.where(finite, ok & (lo <= hi), unbounded)
 

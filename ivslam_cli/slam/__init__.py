@@ -14,6 +14,9 @@ from ivslam_cli.results.provenance import make_provenance
 
 def run_pipeline(log: LogData, cfg: Config, mode: str, argv: Sequence[str] | None = None) -> Result:
     """Run ``mode`` over ``log``. With ``robust.strict`` the result records where it stopped."""
+    from ivslam_cli.interval.rounding import ensure_round_to_nearest
+
+    ensure_round_to_nearest()
     t0 = time.perf_counter()
     if mode == "pairs":
         from ivslam_cli.slam.pairs import run_pairs
