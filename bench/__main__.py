@@ -2,14 +2,17 @@
 
     python -m bench                 # all
     python -m bench kernels paving  # bench_kernels.py and bench_paving.py
+
+Each benchmark runs in its own process: timings do not depend on what ran before, and a
+reference library's side effects (Codac leaves the FPU rounding upward, and a later h5py import
+then crashes) stay inside the benchmark that loads it.
 """
 
 from __future__ import annotations
 
-import importlib
+import subprocess
 import sys
 import time
-import traceback
 from pathlib import Path
 
 
@@ -27,11 +30,8 @@ def main(argv: list[str]) -> int:
     for name in names:
         print(f"\n=== {name} " + "=" * max(0, 60 - len(name)), flush=True)
         t0 = time.perf_counter()
-        try:
-            rc = importlib.import_module(f"bench.{name}").main()
-        except Exception:  # a broken benchmark must not hide the others
-            traceback.print_exc()
-            rc = 1
+        code = f"import sys, bench.{name} as b; sys.exit(b.main())"
+        rc = subprocess.run([sys.executable, "-c", code], cwd=here.parent).returncode
         print(f"--- {name}: {time.perf_counter() - t0:.1f} s", flush=True)
         if rc:
             failed.append(name)
