@@ -186,6 +186,13 @@ def test_cli_run_report_and_refusals(tmp_path, cli_run):
     res = cli_run("run", path, "--mode", "pairs", "-o", tmp_path / "s.h5", "--strict", "--range-abs", "0.001")
     assert res.exit_code == 3 and "stopped (--strict)" in res.output
     assert (tmp_path / "s.h5").exists()  # written for diagnosis
+    from ivslam_cli.results.hdf5 import read_result
+
+    stopped = read_result(tmp_path / "s.h5")
+    first = stopped.consistency.empty_events.stamp.min()
+    assert stopped.consistency.stopped
+    assert stopped.consistency.widths["pair"].stamp.max() <= first  # nothing after the first event
+    assert np.all(stopped.consistency.empty_events.stamp == first)
     res = cli_run("run", tmp_path / "missing.mcap", "-o", tmp_path / "x.h5")
     assert res.exit_code != 0 and "Traceback" not in res.output
 

@@ -4,16 +4,30 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from dataclasses import replace
 
 from ivslam_cli.config import Config
 from ivslam_cli.errors import InconsistentData, IvslamError
-from ivslam_cli.logs.model import LogData
+from ivslam_cli.logs.model import LogData, Observations
 from ivslam_cli.results.model import Result
 from ivslam_cli.results.provenance import make_provenance
 
 
+def observations_until(log: LogData, stamp: float) -> LogData:
+    """The log with its observations cut after ``stamp`` (indices of the kept ones unchanged)."""
+    obs = log.observations
+    keep = obs.stamp <= stamp
+    cut = Observations(stamp=obs.stamp[keep], landmark_id=obs.landmark_id[keep], range=obs.range[keep],
+                       bearing=obs.bearing[keep])
+    return replace(log, observations=cut)
+
+
 def run_pipeline(log: LogData, cfg: Config, mode: str, argv: Sequence[str] | None = None) -> Result:
-    """Run ``mode`` over ``log``. With ``robust.strict`` the result records where it stopped."""
+    """Run ``mode`` over ``log``.
+
+    With ``robust.strict`` the run stops at the first empty intersection: the result covers the
+    data up to that measurement and ``consistency.stopped`` says where (the CLI then exits 3).
+    """
     from ivslam_cli.interval.rounding import ensure_round_to_nearest
 
     ensure_round_to_nearest()
@@ -22,6 +36,10 @@ def run_pipeline(log: LogData, cfg: Config, mode: str, argv: Sequence[str] | Non
         from ivslam_cli.slam.pairs import run_pairs
 
         out = run_pairs(log, cfg)
+        events = out.consistency.empty_events
+        if cfg["robust.strict"] and len(events):
+            # stop at the first empty intersection: the result holds the data up to it
+            out = run_pairs(observations_until(log, float(events.stamp[0])), cfg)
         result = Result(
             mode=mode,
             provenance=make_provenance(log.provenance, cfg.as_dict(), argv),
