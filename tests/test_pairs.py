@@ -249,3 +249,19 @@ def test_heading_source_errors(tmp_path, cli_run):
         run(log, pairs__heading_source="odometry")
     with pytest.raises(Exception, match="heading_source"):
         run(log, pairs__heading_source="compass")
+
+
+def test_heading_from_odometry_many_turns_away():
+    """Odometry headings far from [-pi, pi] (thousands of turns, stored unwrapped or wrapped)."""
+    from ivslam_cli.logs.model import Odometry
+
+    log = simulate(SimConfig(scenario="landmarks", seed=6, steps=60, landmarks=10, world_size=10.0,
+                             fov=3.1, max_range=8.0))
+    t = log.truth
+    turns = 2 * np.pi * np.where(np.arange(t.pose.shape[0]) % 2 == 0, 3000.0, -1000.0)  # alternate branches
+    log.odometry = Odometry(stamp=t.pose_stamp.copy(), pose=np.column_stack([t.pose[:, :2], t.pose[:, 2] + turns]))
+    result = run(log, pairs__heading_source="odometry", pairs__heading=(-1e-6, 1e-6))
+    truth = truth_of(log)
+    assert len(result.consistency.empty_events) == 0
+    assert pair_contains(result, truth).all()
+    assert landmark_contains(result, truth).all()

@@ -108,14 +108,20 @@ def heading_intervals(log: LogData, cfg: Config) -> np.ndarray:
     if odo is None or odo.pose is None or len(odo) == 0:
         raise IvslamError("pairs.heading_source = odometry, but the log has no odometry poses", log.provenance.path)
     t = odo.stamp
-    th = np.unwrap(odo.pose[:, 2])
+    th = odo.pose[:, 2]
     s = obs.stamp
     k = np.clip(np.searchsorted(t, s, side="left"), 0, t.shape[0] - 1)
     prev = np.clip(k - 1, 0, t.shape[0] - 1)
-    exact = t[k] == s
-    a = th[k]
-    b = np.where(exact, th[k], th[prev])
-    head = np.column_stack([np.nextafter(np.minimum(a, b), -np.inf), np.nextafter(np.maximum(a, b), np.inf)])
+    a = th[k]  # exact data
+    b = np.where(t[k] == s, th[k], th[prev])
+    # the other sample's heading moved next to a: d = wrap(b - a), computed in floats. Its error:
+    # the subtraction (an ulp of |a| + |b|) and the float 2 pi below the real one (|turns| * 2.5e-16)
+    raw = b - a
+    turns = np.round(raw / (2.0 * np.pi))
+    d = raw - turns * (2.0 * np.pi)
+    margin = 4.0 * np.spacing(np.abs(a) + np.abs(b) + np.pi) + np.abs(turns) * 1e-15
+    head = np.column_stack([np.nextafter(a + np.minimum(d, 0.0) - margin, -np.inf),
+                            np.nextafter(a + np.maximum(d, 0.0) + margin, np.inf)])
     head = iv.add(head, offset)
     outside = (s < t[0]) | (s > t[-1])
     head[outside] = [-np.pi - 1.0, np.pi + 1.0]

@@ -248,7 +248,9 @@ def initial_domain(obs_rows, eps):
     a0, a1 = _cells(xl, xh, eps)
     b0, b1 = _cells(yl, yh, eps)
     row = np.zeros((1, ROW))
-    row[0, :8] = [down(a0 * eps), up(a1 * eps), down(b0 * eps), up(b1 * eps), a0, a1, b0, b1]
+    # the grid-snapped box, never inside the hull even if xl / eps rounded up to an integer
+    row[0, :8] = [min(down(a0 * eps), xl), max(up(a1 * eps), xh), min(down(b0 * eps), yl),
+                  max(up(b1 * eps), yh), a0, a1, b0, b1]
     return row
 
 
