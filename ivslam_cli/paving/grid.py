@@ -10,11 +10,15 @@ arrays sorted by a 64-bit key of ``(i, j)``:
 
 - ``label`` INNER (the whole cell is proven inside the set) or BOUNDARY (the cell may hold points
   of the set);
-- ``box``: a box inside the cell that holds every point of the set lying in the cell (for INNER
-  cells, the cell itself).
+- ``parts`` / ``start``: the boxes of cell ``k`` are ``parts[start[k]:start[k + 1]]`` (at least
+  one, each inside the cell); together they hold every point of the set lying in the cell. An
+  INNER cell has one part, the cell itself; a BOUNDARY cell may have several (e.g. the
+  contracted pieces of the cell bisected into a sub-grid by ``pave(..., sub=s)``);
+- ``box``: the hull of the cell's parts, the one-box-per-cell view.
 
-Outer approximation = union of the boxes; inner approximation = union of the INNER cells.
-Pavings on the same grid (same origin and resolution) combine cell by cell.
+Outer approximation = union of the parts (also: of the boxes, a looser one); inner
+approximation = union of the INNER cells. Pavings on the same grid (same origin and
+resolution) combine cell by cell.
 """
 
 from __future__ import annotations
@@ -110,16 +114,43 @@ class GridPaving:
 
     ``key`` (N,) int64 strictly increasing (see :func:`cell_key`); ``label`` (N,) uint8 in
     {INNER, BOUNDARY}; ``box`` (N, 2, 2) float64, ``box[k, d] = [lo, hi]`` on axis d (x, y),
-    a non-empty box inside cell ``k`` (the cell itself when INNER).
+    a non-empty box inside cell ``k`` (the cell itself when INNER), the hull of its parts;
+    ``parts`` (B, 2, 2) float64 and ``start`` (N + 1,) int64 non-decreasing with
+    ``start[0] = 0``, ``start[N] = B`` and at least one part per cell: cell ``k``'s parts are
+    ``parts[start[k]:start[k + 1]]``, non-empty boxes inside ``box[k]`` (just the cell when
+    INNER). Without ``parts``/``start`` every cell has the one part ``box[k]``.
     """
 
     grid: Grid
     key: np.ndarray
     label: np.ndarray
     box: np.ndarray
+    parts: np.ndarray = None  # type: ignore[assignment]  # (B, 2, 2); default: box
+    start: np.ndarray = None  # type: ignore[assignment]  # (N + 1,); default: 0..N
+
+    def __post_init__(self) -> None:
+        n = self.key.shape[0]
+        if (self.parts is None) != (self.start is None):
+            raise ValueError("GridPaving: give both parts and start, or neither")
+        if self.parts is None:
+            object.__setattr__(self, "parts", self.box)
+            object.__setattr__(self, "start", np.arange(n + 1, dtype=np.int64))
+        if self.start.shape != (n + 1,) or self.start[-1] != self.parts.shape[0]:
+            raise ValueError(f"GridPaving: start must be (N + 1,) ending at the number of parts, "
+                             f"got {self.start.shape} for N={n}, B={self.parts.shape[0]}")
 
     def __len__(self) -> int:
         return int(self.key.shape[0])
+
+    @property
+    def n_parts(self) -> np.ndarray:
+        """(N,) number of parts of each cell (>= 1)."""
+        return np.diff(self.start)
+
+    @property
+    def part_cell(self) -> np.ndarray:
+        """(B,) index of the cell each part belongs to."""
+        return np.repeat(np.arange(len(self), dtype=np.int64), self.n_parts)
 
     @property
     def i(self) -> np.ndarray:
@@ -151,7 +182,18 @@ class GridPaving:
         return len(self) == 0
 
     def outer_area(self) -> float:
-        """Area of the outer approximation, rounded up: >= the area of the set ∩ domain."""
+        """Area of the outer approximation, rounded up: >= the area of the set ∩ domain.
+
+        Per cell, the smaller of the sum of its parts' areas and its box's area (parts may
+        overlap after a union), so it is never above :meth:`box_area`.
+        """
+        if len(self) == 0:
+            return 0.0
+        a = np.minimum(_cell_parts_area(self.parts, self.start), _box_areas(self.box, np.inf))
+        return float(np.nextafter(math.fsum(a), np.inf))
+
+    def box_area(self) -> float:
+        """Area of the one-box-per-cell outer approximation (the union of ``box``), rounded up."""
         return _area(self.box, up=True)
 
     def inner_area(self) -> float:
@@ -171,11 +213,12 @@ class GridPaving:
         return out
 
     def to_boxes(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(boxes (B, 2, 2) float64, label (B,) uint8)``, 1 inner / 2 boundary (HDF5 layout).
+        """``(boxes (B, 2, 2) float64, label (B,) uint8)``, 1 inner / 2 boundary (HDF5 layout):
+        the parts, each with its cell's label.
 
         The union of the boxes is the outer approximation; the label-1 boxes form the inner one.
         """
-        return self.box.copy(), self.label.copy()
+        return self.parts.copy(), self.label[self.part_cell]
 
     def same_grid(self, other: GridPaving) -> None:
         if self.grid != other.grid:
@@ -184,7 +227,14 @@ class GridPaving:
     def __repr__(self) -> str:
         n_in = int(np.count_nonzero(self.inner_mask))
         return (f"GridPaving(eps={self.grid.eps}, origin=({self.grid.ox}, {self.grid.oy}), "
-                f"{n_in} inner + {len(self) - n_in} boundary cells)")
+                f"{n_in} inner + {len(self) - n_in} boundary cells, {self.parts.shape[0]} boxes)")
+
+
+def _box_areas(box: np.ndarray, to: float) -> np.ndarray:
+    """Area of each box, rounded towards ``to`` (one ulp per operation)."""
+    w = np.nextafter(box[:, 0, 1] - box[:, 0, 0], to)
+    v = np.nextafter(box[:, 1, 1] - box[:, 1, 0], to)
+    return np.nextafter(w * v, to)
 
 
 def _area(box: np.ndarray, up: bool) -> float:
@@ -192,10 +242,40 @@ def _area(box: np.ndarray, up: bool) -> float:
     if box.shape[0] == 0:
         return 0.0
     to = np.inf if up else -np.inf
-    w = np.nextafter(box[:, 0, 1] - box[:, 0, 0], to)
-    v = np.nextafter(box[:, 1, 1] - box[:, 1, 0], to)
-    a = np.nextafter(w * v, to)
-    return float(np.nextafter(math.fsum(a), to))
+    return float(np.nextafter(math.fsum(_box_areas(box, to)), to))
+
+
+@njit(cache=True)
+def _cell_parts_area(parts, start):
+    """Per cell, the sum of its parts' areas rounded up (a single part: as :func:`_box_areas`)."""
+    n = start.shape[0] - 1
+    out = np.empty(n)
+    for k in range(n):
+        s = 0.0
+        for q in range(start[k], start[k + 1]):
+            w = np.nextafter(parts[q, 0, 1] - parts[q, 0, 0], np.inf)
+            v = np.nextafter(parts[q, 1, 1] - parts[q, 1, 0], np.inf)
+            a = np.nextafter(w * v, np.inf)
+            s = a if q == start[k] else np.nextafter(s + a, np.inf)
+        out[k] = s
+    return out
+
+
+@njit(cache=True)
+def hulls(parts, start):
+    """(N, 2, 2) hull of each cell's parts."""
+    n = start.shape[0] - 1
+    out = np.empty((n, 2, 2))
+    for k in range(n):
+        out[k, 0, 0] = np.inf
+        out[k, 0, 1] = -np.inf
+        out[k, 1, 0] = np.inf
+        out[k, 1, 1] = -np.inf
+        for q in range(start[k], start[k + 1]):
+            for d in range(2):
+                out[k, d, 0] = min(out[k, d, 0], parts[q, d, 0])
+                out[k, d, 1] = max(out[k, d, 1], parts[q, d, 1])
+    return out
 
 
 def empty_paving(grid: Grid) -> GridPaving:

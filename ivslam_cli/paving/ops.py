@@ -30,58 +30,183 @@ from ivslam_cli.paving.sivia import DEFAULT_MAX_CELLS
 
 
 
+MAX_PARTS = 256  # an operation's result cell with more parts keeps only their hull (sound)
+
+
 # ----------------------------------------------------------------- kernels
 @njit(cache=True)
-def _intersect(kA, lA, bA, kB, lB, bB):
+def _set_hull(out, r, parts, lo, hi):
+    """``out[r]`` = hull of ``parts[lo:hi]``."""
+    out[r, 0, 0] = np.inf
+    out[r, 0, 1] = -np.inf
+    out[r, 1, 0] = np.inf
+    out[r, 1, 1] = -np.inf
+    for q in range(lo, hi):
+        for d in range(2):
+            out[r, d, 0] = min(out[r, d, 0], parts[q, d, 0])
+            out[r, d, 1] = max(out[r, d, 1], parts[q, d, 1])
+
+
+@njit(cache=True)
+def _meet(P, p, Q, q):
+    """``P[p] ∩ Q[q]`` as ``(xl, xh, yl, yh, non-empty)``."""
+    xl = max(P[p, 0, 0], Q[q, 0, 0])
+    xh = min(P[p, 0, 1], Q[q, 0, 1])
+    yl = max(P[p, 1, 0], Q[q, 1, 0])
+    yh = min(P[p, 1, 1], Q[q, 1, 1])
+    return xl, xh, yl, yh, (xl <= xh and yl <= yh)
+
+
+@njit(cache=True)
+def _intersect(kA, lA, sA, pA, kB, lB, sB, pB, max_parts):
+    """Cells of both operands: parts = the non-empty pairwise intersections of their parts
+    (INNER ∩ INNER: the cell); cells with none are dropped; over ``max_parts``: their hull."""
+    # pass 1: matched cells and their part counts (exact, so memory is what is kept)
     n = min(kA.shape[0], kB.shape[0])
-    keys = np.empty(n, np.int64)
-    label = np.empty(n, np.uint8)
-    box = np.empty((n, 2, 2))
+    ia = np.empty(n, np.int64)
+    ib = np.empty(n, np.int64)
+    cnt = np.empty(n, np.int64)
+    m = 0
     a = 0
     b = 0
-    m = 0
     while a < kA.shape[0] and b < kB.shape[0]:
         if kA[a] < kB[b]:
             a += 1
         elif kB[b] < kA[a]:
             b += 1
         else:
-            xl = max(bA[a, 0, 0], bB[b, 0, 0])
-            xh = min(bA[a, 0, 1], bB[b, 0, 1])
-            yl = max(bA[a, 1, 0], bB[b, 1, 0])
-            yh = min(bA[a, 1, 1], bB[b, 1, 1])
-            if xl <= xh and yl <= yh:
-                keys[m] = kA[a]
-                label[m] = INNER if (lA[a] == INNER and lB[b] == INNER) else BOUNDARY
-                box[m, 0, 0], box[m, 0, 1], box[m, 1, 0], box[m, 1, 1] = xl, xh, yl, yh
+            c = 0
+            for p in range(sA[a], sA[a + 1]):
+                for q in range(sB[b], sB[b + 1]):
+                    if _meet(pA, p, pB, q)[4]:
+                        c += 1
+            if c > 0:
+                ia[m] = a
+                ib[m] = b
+                cnt[m] = 1 if (c > max_parts or (lA[a] == INNER and lB[b] == INNER)) else c
                 m += 1
             a += 1
             b += 1
-    return keys[:m], label[:m], box[:m]
+    keys = np.empty(m, np.int64)
+    label = np.empty(m, np.uint8)
+    start = np.empty(m + 1, np.int64)
+    start[0] = 0
+    for r in range(m):
+        start[r + 1] = start[r] + cnt[r]
+    parts = np.empty((start[m], 2, 2))
+    box = np.empty((m, 2, 2))
+    for r in range(m):
+        a = ia[r]
+        b = ib[r]
+        keys[r] = kA[a]
+        label[r] = INNER if (lA[a] == INNER and lB[b] == INNER) else BOUNDARY
+        w = start[r]
+        for p in range(sA[a], sA[a + 1]):
+            for q in range(sB[b], sB[b + 1]):
+                xl, xh, yl, yh, ok = _meet(pA, p, pB, q)
+                if not ok:
+                    continue
+                if w == start[r + 1]:  # over max_parts: grow the one part to the hull
+                    w -= 1
+                    xl = min(xl, parts[w, 0, 0])
+                    xh = max(xh, parts[w, 0, 1])
+                    yl = min(yl, parts[w, 1, 0])
+                    yh = max(yh, parts[w, 1, 1])
+                parts[w, 0, 0], parts[w, 0, 1], parts[w, 1, 0], parts[w, 1, 1] = xl, xh, yl, yh
+                w += 1
+        _set_hull(box, r, parts, start[r], start[r + 1])
+    return keys, label, box, parts, start
 
 
 @njit(cache=True)
-def _reduce(keys, label, box):
-    """Merge rows with equal keys (``keys`` sorted): INNER wins, boxes are hulled."""
+def _reduce(keys, label, start, parts, ox, oy, h, max_parts):
+    """Merge rows with equal keys (``keys`` sorted; row ``r``'s parts ``parts[start[r]:start[r+1]]``):
+    INNER wins (one part: the cell), else the parts are pooled (over ``max_parts``: their hull)."""
     n = keys.shape[0]
-    ok = np.empty(n, np.int64)
+    # pass 1: output cells, their first row, label and part count
+    first = np.empty(n + 1, np.int64)
     ol = np.empty(n, np.uint8)
-    ob = np.empty((n, 2, 2))
+    cnt = np.zeros(n, np.int64)
     m = -1
     for r in range(n):
-        if m < 0 or keys[r] != ok[m]:
+        if m < 0 or keys[r] != keys[first[m]]:
             m += 1
-            ok[m] = keys[r]
-            ol[m] = label[r]
-            ob[m] = box[r]
+            first[m] = r
+            ol[m] = BOUNDARY
+        if label[r] == INNER:
+            ol[m] = INNER
+        cnt[m] += start[r + 1] - start[r]
+    m += 1
+    first[m] = n
+    ok = np.empty(m, np.int64)
+    ostart = np.empty(m + 1, np.int64)
+    ostart[0] = 0
+    for c in range(m):
+        ok[c] = keys[first[c]]
+        ostart[c + 1] = ostart[c] + (1 if (ol[c] == INNER or cnt[c] > max_parts) else cnt[c])
+    op = np.empty((ostart[m], 2, 2))
+    ob = np.empty((m, 2, 2))
+    for c in range(m):
+        lo = start[first[c]]
+        hi = start[first[c + 1]]
+        w = ostart[c]
+        if ol[c] == INNER:
+            i = key_i(ok[c])
+            j = key_j(ok[c])
+            op[w, 0, 0], op[w, 0, 1] = coord(ox, i, h), coord(ox, i + 1, h)
+            op[w, 1, 0], op[w, 1, 1] = coord(oy, j, h), coord(oy, j + 1, h)
+        elif ostart[c + 1] - w == 1:
+            _set_hull(op, w, parts, lo, hi)
         else:
-            if label[r] == INNER:
-                ol[m] = INNER
-            ob[m, 0, 0] = min(ob[m, 0, 0], box[r, 0, 0])
-            ob[m, 0, 1] = max(ob[m, 0, 1], box[r, 0, 1])
-            ob[m, 1, 0] = min(ob[m, 1, 0], box[r, 1, 0])
-            ob[m, 1, 1] = max(ob[m, 1, 1], box[r, 1, 1])
-    return ok[:m + 1], ol[:m + 1], ob[:m + 1]
+            for q in range(lo, hi):
+                op[w] = parts[q]
+                w += 1
+        _set_hull(ob, c, op, ostart[c], ostart[c + 1])
+    return ok, ol[:m].copy(), ob, op, ostart
+
+
+@njit(cache=True)
+def _permute(order, start, parts):
+    """Rows in the order ``order`` with their parts: ``(new start, new parts)``."""
+    n = order.shape[0]
+    ns = np.empty(n + 1, np.int64)
+    ns[0] = 0
+    for r in range(n):
+        ns[r + 1] = ns[r] + start[order[r] + 1] - start[order[r]]
+    np_ = np.empty((ns[n], 2, 2))
+    for r in range(n):
+        w = ns[r]
+        for q in range(start[order[r]], start[order[r] + 1]):
+            np_[w] = parts[q]
+            w += 1
+    return ns, np_
+
+
+@njit(cache=True)
+def _make_inner(keys, label, start, parts, mask, ox, oy, h):
+    """Cells where ``mask`` is set become INNER, their parts replaced by the cell."""
+    n = keys.shape[0]
+    ns = np.empty(n + 1, np.int64)
+    ns[0] = 0
+    for r in range(n):
+        ns[r + 1] = ns[r] + (1 if mask[r] else start[r + 1] - start[r])
+    op = np.empty((ns[n], 2, 2))
+    ob = np.empty((n, 2, 2))
+    ol = label.copy()
+    for r in range(n):
+        w = ns[r]
+        if mask[r]:
+            ol[r] = INNER
+            i = key_i(keys[r])
+            j = key_j(keys[r])
+            op[w, 0, 0], op[w, 0, 1] = coord(ox, i, h), coord(ox, i + 1, h)
+            op[w, 1, 0], op[w, 1, 1] = coord(oy, j, h), coord(oy, j + 1, h)
+        else:
+            for q in range(start[r], start[r + 1]):
+                op[w] = parts[q]
+                w += 1
+        _set_hull(ob, r, op, ns[r], ns[r + 1])
+    return ol, ob, op, ns
 
 
 @njit(cache=True)
@@ -140,7 +265,7 @@ def _find(keys, k):
 
 
 @njit(cache=True)
-def _contains(keys, label, box, ox, oy, h, pts):
+def _contains(keys, label, start, parts, ox, oy, h, pts):
     n = pts.shape[0]
     outer = np.zeros(n, np.bool_)
     inner = np.zeros(n, np.bool_)
@@ -153,8 +278,10 @@ def _contains(keys, label, box, ox, oy, h, pts):
                 p = _find(keys, cell_key(i, j))
                 if p < 0:
                     continue
-                if box[p, 0, 0] <= x <= box[p, 0, 1] and box[p, 1, 0] <= y <= box[p, 1, 1]:
-                    outer[r] = True
+                for q in range(start[p], start[p + 1]):
+                    if (parts[q, 0, 0] <= x <= parts[q, 0, 1]
+                            and parts[q, 1, 0] <= y <= parts[q, 1, 1]):
+                        outer[r] = True
                 if label[p] == INNER:
                     inner[r] = True
     return outer, inner
@@ -231,43 +358,55 @@ def _inner_affine(keys, src_keys, src_label, ox, oy, h, sign, t0x, t0y):
 
 
 # ----------------------------------------------------------------- Python API
-def _sorted(grid: Grid, keys, label, box) -> GridPaving:
+def _sorted(grid: Grid, keys, label, start, parts) -> GridPaving:
+    """Rows ``(key, label, parts[start[r]:start[r+1]])`` in any order -> a paving (rows with
+    equal keys merged by :func:`_reduce`)."""
     if keys.shape[0] == 0:
         return empty_paving(grid)
     order = np.argsort(keys, kind="stable")
-    k, l, b = _reduce(keys[order], label[order], box[order])
-    return GridPaving(grid, k, l, b)
+    st, pt = _permute(order, start, parts)
+    k, l, b, p, s = _reduce(keys[order], label[order], st, pt, grid.ox, grid.oy, grid.eps,
+                            MAX_PARTS)
+    return GridPaving(grid, k, l, b, p, s)
 
 
 def intersection(a: GridPaving, b: GridPaving) -> GridPaving:
-    """``A ∩ B``: outer (boxes intersected cell by cell) and inner (INNER ∩ INNER)."""
+    """``A ∩ B``: outer (parts intersected pairwise, cell by cell) and inner (INNER ∩ INNER).
+
+    A cell with more than ``MAX_PARTS`` non-empty intersections keeps their hull."""
     a.same_grid(b)
-    k, l, bx = _intersect(a.key, a.label, a.box, b.key, b.label, b.box)
-    return GridPaving(a.grid, k, l, bx)
+    k, l, bx, p, s = _intersect(a.key, a.label, a.start, a.parts, b.key, b.label, b.start,
+                                b.parts, MAX_PARTS)
+    return GridPaving(a.grid, k, l, bx, p, s)
 
 
 def union(a: GridPaving, b: GridPaving) -> GridPaving:
-    """``A ∪ B``: outer (boxes hulled cell by cell) and inner (INNER ∪ INNER)."""
+    """``A ∪ B``: outer (parts pooled cell by cell) and inner (INNER ∪ INNER).
+
+    A cell with more than ``MAX_PARTS`` parts keeps their hull."""
     a.same_grid(b)
     return _sorted(a.grid, np.concatenate([a.key, b.key]), np.concatenate([a.label, b.label]),
-                   np.concatenate([a.box, b.box]))
+                   np.concatenate([a.start[:-1], b.start + a.start[-1]]),
+                   np.concatenate([a.parts, b.parts]))
 
 
 def from_boxes(grid: Grid, boxes, *, max_cells: int = DEFAULT_MAX_CELLS) -> GridPaving:
     """The union of arbitrary boxes ``(B, 2, 2)`` on ``grid``: an outer approximation
-    (every cell a box meets, with the box ∩ cell); no INNER cells."""
+    (every cell a box meets, with the parts box ∩ cell; over ``MAX_PARTS`` in a cell: their
+    hull); no INNER cells."""
     boxes = np.ascontiguousarray(boxes, dtype=np.float64).reshape(-1, 2, 2)
     keys, out, total = _spread(boxes, grid.ox, grid.oy, grid.eps, max_cells)
     if total > max_cells:
         raise PavingLimitError(f"boxes cover {total} cells > max_cells={max_cells}")
-    return _sorted(grid, keys, np.full(keys.shape[0], BOUNDARY, np.uint8), out)
+    return _sorted(grid, keys, np.full(keys.shape[0], BOUNDARY, np.uint8),
+                   np.arange(keys.shape[0] + 1, dtype=np.int64), out)
 
 
 def affine(s: GridPaving, sign: int, t, *, max_cells: int = DEFAULT_MAX_CELLS) -> GridPaving:
     """``{sign * p + t : p in S, t in [t]}`` for ``sign`` in {+1, -1} and a box ``[t]``
     ``[[txl, txh], [tyl, tyh]]`` (a point is a degenerate box), on the same grid.
 
-    Outer: each box of S mapped with outward rounding, then cut by the grid. Inner: a cell is
+    Outer: each part of S mapped with outward rounding, then cut by the grid. Inner: a cell is
     INNER when its preimage under ``p -> sign * p + t0`` (``t0`` the lower corner of [t]),
     rounded outward, only meets INNER cells of S (so the cell is in ``sign * inner(S) + t0``).
     """
@@ -281,15 +420,13 @@ def affine(s: GridPaving, sign: int, t, *, max_cells: int = DEFAULT_MAX_CELLS) -
         raise ValueError(f"t must be a non-empty box, got {t.tolist()}")
     if len(s) == 0:
         return empty_paving(s.grid)
-    moved = _affine_boxes(s.box, sign, t[0, 0], t[0, 1], t[1, 0], t[1, 1])
+    moved = _affine_boxes(s.parts, sign, t[0, 0], t[0, 1], t[1, 0], t[1, 1])
     out = from_boxes(s.grid, moved, max_cells=max_cells)
     g = s.grid
     inner = _inner_affine(out.key, s.key, s.label, g.ox, g.oy, g.eps, sign, t[0, 0], t[1, 0])
-    label = out.label.copy()
-    label[inner] = INNER
-    box = out.box.copy()
-    box[inner] = GridPaving(g, out.key[inner], label[inner], box[inner]).cells()
-    return GridPaving(g, out.key, label, box)
+    label, box, parts, start = _make_inner(out.key, out.label, out.start, out.parts, inner,
+                                           g.ox, g.oy, g.eps)
+    return GridPaving(g, out.key, label, box, parts, start)
 
 
 def translate(s: GridPaving, t, **kw) -> GridPaving:
@@ -316,4 +453,4 @@ def contains_points(s: GridPaving, points) -> tuple[np.ndarray, np.ndarray]:
     approximation is proven outside the set; a point in the inner one is proven inside."""
     pts = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2)
     g = s.grid
-    return _contains(s.key, s.label, s.box, g.ox, g.oy, g.eps, pts)
+    return _contains(s.key, s.label, s.start, s.parts, g.ox, g.oy, g.eps, pts)

@@ -5,8 +5,10 @@ The domain box is snapped outward to the grid; a quad-tree of aligned blocks of
 levels; every level is one batch through the classifier and numba kernels). A block is
 dropped when its contraction is empty, kept whole (all its cells INNER) when proven inside,
 else split into its four sub-blocks that meet its contracted box. At the cell level the
-contracted box is stored; with ``sub > 0`` each boundary cell is bisected ``sub`` more times
-and stores the hull of its contracted pieces (INNER if every piece is proven inside).
+contracted box is stored; with ``sub > 0`` each boundary cell is cut into a ``2^sub x 2^sub``
+sub-grid of pieces, each piece (∩ the cell's contracted box) is classified once more, and the
+cell keeps as its parts the contracted pieces that may hold points (a piece proven inside is
+kept whole); the cell is INNER if every piece is proven inside, dropped if none is left.
 
 Guarantee: every point of ``set ∩ domain`` is in the outer approximation; every INNER cell
 is inside the set (as far as the classifier's guarantees go).
@@ -125,10 +127,13 @@ def _expand(I, J, S, ie, je, total):
 
 @njit(cache=True)
 def _sub_boxes(I, J, box, depth, ox, oy, h):
-    """The ``4^depth`` sub-boxes of each cell (tiling it exactly) and which meet its box."""
+    """The ``4^depth`` pieces of each cell (tiling it exactly), which of them meet the cell's
+    contracted ``box``, and ``piece ∩ box`` (what is classified: the set's points in the cell
+    are all in ``box``)."""
     n = I.shape[0]
     m = 1 << depth
     sb = np.empty((n * m * m, 2, 2))
+    inp = np.empty((n * m * m, 2, 2))
     meet = np.empty(n * m * m, np.bool_)
     q = 0
     for k in range(n):
@@ -143,42 +148,90 @@ def _sub_boxes(I, J, box, depth, ox, oy, h):
                 ya = y0 if b == 0 else y0 + (y1 - y0) * (b / m)
                 yb = y1 if b == m - 1 else y0 + (y1 - y0) * ((b + 1) / m)
                 sb[q, 0, 0], sb[q, 0, 1], sb[q, 1, 0], sb[q, 1, 1] = xa, xb, ya, yb
-                meet[q] = not (xb < box[k, 0, 0] or xa > box[k, 0, 1]
-                               or yb < box[k, 1, 0] or ya > box[k, 1, 1])
+                inp[q, 0, 0] = max(xa, box[k, 0, 0])
+                inp[q, 0, 1] = min(xb, box[k, 0, 1])
+                inp[q, 1, 0] = max(ya, box[k, 1, 0])
+                inp[q, 1, 1] = min(yb, box[k, 1, 1])
+                meet[q] = inp[q, 0, 0] <= inp[q, 0, 1] and inp[q, 1, 0] <= inp[q, 1, 1]
                 q += 1
-    return sb, meet
+    return sb, inp, meet
 
 
 @njit(cache=True)
-def _reduce_sub(n, per, sb, out, inside, meet):
-    """Per cell: hull of the contracted pieces; all pieces inside -> INNER; none left -> dropped."""
+def _reduce_sub(n, per, sb, inp, out, inside, meet):
+    """Per cell: its parts, the contracted pieces (a piece proven inside is kept whole); every
+    piece proven inside -> INNER (one part, the cell); no piece left -> dropped (label 0).
+
+    Returns ``(label (n,), box (n, 2, 2) hull of the parts, count (n,), parts (n * per, 2, 2))``
+    with cell ``k``'s parts at ``parts[k * per : k * per + count[k]]``.
+    """
     box = np.empty((n, 2, 2))
     label = np.zeros(n, np.uint8)  # 0 = dropped
+    count = np.zeros(n, np.int64)
+    parts = np.empty((n * per, 2, 2))
     for k in range(n):
-        xl = np.inf
-        xh = -np.inf
-        yl = np.inf
-        yh = -np.inf
+        base = k * per
         all_in = True
-        for q in range(k * per, (k + 1) * per):
+        c = 0
+        for q in range(base, base + per):
             if not meet[q]:
                 all_in = False
                 continue
-            if not inside[q]:
+            whole = (inp[q, 0, 0] == sb[q, 0, 0] and inp[q, 0, 1] == sb[q, 0, 1]
+                     and inp[q, 1, 0] == sb[q, 1, 0] and inp[q, 1, 1] == sb[q, 1, 1])
+            if not (inside[q] and whole):
                 all_in = False
-            if out[q, 0, 0] <= out[q, 0, 1] and out[q, 1, 0] <= out[q, 1, 1]:
-                xl = min(xl, max(out[q, 0, 0], sb[q, 0, 0]))
-                xh = max(xh, min(out[q, 0, 1], sb[q, 0, 1]))
-                yl = min(yl, max(out[q, 1, 0], sb[q, 1, 0]))
-                yh = max(yh, min(out[q, 1, 1], sb[q, 1, 1]))
+            if inside[q]:
+                parts[base + c] = inp[q]
+                c += 1
+                continue
+            xl = max(out[q, 0, 0], inp[q, 0, 0])
+            xh = min(out[q, 0, 1], inp[q, 0, 1])
+            yl = max(out[q, 1, 0], inp[q, 1, 0])
+            yh = min(out[q, 1, 1], inp[q, 1, 1])
+            if xl <= xh and yl <= yh:
+                parts[base + c, 0, 0], parts[base + c, 0, 1] = xl, xh
+                parts[base + c, 1, 0], parts[base + c, 1, 1] = yl, yh
+                c += 1
         if all_in:
             label[k] = INNER
-            box[k, 0, 0], box[k, 0, 1] = sb[k * per, 0, 0], sb[(k + 1) * per - 1, 0, 1]
-            box[k, 1, 0], box[k, 1, 1] = sb[k * per, 1, 0], sb[(k + 1) * per - 1, 1, 1]
-        elif xl <= xh and yl <= yh:
+            parts[base, 0, 0], parts[base, 0, 1] = sb[base, 0, 0], sb[base + per - 1, 0, 1]
+            parts[base, 1, 0], parts[base, 1, 1] = sb[base, 1, 0], sb[base + per - 1, 1, 1]
+            c = 1
+        elif c > 0:
             label[k] = BOUNDARY
-            box[k, 0, 0], box[k, 0, 1], box[k, 1, 0], box[k, 1, 1] = xl, xh, yl, yh
-    return box, label
+        count[k] = c
+        box[k, 0, 0] = np.inf
+        box[k, 0, 1] = -np.inf
+        box[k, 1, 0] = np.inf
+        box[k, 1, 1] = -np.inf
+        for q in range(base, base + c):
+            for d in range(2):
+                box[k, d, 0] = min(box[k, d, 0], parts[q, d, 0])
+                box[k, d, 1] = max(box[k, d, 1], parts[q, d, 1])
+    return label, box, count, parts
+
+
+@njit(cache=True)
+def _gather_parts(order, per, count, parts, n_inner, inner_box):
+    """Flat ``(start, parts)`` of the sorted cells: ``order[r] < n_inner`` is inner cell
+    ``order[r]`` (one part), else leaf ``order[r] - n_inner`` (its ``count`` parts)."""
+    n = order.shape[0]
+    start = np.empty(n + 1, np.int64)
+    start[0] = 0
+    for r in range(n):
+        o = order[r]
+        start[r + 1] = start[r] + (1 if o < n_inner else count[o - n_inner])
+    out = np.empty((start[n], 2, 2))
+    for r in range(n):
+        o = order[r]
+        if o < n_inner:
+            out[start[r]] = inner_box[o]
+        else:
+            base = (o - n_inner) * per
+            for c in range(count[o - n_inner]):
+                out[start[r] + c] = parts[base + c]
+    return start, out
 
 
 @njit(cache=True)
@@ -208,8 +261,10 @@ def pave(classify, domain, eps: float, *, origin=(0.0, 0.0), sub: int = 0,
     """Pave ``set ∩ domain`` on the grid of resolution ``eps`` anchored at ``origin``.
 
     ``classify`` is a classifier (see :mod:`ivslam_cli.paving.classifiers`); ``domain`` a box
-    ``[[xl, xh], [yl, yh]]``, snapped outward to the grid. ``sub`` extra bisections of the
-    boundary cells tighten their boxes (cost ~4^sub per boundary cell). Raises
+    ``[[xl, xh], [yl, yh]]``, snapped outward to the grid. ``sub > 0`` cuts each boundary cell
+    into ``2^sub x 2^sub`` pieces and keeps their contractions as the cell's parts (cost and
+    storage ~4^sub per boundary cell; the cell's ``box`` is their hull, never larger than
+    with ``sub = 0``; the inner approximation may gain cells, never loses any). Raises
     :class:`PavingLimitError` beyond ``max_cells`` cells (blocks of a level, or stored cells).
 
     Returns a :class:`GridPaving` whose outer approximation holds every point of
@@ -250,24 +305,33 @@ def pave(classify, domain, eps: float, *, origin=(0.0, 0.0), sub: int = 0,
     if total + leaf_I.shape[0] > max_cells:
         raise PavingLimitError(f"paving needs {total + leaf_I.shape[0]} cells > max_cells={max_cells}")
     inner_keys = _expand(iI, iJ, iS, ie, je, total)
+    inner_box = _inner_cells(inner_keys, ox, oy, h)
     leaf_label = np.full(leaf_I.shape[0], BOUNDARY, np.uint8)
+    per = 1
+    count = np.ones(leaf_I.shape[0], np.int64)
+    leaf_parts = leaf_box
     if sub > 0 and leaf_I.shape[0] > 0:
-        sb, meet = _sub_boxes(leaf_I, leaf_J, leaf_box, sub, ox, oy, h)
+        per = 1 << (2 * sub)
+        sb, inp, meet = _sub_boxes(leaf_I, leaf_J, leaf_box, sub, ox, oy, h)
         out = np.empty_like(sb)
         out[:, :, 0] = np.inf
         out[:, :, 1] = -np.inf
         inside = np.zeros(sb.shape[0], np.bool_)
         idx = np.flatnonzero(meet)
-        o, ins = classify(sb[idx])
+        o, ins = classify(inp[idx])
         out[idx] = o
         inside[idx] = ins
-        leaf_box, leaf_label = _reduce_sub(leaf_I.shape[0], 1 << (2 * sub), sb, out, inside, meet)
-        keep = leaf_label != 0
-        leaf_I, leaf_J, leaf_box, leaf_label = leaf_I[keep], leaf_J[keep], leaf_box[keep], leaf_label[keep]
+        leaf_label, leaf_box, count, leaf_parts = _reduce_sub(leaf_I.shape[0], per, sb, inp, out,
+                                                              inside, meet)
+        keep = np.flatnonzero(leaf_label != 0)
+        leaf_I, leaf_J, leaf_box, leaf_label, count = (leaf_I[keep], leaf_J[keep], leaf_box[keep],
+                                                       leaf_label[keep], count[keep])
+        leaf_parts = leaf_parts.reshape(-1, per, 2, 2)[keep].reshape(-1, 2, 2)
     keys = np.concatenate([inner_keys, _leaf_keys(leaf_I, leaf_J)])
     if keys.shape[0] == 0:
         return empty_paving(grid)
     label = np.concatenate([np.full(inner_keys.shape[0], INNER, np.uint8), leaf_label])
-    box = np.concatenate([_inner_cells(inner_keys, ox, oy, h), leaf_box])
+    box = np.concatenate([inner_box, leaf_box])
     order = np.argsort(keys, kind="stable")
-    return GridPaving(grid, keys[order], label[order], box[order])
+    start, parts = _gather_parts(order, per, count, leaf_parts, inner_keys.shape[0], inner_box)
+    return GridPaving(grid, keys[order], label[order], box[order], parts, start)
