@@ -2,14 +2,18 @@
 
 Times ``ivslam_cli.paving.pave`` (grid SIVIA with the polar classifier) and Codac 2's
 ``pave`` with ``SepInverse`` (and ``SepPolarCart``) on the same sector at the same eps, in the
-same run, and compares outer / inner areas with the exact 0.02.
-Targets: outer excess <= 3.2 % at eps = 0.01; less time than Codac.
+same run, and compares outer / inner areas with the exact 0.02 ("boxes": outer boxes;
+"cells": our eps-cells).
 
-Note on the excess target: a grid paving stores one box per eps-cell, so its outer area is at
-least the sum of the exact bounding boxes of (sector ∩ cell); the ``sub`` rows (boundary cells
-bisected 4^sub times, hull of the contracted pieces) approach that limit from above.
-Codac's pave is not grid-aligned (it bisects the contracted boxes), which is why it can go
-below it at the same eps.
+The ``sub`` rows cut each boundary eps-cell into a ``2^sub x 2^sub`` sub-grid and keep the
+contracted pieces as the cell's boxes (several boxes per boundary cell): the outer area is the
+sum of those boxes, the inner area is unchanged (cells proven inside). With one box per cell
+(``sub=0``) the outer area cannot go below the sum of the exact per-cell bounding boxes
+(~3.9 % excess here at eps = 0.01); Codac's pave is not grid-aligned (it bisects the contracted
+boxes), which is how it goes below that limit at the same eps.
+
+The targets are checked on the ``sub=TARGET_SUB`` row (fixed here, not picked after the run):
+outer excess <= 3.2 % at eps = 0.01, and less time than Codac's pave(SepInverse) at each eps.
 """
 
 from __future__ import annotations
@@ -22,6 +26,8 @@ DOMAIN = [[-10.0, 10.0], [-10.0, 10.0]]
 EXACT = (RHO[1] ** 2 - RHO[0] ** 2) * (THETA[1] - THETA[0]) / 2  # 0.02
 TARGET_EXCESS = 0.032
 EPSILONS = (0.01, 0.001)
+SUBS = (0, 1, 2, 3)
+TARGET_SUB = 2
 
 
 def _best(fn, repeat: int) -> tuple[float, object]:
@@ -40,7 +46,8 @@ def ours(eps: float, sub: int = 0, repeat: int = 20) -> dict:
 
     s = paving.polar_set((0.0, 0.0), RHO, THETA)
     t, p = _best(lambda: paving.pave(s, DOMAIN, eps, sub=sub), repeat)
-    return {"time": t, "outer": p.outer_area(), "inner": p.inner_area(), "n": len(p)}
+    return {"time": t, "outer": p.outer_area(), "inner": p.inner_area(), "n": p.parts.shape[0],
+            "cells": len(p)}
 
 
 def codac(eps: float, kind: str = "SepInverse", repeat: int = 5) -> dict | None:
@@ -65,42 +72,52 @@ def codac(eps: float, kind: str = "SepInverse", repeat: int = 5) -> dict | None:
 
 def _row(name: str, eps: float, r: dict) -> str:
     ex = (r["outer"] - EXACT) / EXACT
-    return (f"  {name:26s} {eps:7.3f} {r['time'] * 1e3:10.2f} {r['n']:8d} {r['outer']:.6f} "
-            f"{r['inner']:.6f} {ex * 100:8.2f} %")
+    cells = f"{r['cells']:8d}" if "cells" in r else f"{'':8s}"
+    return (f"  {name:26s} {eps:7.3f} {r['time'] * 1e3:10.2f} {cells} {r['n']:8d} "
+            f"{r['outer']:.6f} {r['inner']:.6f} {ex * 100:8.2f} %")
+
+
+def _verdict(ok: bool) -> str:
+    return "PASS" if ok else "FAIL"
 
 
 def main() -> int:
-    """Print the table; return 1 if a target (excess at eps=0.01, time vs Codac) is missed."""
+    """Print the table and the verdicts; return 1 if a target is missed (excess at eps=0.01,
+    time vs Codac SepInverse at each eps, both on the ``sub=TARGET_SUB`` row)."""
     print(f"bench_paving: ring sector rho {list(RHO)} theta {list(THETA)} in [-10, 10]^2, "
           f"exact area {EXACT:.6f}")
-    print(f"  {'method':26s} {'eps':>7s} {'time ms':>10s} {'boxes':>8s} {'outer':>8s} "
-          f"{'inner':>8s} {'excess':>10s}")
+    print(f"  {'method':26s} {'eps':>7s} {'time ms':>10s} {'cells':>8s} {'boxes':>8s} "
+          f"{'outer':>8s} {'inner':>8s} {'excess':>10s}")
     summary = []
-    missed = False
     for eps in EPSILONS:
-        r = ours(eps)
-        print(_row("ivslam pave", eps, r))
-        if eps == EPSILONS[0]:
-            for sub in (1, 2):
-                print(_row(f"ivslam pave sub={sub}", eps, ours(eps, sub=sub)))
+        target = None
+        for sub in SUBS:
+            r = ours(eps, sub=sub, repeat=20 if eps >= 0.01 else 5)
+            print(_row(f"ivslam pave sub={sub}" + (" (target)" if sub == TARGET_SUB else ""), eps, r))
+            if sub == TARGET_SUB:
+                target = r
         c = codac(eps)
         if c is not None:
             print(_row("codac pave(SepInverse)", eps, c))
-            cp = codac(eps, "SepPolarCart")
-            print(_row("codac pave(SepPolarCart)", eps, cp))
-            summary.append((eps, r, c))
+            print(_row("codac pave(SepPolarCart)", eps, codac(eps, "SepPolarCart")))
         else:
-            print("  codac not installed: no comparison")
+            print("  codac not installed: no time comparison")
+        summary.append((eps, target, c))
+    missed = False
     for eps, r, c in summary:
-        speed = c["time"] / r["time"]
-        ex, cex = (r["outer"] - EXACT) / EXACT, (c["outer"] - EXACT) / EXACT
-        ok_t = "ok" if speed > 1.0 else "SLOWER THAN CODAC"
-        missed |= speed <= 1.0
-        line = (f"  eps={eps}: {speed:.1f}x faster than Codac SepInverse ({ok_t}); outer excess "
-                f"{ex * 100:.2f} % vs Codac {cex * 100:.2f} %")
+        ex = (r["outer"] - EXACT) / EXACT
+        line = f"  eps={eps} sub={TARGET_SUB}: outer excess {ex * 100:.2f} %"
         if eps == 0.01:
-            line += f" (target <= {TARGET_EXCESS * 100:.1f} %: {'ok' if ex <= TARGET_EXCESS else 'ABOVE TARGET'})"
-            missed |= ex > TARGET_EXCESS
+            ok = ex <= TARGET_EXCESS
+            missed |= not ok
+            line += f" (target <= {TARGET_EXCESS * 100:.1f} %: {_verdict(ok)})"
+        if c is not None:
+            cex = (c["outer"] - EXACT) / EXACT
+            speed = c["time"] / r["time"]
+            missed |= speed <= 1.0
+            line += (f"; Codac SepInverse {cex * 100:.2f} %; time {r['time'] * 1e3:.2f} ms vs "
+                     f"{c['time'] * 1e3:.2f} ms, {speed:.1f}x faster (target > 1x: "
+                     f"{_verdict(speed > 1.0)})")
         print(line)
     return 1 if missed else 0
 
