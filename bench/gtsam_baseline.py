@@ -4,8 +4,9 @@ The standard GTSAM recipe, on the same data and the same noise bounds as our pip
 ``make bench`` can put the two side by side (issue #6):
 
 - **Variables.** A ``Pose2`` at ``t0`` (the first odometry stamp with truth), at every distinct
-  observation stamp up to the last observation, and keyframes so that no two consecutive
-  poses are more than ``pose_every`` seconds apart. A ``Point2`` per observed landmark.
+  observation stamp up to the last observation (``span="odometry"``: on to the last odometry
+  stamp), and keyframes so that no two consecutive poses are more than ``pose_every`` seconds
+  apart. A ``Point2`` per observed landmark.
 - **Anchor.** A tight prior (``prior_sigma``) on the pose at ``t0``, at the truth interpolated
   there: the same anchor as our ``--initial-pose-from-truth``.
 - **Odometry.** ``BetweenFactorPose2`` from integrating the commanded twist between
@@ -135,11 +136,15 @@ def relative(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.column_stack([c * dx + s * dy, -s * dx + c * dy, wrap(b[:, 2] - a[:, 2])])
 
 
-def pose_stamps(odo_stamp: np.ndarray, obs_stamp: np.ndarray, t0: float, pose_every: float) -> np.ndarray:
-    """``t0``, the distinct observation stamps in ``[t0, last observation]``, and keyframes so
-    that consecutive stamps are at most ``pose_every`` apart."""
-    obs = np.unique(obs_stamp[(obs_stamp >= t0)])
-    t = np.union1d([t0], obs)
+def pose_stamps(obs_stamp: np.ndarray, t0: float, pose_every: float, t_end: float | None = None) -> np.ndarray:
+    """``t0``, the distinct observation stamps in ``[t0, t_end]`` (``t_end`` default: the last
+    observation; never before ``t0``), ``t_end`` itself, and keyframes so that consecutive stamps
+    are at most ``pose_every`` apart."""
+    if t_end is None:
+        t_end = float(obs_stamp.max()) if len(obs_stamp) else t0
+    t_end = max(t_end, t0)
+    obs = np.unique(obs_stamp[(obs_stamp >= t0) & (obs_stamp <= t_end)])
+    t = np.union1d([t0, t_end], obs)
     if math.isfinite(pose_every) and len(t) > 1:
         gaps = np.diff(t)
         n_extra = np.ceil(gaps / pose_every).astype(np.int64) - 1
@@ -166,13 +171,15 @@ def mahalanobis2(err: np.ndarray, cov: np.ndarray) -> np.ndarray:
 
 def run_gtsam(log: LogData, *, bounds: dict[str, float], robust: bool = True, huber_k: float = 1.345,
               robust_odometry: bool = False,
-              pose_every: float = 1.0, prior_sigma: tuple[float, float, float] = (1e-4, 1e-4, 1e-4),
+              pose_every: float = 1.0, span: str = "observations", prior_sigma: tuple[float, float, float] = (1e-4, 1e-4, 1e-4),
               max_iterations: int = 100, max_truth_gap: float = 0.5,
               return_estimate: bool = False) -> dict:
     """Build, optimise and score the GTSAM landmark-SLAM baseline (see the module docstring).
 
     ``bounds`` needs ``range_abs, range_rel, bearing, odom_v, odom_v_rel, odom_w, odom_w_rel``
-    (half-widths, σ = bound / 3). The log needs twist odometry, landmark observations and truth
+    (half-widths, σ = bound / 3). ``span``: poses up to the last observation (default) or up to
+    the last odometry stamp (dead reckoning past the last observation, like a pipeline whose
+    poses are at every odometry stamp). The log needs twist odometry, landmark observations and truth
     (poses, and landmark positions for the landmark figures). Returns a flat dict of figures
     (times in s, errors in m and rad); with ``return_estimate`` also the arrays
     ``est_stamp, est_pose, est_pose_cov, est_landmark_id, est_landmark_xy, est_landmark_cov``.
@@ -189,7 +196,9 @@ def run_gtsam(log: LogData, *, bounds: dict[str, float], robust: bool = True, hu
 
     # --- stamps, anchor, dead reckoning
     t0 = max(float(odo.stamp[0]), float(truth.pose_stamp[0]))
-    stamps = pose_stamps(odo.stamp, obs.stamp, t0, pose_every)
+    if span not in ("observations", "odometry"):
+        raise ValueError(f"span must be 'observations' or 'odometry', not {span!r}")
+    stamps = pose_stamps(obs.stamp, t0, pose_every, float(odo.stamp[-1]) if span == "odometry" else None)
     in_obs = np.isin(stamps, obs.stamp)
     anchor, _ = truth_at(truth.pose_stamp, truth.pose, np.array([t0]), max_truth_gap)
     init, sv, sw, dist = dead_reckon(odo.stamp, odo.twist, stamps, anchor[0],
@@ -259,7 +268,7 @@ def run_gtsam(log: LogData, *, bounds: dict[str, float], robust: bool = True, hu
     out: dict = {
         "robust": bool(robust), "robust_odometry": bool(robust and robust_odometry),
         "huber_k": float(huber_k) if robust else math.nan,
-        "pose_every": float(pose_every), "t0": t0, "t_end": float(stamps[-1]),
+        "pose_every": float(pose_every), "span": span, "t0": t0, "t_end": float(stamps[-1]),
         "n_poses": int(n), "n_observation_poses": int(in_obs.sum()), "n_keyframes": int(n - in_obs.sum()),
         "n_observations": int(len(o_t)), "n_observations_dropped": int((~keep).sum()),
         "n_landmarks": int(len(lm_ids)), "n_factors": int(graph.size()),
@@ -328,12 +337,34 @@ def _logmap(p: np.ndarray) -> np.ndarray:
 # --- command line -------------------------------------------------------------------------
 
 def _format(fig: dict) -> str:
-    def f(v):
+    def f(k, v):
+        if k in ("t0", "t_end"):
+            return f"{v:.3f}"
         return f"{v:.4g}" if isinstance(v, float) else str(v)
-    return "\n".join(f"  {k:28s} {f(v)}" for k, v in fig.items())
+    return "\n".join(f"  {k:30s} {f(k, v)}" for k, v in fig.items())
+
+
+#: Columns of the summary table (figure, header, format).
+_TABLE = (("t_total_s", "time s", "{:.2f}"), ("iterations", "LM it", "{}"), ("pos_err_median", "pos med m", "{:.3f}"),
+          ("pos_err_p95", "pos p95 m", "{:.3f}"), ("pos_err_rmse", "pos rmse m", "{:.3f}"),
+          ("heading_err_median", "hdg med rad", "{:.3f}"), ("lm_err_median", "lm med m", "{:.3f}"),
+          ("lm_err_max", "lm max m", "{:.3f}"), ("pose_xy_in_3sigma", "pose xy 3σ", "{:.3f}"),
+          ("pose_se2_in_3sigma", "pose se2 3σ", "{:.3f}"), ("lm_xy_in_3sigma", "lm xy 3σ", "{:.3f}"),
+          ("pose_3sigma_major_median", "3σ major m", "{:.3f}"), ("dead_reckoning_pos_err_median", "DR med m", "{:.3f}"))
+
+
+def summary_table(rows: list[tuple[str, dict]]) -> str:
+    """A fixed-width table of the main figures, one row per (label, figures)."""
+    head = f"{'run':18s}" + "".join(f"{h:>12s}" for _, h, _ in _TABLE)
+    lines = [head]
+    for label, fig in rows:
+        lines.append(f"{label:18s}" + "".join(f"{fmt.format(fig[k]):>12s}" for k, _, fmt in _TABLE))
+    return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:
+    import json
+
     from ivslam_cli.logs import read_log
 
     ap = argparse.ArgumentParser(prog="python -m bench.gtsam_baseline", description=__doc__.split("\n")[0])
@@ -341,9 +372,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--log", default=str(MRCLAM_PATH), help="log path (default MRCLAM Dataset 6)")
     ap.add_argument("--plain", action="store_true", help="only without the Huber kernel")
     ap.add_argument("--both", action="store_true", help="robust and plain")
-    ap.add_argument("--pose-every", type=float, default=1.0)
+    ap.add_argument("--robust-odometry", action="store_true", help="Huber on the odometry factors too")
+    ap.add_argument("--pose-every", type=float, default=1.0, help="largest gap between poses [s] (default 1)")
+    ap.add_argument("--span", choices=("observations", "odometry"), default="observations",
+                    help="poses up to the last observation (default) or the last odometry stamp")
     ap.add_argument("--bound", action="append", default=[], metavar="KEY=VALUE",
                     help=f"override a bound (defaults: {MRCLAM_BOUNDS})")
+    ap.add_argument("--json", action="store_true", help="print one JSON list of {robot, figures...}")
     args = ap.parse_args(argv)
     bounds = dict(MRCLAM_BOUNDS)
     for kv in args.bound:
@@ -352,12 +387,23 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"unknown bound {k!r}")
         bounds[k] = float(v)
     modes = [False] if args.plain else [True, False] if args.both else [True]
-    print(f"bounds (σ = bound/3): {bounds}")
+    if not args.json:
+        print(f"bounds (σ = bound/3): {bounds}")
+    rows, docs = [], []
     for robot in args.robot or [1, 2, 3, 4, 5]:
         log = read_log(args.log, robot=robot)
         for robust in modes:
-            fig = run_gtsam(log, bounds=bounds, robust=robust, pose_every=args.pose_every)
-            print(f"\nrobot {robot}, {'Huber' if robust else 'plain'}:\n{_format(fig)}", flush=True)
+            fig = run_gtsam(log, bounds=bounds, robust=robust, robust_odometry=args.robust_odometry,
+                            pose_every=args.pose_every, span=args.span)
+            label = f"robot {robot} {'Huber' if robust else 'plain'}"
+            rows.append((label, fig))
+            docs.append({"robot": robot, "bounds": bounds, **fig})
+            if not args.json:
+                print(f"\n{label}:\n{_format(fig)}", flush=True)
+    if args.json:
+        print(json.dumps(docs, indent=1))
+    else:
+        print("\n" + summary_table(rows))
     return 0
 
 

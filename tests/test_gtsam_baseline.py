@@ -94,10 +94,13 @@ def test_dead_reckoning_between_sparse_stamps_sums_the_segments():
 
 def test_pose_stamps_keyframes_fill_gaps():
     obs = np.array([0.5, 0.5, 1.0, 4.0, -1.0])
-    t = pose_stamps(np.array([0.0]), obs, 0.0, 1.0)
+    t = pose_stamps(obs, 0.0, 1.0)
     np.testing.assert_allclose(t, [0.0, 0.5, 1.0, 2.0, 3.0, 4.0])
     assert np.all(np.diff(t) <= 1.0 + 1e-12)
-    np.testing.assert_allclose(pose_stamps(np.array([0.0]), obs, 0.0, np.inf), [0.0, 0.5, 1.0, 4.0])
+    np.testing.assert_allclose(pose_stamps(obs, 0.0, np.inf), [0.0, 0.5, 1.0, 4.0])
+    np.testing.assert_allclose(pose_stamps(obs, 0.0, np.inf, t_end=2.5), [0.0, 0.5, 1.0, 2.5])
+    np.testing.assert_allclose(pose_stamps(obs, 0.0, 2.0, t_end=6.0), [0.0, 0.5, 1.0, 2.5, 4.0, 6.0])
+    np.testing.assert_allclose(pose_stamps(obs, 0.0, 2.0, t_end=6.5), [0.0, 0.5, 1.0, 2.5, 4.0, 5.25, 6.5])
 
 
 def test_truth_at_unwraps_heading_and_masks_gaps():
@@ -127,6 +130,7 @@ def test_simulated_log_small_error_and_consistent_figures(sim_log, sim_fig):
     assert f["n_observations"] == len(obs) and f["n_observations_dropped"] == 0
     assert f["n_observation_poses"] == len(np.unique(obs.stamp))
     assert f["n_poses"] == f["n_observation_poses"] + f["n_keyframes"] == len(f["est_stamp"])
+    assert f["t_end"] == obs.stamp[-1] and f["span"] == "observations"
     assert np.all(np.diff(f["est_stamp"]) <= f["pose_every"] + 1e-9)
     assert f["n_landmarks"] == len(np.unique(obs.landmark_id)) == f["n_scored_landmarks"]
     assert f["n_factors"] == 1 + (f["n_poses"] - 1) + len(obs)
@@ -208,6 +212,22 @@ def test_observations_before_t0_are_dropped_and_counted(sim_log):
     assert f["n_observations_dropped"] == early
     assert f["n_observations"] == len(sim_log.observations) - early
     assert f["t0"] == log.odometry.stamp[0]
+
+
+def test_span_odometry_continues_to_the_last_odometry_stamp(sim_log):
+    log = copy.deepcopy(sim_log)
+    last_obs = log.observations.stamp[-1]
+    keep = log.observations.stamp < last_obs - 5.0  # 5 s of odometry after the last observation
+    for name in ("stamp", "landmark_id", "range", "bearing"):
+        setattr(log.observations, name, getattr(log.observations, name)[keep])
+    short = run_gtsam(log, bounds=log.bounds)
+    full = run_gtsam(log, bounds=log.bounds, span="odometry")
+    assert short["t_end"] == log.observations.stamp[-1]
+    assert full["t_end"] == log.odometry.stamp[-1]
+    assert full["n_poses"] >= short["n_poses"] + 5  # keyframes every second over the tail
+    assert full["n_observations"] == short["n_observations"] == int(keep.sum())
+    with pytest.raises(ValueError, match="span"):
+        run_gtsam(log, bounds=log.bounds, span="scans")
 
 
 def test_missing_streams_are_refused(sim_log):
