@@ -18,6 +18,7 @@ from bench.gtsam_baseline import (  # noqa: E402
     D2_SE2,
     D2_XY,
     _logmap,
+    aligned_rmse,
     dead_reckon,
     pose_stamps,
     relative,
@@ -122,6 +123,21 @@ def test_relative_and_logmap_match_gtsam(poses):
     np.testing.assert_allclose(_logmap(relative(a, b))[0], gtsam.Pose2.Logmap(r), atol=1e-8)
 
 
+@settings(max_examples=50, deadline=None)
+@given(st.floats(-3.1, 3.1), st.floats(-10, 10), st.floats(-10, 10), st.integers(0, 2**32 - 1))
+def test_aligned_rmse_removes_exactly_a_rigid_motion(th, tx, ty, seed):
+    rng = np.random.default_rng(seed)
+    a = rng.uniform(-5, 5, (8, 2))
+    r = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+    b = a @ r.T + [tx, ty]
+    assert aligned_rmse(a, b) < 1e-9
+    noise = rng.normal(0, 0.1, a.shape)
+    moved = aligned_rmse(a + noise, b)
+    assert moved == pytest.approx(aligned_rmse(a + noise, a), abs=1e-9)  # the motion does not matter
+    assert moved <= np.sqrt(np.mean(np.sum(noise**2, axis=1))) + 1e-12  # the best fit beats the true one
+    assert aligned_rmse(a, a[:, ::-1]) > 0.1  # a reflection is not a rigid motion
+
+
 # --- the baseline on a simulated log ------------------------------------------------------
 
 def test_simulated_log_small_error_and_consistent_figures(sim_log, sim_fig):
@@ -145,6 +161,7 @@ def test_simulated_log_small_error_and_consistent_figures(sim_log, sim_fig):
     b = log.bounds
     assert f["pos_err_rmse"] < b["range_abs"] / 2
     assert f["lm_err_max"] < b["range_abs"]
+    assert f["lm_err_aligned_rmse"] <= f["lm_err_rmse"]
     assert f["pos_err_rmse"] < f["dead_reckoning_pos_err_rmse"] / 3
     # the anchor: the first pose is the truth at t0 (prior σ = 1e-4)
     assert f["t0"] == log.odometry.stamp[0]
