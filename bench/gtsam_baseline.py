@@ -172,8 +172,8 @@ def mahalanobis2(err: np.ndarray, cov: np.ndarray) -> np.ndarray:
 # --- the baseline -------------------------------------------------------------------------
 
 def run_gtsam(log: LogData, *, bounds: dict[str, float], robust: bool = True, huber_k: float = 1.345,
-              robust_odometry: bool = False,
-              pose_every: float = 1.0, span: str = "observations", prior_sigma: tuple[float, float, float] = (1e-4, 1e-4, 1e-4),
+              robust_odometry: bool = False, pose_every: float = 1.0, span: str = "observations",
+              prior_sigma: tuple[float, float, float] = (1e-4, 1e-4, 1e-4),
               max_iterations: int = 100, max_truth_gap: float = 0.5,
               return_estimate: bool = False) -> dict:
     """Build, optimise and score the GTSAM landmark-SLAM baseline (see the module docstring).
@@ -181,8 +181,8 @@ def run_gtsam(log: LogData, *, bounds: dict[str, float], robust: bool = True, hu
     ``bounds`` needs ``range_abs, range_rel, bearing, odom_v, odom_v_rel, odom_w, odom_w_rel``
     (half-widths, σ = bound / 3). ``span``: poses up to the last observation (default) or up to
     the last odometry stamp (dead reckoning past the last observation, like a pipeline whose
-    poses are at every odometry stamp). The log needs twist odometry, landmark observations and truth
-    (poses, and landmark positions for the landmark figures). Returns a flat dict of figures
+    poses are at every odometry stamp). The log needs twist odometry, landmark observations and
+    truth (poses, and landmark positions for the landmark figures). Returns a flat dict of figures
     (times in s, errors in m and rad); with ``return_estimate`` also the arrays
     ``est_stamp, est_pose, est_pose_cov, est_landmark_id, est_landmark_xy, est_landmark_cov``.
     """
