@@ -363,12 +363,15 @@ def _format(fig: dict) -> str:
 
 
 #: Columns of the summary table (figure, header, format).
-_TABLE = (("t_total_s", "time s", "{:.2f}"), ("iterations", "LM it", "{}"), ("pos_err_median", "pos med m", "{:.3f}"),
-          ("pos_err_p95", "pos p95 m", "{:.3f}"), ("pos_err_rmse", "pos rmse m", "{:.3f}"),
-          ("heading_err_median", "hdg med rad", "{:.3f}"), ("lm_err_median", "lm med m", "{:.3f}"),
-          ("lm_err_max", "lm max m", "{:.3f}"), ("lm_err_aligned_rmse", "lm shape m", "{:.3f}"), ("pose_xy_in_3sigma", "pose xy 3σ", "{:.3f}"),
-          ("pose_se2_in_3sigma", "pose se2 3σ", "{:.3f}"), ("lm_xy_in_3sigma", "lm xy 3σ", "{:.3f}"),
-          ("pose_3sigma_major_median", "3σ major m", "{:.3f}"), ("dead_reckoning_pos_err_median", "DR med m", "{:.3f}"))
+_TABLE = (
+    ("t_total_s", "time s", "{:.2f}"), ("iterations", "LM it", "{}"),
+    ("pos_err_median", "pos med m", "{:.3f}"), ("pos_err_p95", "pos p95 m", "{:.3f}"),
+    ("pos_err_rmse", "pos rmse m", "{:.3f}"), ("heading_err_median", "hdg med rad", "{:.3f}"),
+    ("lm_err_median", "lm med m", "{:.3f}"), ("lm_err_max", "lm max m", "{:.3f}"),
+    ("lm_err_aligned_rmse", "lm shape m", "{:.3f}"), ("pose_xy_in_3sigma", "pose xy 3σ", "{:.3f}"),
+    ("pose_se2_in_3sigma", "pose se2 3σ", "{:.3f}"), ("lm_xy_in_3sigma", "lm xy 3σ", "{:.3f}"),
+    ("pose_3sigma_major_median", "3σ major m", "{:.3f}"), ("dead_reckoning_pos_err_median", "DR med m", "{:.3f}"),
+)
 
 
 def summary_table(rows: list[tuple[str, dict]]) -> str:
