@@ -21,73 +21,165 @@ import math
 import numpy as np
 from numba import njit
 
-from ivslam_cli.interval.angles import angle_meet
+from ivslam_cli.interval.angles import angle_meet, shift
 from ivslam_cli.interval.arith import (
     EMPTY_HI,
     EMPTY_LO,
     add,
-    atan,
+    _has_point,
     bwd_add,
     bwd_mul,
     bwd_sqr,
-    cos,
     div,
     hull,
     inter,
     mul,
     neg,
-    sin,
     sqr,
     sub,
 )
-from ivslam_cli.interval.rounding import HALF_PI_HI, HALF_PI_LO, INF, PI_HI, PI_LO, down2, up2
+from ivslam_cli.interval.rounding import (
+    HALF_PI_HI,
+    HALF_PI_LO,
+    INF,
+    INV_TWO_PI_LO,
+    PI_HI,
+    PI_LO,
+    TWO_PI_LO,
+    down2,
+    up,
+    up2,
+)
 
 MAX_PASSES = 8
 RELATIVE_STOP = 1e-3
 
 
+# Memo of libm results between passes: a pass often meets a bound it has already seen (the
+# fixpoint's last pass sees them all), and a libm call costs more than the rest of its step.
+# ``memo`` = (phi_lo, tan lower bound, phi_hi, tan upper bound, q_lo, atan lower bound, q_hi,
+# atan upper bound); each value is a function of its key alone, so reusing it is exact.
+NO_MEMO = (math.nan,) * 8
+
+
+@njit(cache=True)
+def _tan_lo(pl):
+    if pl >= HALF_PI_LO:
+        return down2(math.tan(HALF_PI_LO))
+    return max(0.0, down2(math.tan(max(pl, 0.0))))
+
+
+@njit(cache=True)
+def _tan_hi(ph):
+    if ph >= HALF_PI_LO:
+        return INF
+    return up2(math.tan(ph))
+
+
+@njit(cache=True)
+def _atan_lo(ql):
+    return -HALF_PI_HI if ql == -INF else max(-HALF_PI_HI, down2(math.atan(ql)))
+
+
+@njit(cache=True)
+def _atan_hi(qh):
+    return HALF_PI_HI if qh == INF else min(HALF_PI_HI, up2(math.atan(qh)))
+
+
 @njit(cache=True)
 def _tan_quadrant(pl, ph):
     """Enclosure of ``tan`` over ``[pl, ph] ⊂ [0, pi/2]`` (``+inf`` reached at pi/2)."""
-    if pl >= HALF_PI_LO:
-        lo = down2(math.tan(HALF_PI_LO))
-    else:
-        lo = max(0.0, down2(math.tan(max(pl, 0.0))))
-    if ph >= HALF_PI_LO:
-        hi = INF
-    else:
-        hi = up2(math.tan(ph))
-    return lo, hi
+    return _tan_lo(pl), _tan_hi(ph)
 
 
 @njit(cache=True)
-def _atan2_first_quadrant(ul, uh, vl, vh, pl, ph):
-    """Contract ``v = u tan(phi)``, ``phi = atan(v / u)`` for ``u, v >= 0``, ``phi ⊂ [0, pi/2]``."""
+def _atan2_first_quadrant(ul, uh, vl, vh, pl, ph, m=NO_MEMO):
+    """Contract ``v = u tan(phi)``, ``phi = atan(v / u)`` for ``u, v >= 0``, ``phi ⊂ [0, pi/2]``.
+
+    ``m`` is the libm memo (see ``NO_MEMO``); returns the six bounds and the updated memo.
+    """
+    E = EMPTY_LO
+    F = EMPTY_HI
     if not (ul <= uh) or not (vl <= vh) or not (pl <= ph):
-        return EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI
+        return E, F, E, F, E, F, m
     if uh == 0.0 and vh == 0.0:  # the origin: every angle is a solution
-        return ul, uh, vl, vh, pl, ph
-    tl, th = _tan_quadrant(pl, ph)
-    ul, uh, tl, th = bwd_mul(vl, vh, ul, uh, tl, th)
+        return ul, uh, vl, vh, pl, ph, m
+    m0, m1, m2, m3, m4, m5, m6, m7 = m
+    if pl != m0:
+        m0, m1 = pl, _tan_lo(pl)
+    if ph != m2:
+        m2, m3 = ph, _tan_hi(ph)
+    m = (m0, m1, m2, m3, m4, m5, m6, m7)
+    ul, uh, tl, th = bwd_mul(vl, vh, ul, uh, m1, m3)
     if not (ul <= uh):
-        return EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI
+        return E, F, E, F, E, F, m
     vl, vh = inter(vl, vh, *mul(ul, uh, tl, th))
     if not (vl <= vh):
-        return EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI
+        return E, F, E, F, E, F, m
     if not (ul == 0.0 and vl == 0.0):  # the box misses the origin: phi = atan(v / u)
         ql, qh = div(vl, vh, ul, uh)
-        al, ah = atan(ql, qh)
+        if ql <= qh:
+            if ql != m4:
+                m4, m5 = ql, _atan_lo(ql)
+            if qh != m6:
+                m6, m7 = qh, _atan_hi(qh)
+            m = (m0, m1, m2, m3, m4, m5, m6, m7)
+            al, ah = m5, m7
+        else:
+            al, ah = EMPTY_LO, EMPTY_HI
         if uh == 0.0:  # u = 0, v > 0: phi = pi/2 exactly
             al, ah = HALF_PI_LO, HALF_PI_HI
         pl, ph = inter(pl, ph, al, ah)
         if not (pl <= ph):
-            return EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI
-    return ul, uh, vl, vh, pl, ph
+            return E, F, E, F, E, F, m
+    return ul, uh, vl, vh, pl, ph, m
 
 
 @njit(cache=True)
-def catan2(xl, xh, yl, yh, tl, th):
-    """Contract ``(x, y, theta)`` under ``theta = atan2(y, x) mod 2 pi`` (quadrant by quadrant)."""
+def _meet_near(tl, th, al, ah):
+    """``angle_meet(tl, th, al, ah)`` when only the copies ``k = -1, 0, 1`` of ``[a] + 2 k pi``
+    can meet ``[t]`` (both within ``(-6, 6)``, say): the same pieces, without the search for k.
+    """
+    if not (tl <= th) or not (al <= ah):
+        return EMPTY_LO, EMPTY_HI
+    if ah - al >= TWO_PI_LO or tl == -INF or th == INF:
+        return tl, th
+    if up(up(th - tl) + up(ah - al)) < TWO_PI_LO:  # at most one copy meets [t]
+        pl, ph = inter(tl, th, al, ah)
+        if pl <= ph:
+            return pl, ph
+    lo = EMPTY_LO
+    for k in (-1.0, 0.0, 1.0):
+        pl, ph = inter(tl, th, *shift(al, ah, k))
+        if pl <= ph:
+            lo = pl
+            break
+    if lo == EMPTY_LO:
+        return EMPTY_LO, EMPTY_HI
+    hi = EMPTY_HI
+    for k in (1.0, 0.0, -1.0):
+        pl, ph = inter(tl, th, *shift(al, ah, k))
+        if pl <= ph:
+            hi = ph
+            break
+    return lo, hi
+
+
+@njit(cache=True)
+def _meet(tl, th, al, ah, near):
+    if near:
+        return _meet_near(tl, th, al, ah)
+    return angle_meet(tl, th, al, ah)
+
+
+@njit(cache=True)
+def catan2(xl, xh, yl, yh, tl, th, near=False, m=NO_MEMO):
+    """Contract ``(x, y, theta)`` under ``theta = atan2(y, x) mod 2 pi`` (quadrant by quadrant).
+
+    ``near`` asserts ``[tl, th] ⊂ (-6, 6)`` (so only the copies k = -1, 0, 1 of each quadrant
+    can meet it); the result is the same, found faster. ``m`` is the libm memo (``NO_MEMO``);
+    returns the six bounds and the updated memo.
+    """
     rxl = EMPTY_LO
     rxh = EMPTY_HI
     ryl = EMPTY_LO
@@ -109,21 +201,21 @@ def catan2(xl, xh, yl, yh, tl, th):
             continue
         # phi in [0, pi/2] is the angle of (u, v); theta = s(phi)
         if q == 0:
-            ql, qh = angle_meet(0.0, HALF_PI_HI, tl, th)
+            ql, qh = _meet(0.0, HALF_PI_HI, tl, th, near)
             pl, ph = ql, qh
         elif q == 1:
-            ql, qh = angle_meet(-HALF_PI_HI, 0.0, tl, th)
+            ql, qh = _meet(-HALF_PI_HI, 0.0, tl, th, near)
             pl, ph = neg(ql, qh)
         elif q == 2:
-            ql, qh = angle_meet(-PI_HI, -HALF_PI_LO, tl, th)
+            ql, qh = _meet(-PI_HI, -HALF_PI_LO, tl, th, near)
             pl, ph = add(ql, qh, PI_LO, PI_HI)
         else:
-            ql, qh = angle_meet(HALF_PI_LO, PI_HI, tl, th)
+            ql, qh = _meet(HALF_PI_LO, PI_HI, tl, th, near)
             pl, ph = sub(PI_LO, PI_HI, ql, qh)
         pl, ph = inter(pl, ph, 0.0, HALF_PI_HI)
         if not (pl <= ph):
             continue
-        ul, uh, vl, vh, pl, ph = _atan2_first_quadrant(ul, uh, vl, vh, pl, ph)
+        ul, uh, vl, vh, pl, ph, m = _atan2_first_quadrant(ul, uh, vl, vh, pl, ph, m)
         if not (pl <= ph):
             continue
         if q == 0:
@@ -134,7 +226,7 @@ def catan2(xl, xh, yl, yh, tl, th):
             sl, sh = sub(pl, ph, PI_LO, PI_HI)
         else:
             sl, sh = sub(PI_LO, PI_HI, pl, ph)
-        sl, sh = angle_meet(tl, th, sl, sh)
+        sl, sh = _meet(tl, th, sl, sh, near)
         if not (sl <= sh):
             continue
         if q >= 2:
@@ -144,7 +236,7 @@ def catan2(xl, xh, yl, yh, tl, th):
         rxl, rxh = hull(rxl, rxh, ul, uh)
         ryl, ryh = hull(ryl, ryh, vl, vh)
         rtl, rth = hull(rtl, rth, sl, sh)
-    return rxl, rxh, ryl, ryh, rtl, rth
+    return rxl, rxh, ryl, ryh, rtl, rth, m
 
 
 @njit(cache=True)
@@ -160,18 +252,56 @@ def _shrink(ol, oh, nl, nh):
 
 
 @njit(cache=True)
-def polar_pass(xl, xh, yl, yh, rl, rh, tl, th, cl, ch, sl, sh):
+def _sin_cos(tl, th, w):
+    """``sin`` and ``cos`` of ``[tl, th]`` exactly as :func:`arith.sin` / :func:`arith.cos`, with
+    the libm values at each bound memoised in ``w = (tl, sin tl, cos tl, th, sin th, cos th)``."""
+    if not (tl <= th):
+        return EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI, w
+    if not (th - tl < 6.0) or tl == -INF or th == INF:  # >= 2pi - margin: whole range
+        return -1.0, 1.0, -1.0, 1.0, w
+    w0, s1, c1, w3, s2, c2 = w
+    if tl != w0:
+        w0, s1, c1 = tl, math.sin(tl), math.cos(tl)
+    if th != w3:
+        w3, s2, c2 = th, math.sin(th), math.cos(th)
+    w = (w0, s1, c1, w3, s2, c2)
+    sl = max(-1.0, down2(min(s1, s2)))
+    sh = min(1.0, up2(max(s1, s2)))
+    if _has_point(tl, th, HALF_PI_LO, HALF_PI_HI):
+        sh = 1.0
+    if _has_point(tl, th, -HALF_PI_HI, -HALF_PI_LO):
+        sl = -1.0
+    cl = max(-1.0, down2(min(c1, c2)))
+    ch = min(1.0, up2(max(c1, c2)))
+    if _has_point(tl, th, 0.0, 0.0):
+        ch = 1.0
+    if _has_point(tl, th, PI_LO, PI_HI):
+        cl = -1.0
+    return cl, ch, sl, sh, w
+
+
+NO_TRIG = (math.nan,) * 6
+
+
+@njit(cache=True)
+def polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns=0.0, m=NO_MEMO, w=NO_TRIG):
     """One forward-backward pass (the body of Codac's ``CtcPolar::_contract``).
 
-    ``[cl, ch]``, ``[sl, sh]`` are cos and sin of the incoming ``[tl, th]`` (pass NaN to have them
-    computed); returns the 8 contracted bounds then cos and sin of the outgoing theta.
+    ``turns`` (an integer as float) moves theta's branch near ``[-pi, pi]`` for catan2; ``m`` and
+    ``w`` memoise libm values between passes (``NO_MEMO``, ``NO_TRIG`` for none). Returns the 8
+    contracted bounds (all empty if there is no solution) and the updated memos.
     """
     E = EMPTY_LO
     F = EMPTY_HI
-    ntl, nth = tl, th
-    xl, xh, yl, yh, ntl, nth = catan2(xl, xh, yl, yh, tl, th)
+    if turns == 0.0:
+        xl, xh, yl, yh, ntl, nth, m = catan2(xl, xh, yl, yh, tl, th, -6.0 < tl and th < 6.0, m)
+    else:  # catan2 in the principal branch, then back to theta's own
+        pl, ph = shift(tl, th, -turns)
+        near = -6.0 < pl and ph < 6.0
+        xl, xh, yl, yh, pl, ph, m = catan2(xl, xh, yl, yh, pl, ph, near, m)
+        ntl, nth = inter(tl, th, *shift(pl, ph, turns))
     if not (xl <= xh) or not (ntl <= nth):
-        return E, F, E, F, E, F, E, F, E, F, E, F
+        return E, F, E, F, E, F, E, F, m, w
     a1l, a1h = sqr(xl, xh)
     a2l, a2h = sqr(yl, yh)
     a3l, a3h = add(a1l, a1h, a2l, a2h)
@@ -182,14 +312,12 @@ def polar_pass(xl, xh, yl, yh, rl, rh, tl, th, cl, ch, sl, sh):
     a1l, a1h, a2l, a2h = bwd_add(a3l, a3h, a1l, a1h, a2l, a2h)
     xl, xh = bwd_sqr(a1l, a1h, xl, xh)
     yl, yh = bwd_sqr(a2l, a2h, yl, yh)
-    if ntl != tl or nth != th or not (cl <= ch):
-        cl, ch = cos(ntl, nth)
-        sl, sh = sin(ntl, nth)
+    cl, ch, sl, sh, w = _sin_cos(ntl, nth, w)
     xl, xh = inter(xl, xh, *mul(rl, rh, cl, ch))
     yl, yh = inter(yl, yh, *mul(rl, rh, sl, sh))
     if not (xl <= xh) or not (yl <= yh) or not (rl <= rh):
-        return E, F, E, F, E, F, E, F, E, F, E, F
-    return xl, xh, yl, yh, rl, rh, ntl, nth, cl, ch, sl, sh
+        return E, F, E, F, E, F, E, F, m, w
+    return xl, xh, yl, yh, rl, rh, ntl, nth, m, w
 
 
 @njit(cache=True)
@@ -204,12 +332,14 @@ def polar_scalar(xl, xh, yl, yh, rl, rh, tl, th):
     rl = max(rl, 0.0)
     if not (xl <= xh) or not (yl <= yh) or not (rl <= rh) or not (tl <= th):
         return E, F, E, F, E, F, E, F
-    cl = math.nan
-    ch = math.nan
-    sl = math.nan
-    sh = math.nan
+    # turns: theta's branch (theta - 2 pi turns is near [-pi, pi]), where catan2 works
+    turns = 0.0
+    if th - tl < TWO_PI_LO and -1e15 < tl and th < 1e15:
+        turns = float(round(0.5 * (tl + th) * INV_TWO_PI_LO))
+    m = NO_MEMO
+    w = NO_TRIG
     for k in range(MAX_PASSES):
-        r = polar_pass(xl, xh, yl, yh, rl, rh, tl, th, cl, ch, sl, sh)
+        r = polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns, m, w)
         if not (r[0] <= r[1]):
             return E, F, E, F, E, F, E, F
         progress = max(
@@ -221,7 +351,8 @@ def polar_scalar(xl, xh, yl, yh, rl, rh, tl, th):
             and r[4] == rl and r[5] == rh and r[6] == tl and r[7] == th
         )
         xl, xh, yl, yh, rl, rh, tl, th = r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7]
-        cl, ch, sl, sh = r[8], r[9], r[10], r[11]
+        m = r[8]
+        w = r[9]
         if unchanged or (k >= 1 and progress < RELATIVE_STOP):
             break
     return xl, xh, yl, yh, rl, rh, tl, th
