@@ -1,0 +1,162 @@
+"""Geometry of a scan seen from a pose box (numba kernels, outward rounding).
+
+Sensor model (the second seed's): beam ``i`` of a scan points at ``a_i = angle_min + i Δ``
+(real arithmetic on the stored doubles) in the sensor frame, with a bearing error within
+``[-r_α, r_α]``. A valid return ``z`` satisfies ``|z - d| <= abs + rel d`` for the true distance
+``d`` (the convention of ``ivslam simulate``), hence ``d ∈ [(z - abs) / (1 + rel),
+(z + abs) / (1 - rel)]``.
+
+- P_OBSTACLE^{i,k}: the endpoint lies at range ``d`` and bearing ``a_i + [r_α]``.
+- P_EMPTY^{i,k}: nothing lies in the cone ``a_i + [-h, h]`` closer than ``(z - abs) / (1 + rel)``,
+  with ``h = max(r_α, Δ/2)``. When ``r_α >= Δ/2`` this is the seed's cone model. When
+  ``r_α < Δ/2`` (ray-like beams) the cones of two adjacent beams do not touch, and the gap is
+  covered by interpolation: the triangle (sensor, the two beams' points at the nearer free
+  range) holds no wall unless a wall lies between two beams without crossing either (a corner
+  or an edge-on thin wall narrower than the gap, which no LiDAR can see); free ranges are then
+  multiplied by ``cos(Δ/2)`` so a cell inside the sector is inside the triangles.
+
+Invalid beams (no return, max range, error codes) prove nothing here: no obstacle and, for now
+and conservatively, no free space.
+
+A cell (or block) ``C`` and a sensor pose box ``[x] x [y] x [θ]`` give ``D = C - [x] x [y]``
+(every sensor-to-point vector), the range interval of ``D`` and its bearing interval minus
+``[θ]``; the beams whose widened cone ``a_i + [-h, h]`` may meet those bearings form a window
+``[i_lo, i_hi]`` of beam indices (a superset, rounded outward).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ivslam_cli.interval.arith import add, cos, mul, sin, sub
+from ivslam_cli.interval.rounding import INF, PI_HI, PI_LO, TWO_PI_HI, TWO_PI_LO, down, down2, up, up2
+
+
+@njit(cache=True)
+def sensor_box(xl, xh, yl, yh, tl, th, mx, my, myaw):
+    """Sensor pose box from a robot pose box and the mount ``(mx, my, myaw)``.
+
+    Every sensor pose ``(x + cos θ mx - sin θ my, y + sin θ mx + cos θ my, θ + myaw)`` of a
+    robot pose in the box is inside the returned ``(xl, xh, yl, yh, tl, th)``.
+    """
+    cl, ch = cos(tl, th)
+    sl, sh = sin(tl, th)
+    ax, bx = mul(cl, ch, mx, mx)
+    cx, dx = mul(sl, sh, my, my)
+    ox, oxh = sub(ax, bx, cx, dx)
+    ay, by = mul(sl, sh, mx, mx)
+    cy, dy = mul(cl, ch, my, my)
+    oy, oyh = add(ay, by, cy, dy)
+    sxl, sxh = add(xl, xh, ox, oxh)
+    syl, syh = add(yl, yh, oy, oyh)
+    stl, sth = add(tl, th, myaw, myaw)
+    return sxl, sxh, syl, syh, stl, sth
+
+
+@njit(cache=True)
+def box_ranges(dxl, dxh, dyl, dyh):
+    """``[min, max]`` of ``|v|`` over the box ``[dx] x [dy]``, rounded outward."""
+    if dxl > 0.0:
+        mx = dxl
+    elif dxh < 0.0:
+        mx = -dxh
+    else:
+        mx = 0.0
+    if dyl > 0.0:
+        my = dyl
+    elif dyh < 0.0:
+        my = -dyh
+    else:
+        my = 0.0
+    lo = 0.0
+    if mx > 0.0 or my > 0.0:
+        lo = max(0.0, down(math.sqrt(down(down(mx * mx) + down(my * my)))))
+    Mx = max(-dxl, dxh)
+    My = max(-dyl, dyh)
+    hi = up(math.sqrt(up(up(Mx * Mx) + up(My * My))))
+    return lo, hi
+
+
+@njit(cache=True)
+def _atan2_lo(y, x):
+    return down2(math.atan2(y, x))
+
+
+@njit(cache=True)
+def _atan2_hi(y, x):
+    return up2(math.atan2(y, x))
+
+
+@njit(cache=True)
+def box_bearings(xl, xh, yl, yh):
+    """Bearings of the points of the box as a real interval ``(lo, hi, full)``.
+
+    Two atan2 calls (the extreme corners are known from the box's position). ``full`` is
+    True when the box holds the origin (every bearing). Boxes left of the origin crossing the
+    negative x-axis get an interval around pi (``hi > pi``): no bearing is lost at the cut.
+    """
+    if xl > 0.0:  # right half plane: theta in (-pi/2, pi/2), increasing in y
+        lo = _atan2_lo(yl, xl if yl < 0.0 else xh)
+        hi = _atan2_hi(yh, xl if yh > 0.0 else xh)
+        return lo, hi, False
+    if xh < 0.0:  # left: mirror through the origin, then add pi
+        lo = _atan2_lo(-yh, -xh if -yh < 0.0 else -xl)
+        hi = _atan2_hi(-yl, -xh if -yl > 0.0 else -xl)
+        return down(lo + PI_LO), up(hi + PI_HI), False
+    if yl > 0.0:  # upper: theta in (0, pi), decreasing in x
+        lo = _atan2_lo(yl if xh > 0.0 else yh, xh)
+        hi = _atan2_hi(yh if xl > 0.0 else yl, xl)
+        return lo, hi, False
+    if yh < 0.0:  # lower: theta in (-pi, 0), increasing in x
+        lo = _atan2_lo(yl if xl > 0.0 else yh, xl)
+        hi = _atan2_hi(yh if xh > 0.0 else yl, xh)
+        return lo, hi, False
+    return -PI_HI, PI_HI, True
+
+
+@njit(cache=True)
+def beam_window(pl, ph, a0, inc, h, nb):
+    """Beams whose cone ``a_i + [-h, h]`` may meet bearings ``[pl, ph] + 2πZ`` (sensor frame).
+
+    Returns ``(o_lo, o_hi, e_lo, e_hi, cover)``: ``[o_lo, o_hi]`` (clipped to the scan, empty
+    when ``o_lo > o_hi``) holds every such beam; ``[e_lo, e_hi]`` is the window of one branch
+    ``[pl, ph] - 2πm`` and ``cover`` says its cones cover all of ``[pl, ph]`` (every bearing
+    lies between two adjacent beams of the window, or within ``h`` of one of them).
+    """
+    if not (ph - pl < 6.0):
+        return 0, nb - 1, 0, -1, False
+    a_end = a0 + (nb - 1) * inc
+    c = 0.5 * (pl + ph) - 0.5 * (a0 + a_end)
+    m = float(round(c / (2.0 * math.pi)))
+    if m != 0.0:
+        sl, sh = mul(m, m, TWO_PI_LO, TWO_PI_HI)
+        pl, ph = down(pl - sh), up(ph - sl)
+    ul = down(down(down(pl - h) - a0) / inc)
+    uh = up(up(up(ph + h) - a0) / inc)
+    if not (-1e9 < ul and uh < 1e9):
+        return 0, nb - 1, 0, -1, False
+    e_lo = int(math.floor(ul))
+    e_hi = int(math.ceil(uh))
+    cover = e_lo >= 0 and e_hi <= nb - 1
+    o_lo = max(e_lo, 0)
+    o_hi = min(e_hi, nb - 1)
+    # another branch meeting the scan's cones (wide bearing sets only): all beams, outer
+    lo_edge = down(a0 - h)
+    hi_edge = up(up(a_end + h))
+    if down(pl + TWO_PI_LO) <= hi_edge or up(ph - TWO_PI_LO) >= lo_edge:
+        o_lo, o_hi = 0, nb - 1
+    return o_lo, o_hi, e_lo, e_hi, cover
+
+
+@njit(cache=True)
+def range_bounds(z, r_abs, r_rel):
+    """``[(z - abs) / (1 + rel), (z + abs) / (1 - rel)]`` rounded outward (true distance)."""
+    lo = down(down(z - r_abs) / up(1.0 + r_rel))
+    hi = up(up(z + r_abs) / down(1.0 - r_rel))
+    return max(lo, 0.0), hi
+
+
+__all__ = ["INF", "beam_window", "box_bearings", "box_ranges", "range_bounds", "sensor_box"]

@@ -1,0 +1,147 @@
+"""The map update of the feature-less LiDAR SLAM (second seed): P_EMPTY, P_OBSTACLE, old/new.
+
+    >>> tmap = TileMap(0.05)
+    >>> res = update_map(tmap, scans, robot_boxes, LidarBounds(0.03, 0.01, 0.0))
+    >>> res.is_old          # per beam: old (cheap form, against the map before its scan)
+    >>> tmap.dense().data   # unknown / empty / obstacle per cell
+
+Guarantees (for every robot pose in its box, given the sensor model of
+:mod:`~ivslam_cli.slam.lidar_geometry` and the stated bounds):
+
+- every cell of P_EMPTY^k is free of obstacles (inner approximation; cells are closed squares
+  enclosed outward, so a wall touching a cell's border keeps it out of P_EMPTY);
+- every endpoint of a valid beam lies in a cell of P_OBSTACLE^k (outer approximation);
+- the map accumulates them as in the seed (flags in :mod:`ivslam_cli.paving.tiles`):
+  P_EMPTY = ∪ P_EMPTY^k, P_OBSTACLE = (∪ P_OBSTACLE^k) ∩ (∪ P_OLD^k).
+
+Old/new: the seed's inclusion test ``P_EMPTY^{i,k} ⊂ P_EMPTY ∪ P_OBSTACLE`` would never call a
+beam old with P_OBSTACLE defined through P_OLD (no old beam -> P_OLD empty -> P_OBSTACLE empty),
+so "included in the map" is read as *measured* (any flag: proven free, or in some
+P_OBSTACLE^k / P_OLD^k). The cheap form ``P_OBSTACLE^{i,k} ∩ P_UNKNOWN = ∅`` takes P_UNKNOWN =
+the unmeasured cells (a dilation by one cell would make every beam new forever: the cells just
+behind a wall are never measured).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ivslam_cli.errors import ConfigError
+from ivslam_cli.interval.rounding import ensure_round_to_nearest
+from ivslam_cli.logs.model import Scans
+from ivslam_cli.paving.tiles import TileMap
+from ivslam_cli.slam import lidar_kernel as K
+from ivslam_cli.slam.lidar_geometry import sensor_box
+
+STAT_FIELDS = ("nodes", "empty_cells", "obstacle_cells", "new_beams", "old_beams")
+
+
+@dataclass(frozen=True)
+class LidarBounds:
+    """Measurement bounds: ``|z - d| <= range_abs + range_rel d``; bearing error ``<= bearing``
+    (the beam cone's half-width, rad)."""
+
+    range_abs: float
+    range_rel: float = 0.0
+    bearing: float = 0.0
+
+    def check(self) -> None:
+        for name in ("range_abs", "range_rel", "bearing"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0.0):
+                raise ConfigError(f"lidar bound '{name}' must be finite and >= 0, got {v}")
+        if self.range_rel >= 0.5:
+            raise ConfigError(f"lidar bound 'range_rel' must be < 0.5, got {self.range_rel}")
+        if self.bearing >= 0.5:
+            raise ConfigError(f"lidar bound 'bearing' must be < 0.5 rad, got {self.bearing}")
+
+
+@dataclass
+class UpdateResult:
+    """``is_old`` (B,) per beam of the log (False for invalid or unprocessed beams);
+    ``stats`` (S, 5) per scan, columns :data:`STAT_FIELDS` (zeros for unprocessed scans)."""
+
+    is_old: np.ndarray
+    stats: np.ndarray
+
+
+def _boxes(robot_boxes, mount) -> np.ndarray:
+    b = np.ascontiguousarray(np.atleast_2d(robot_boxes), dtype=np.float64)
+    if b.ndim != 2 or b.shape[1] != 6:
+        raise ValueError(f"pose boxes must be (S, 6) = x_lo, x_hi, y_lo, y_hi, th_lo, th_hi; got {b.shape}")
+    if not np.all(np.isfinite(b)) or np.any(b[:, 0::2] > b[:, 1::2]):
+        raise ValueError("pose boxes must be finite with lo <= hi")
+    mx, my, myaw = (float(v) for v in mount)
+    out = np.empty_like(b)
+    for k in range(b.shape[0]):
+        out[k] = sensor_box(*b[k], mx, my, myaw)
+    return out
+
+
+def sensor_boxes(robot_boxes, mount=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """Sensor pose boxes (S, 6) enclosing ``pose (+) mount`` for every pose of each robot box."""
+    return _boxes(robot_boxes, mount)
+
+
+def _check_scans(scans: Scans) -> None:
+    if np.any(~(scans.angle_increment > 0.0)):
+        raise ConfigError("scans with angle_increment <= 0 are not supported")
+
+
+def update_map(tmap: TileMap, scans: Scans, robot_boxes, bounds: LidarBounds, order=None,
+               exact: bool = True, write: bool = True) -> UpdateResult:
+    """Old/new test and map update for scans ``order`` (default: all, in log order).
+
+    ``robot_boxes`` (S, 6): robot pose box of every scan (the laser mount of ``scans`` is
+    applied soundly). ``exact``: cell-level P_OBSTACLE test beam by beam (else the window's
+    hull, looser but still outer). ``write=False`` only classifies beams.
+    """
+    ensure_round_to_nearest()
+    bounds.check()
+    _check_scans(scans)
+    boxes = _boxes(robot_boxes, scans.mount)
+    if boxes.shape[0] != len(scans):
+        raise ValueError(f"{boxes.shape[0]} pose boxes for {len(scans)} scans")
+    order = np.arange(len(scans), dtype=np.int64) if order is None else np.asarray(order, np.int64)
+    is_old = np.zeros(scans.ranges.shape[0], dtype=np.bool_)
+    stats = np.zeros((len(scans), len(STAT_FIELDS)), dtype=np.int64)
+    arrays = K.update_log(*tmap.arrays(), scans.ranges, scans.valid, scans.offsets,
+                          np.ascontiguousarray(scans.angle_min, dtype=np.float64),
+                          np.ascontiguousarray(scans.angle_increment, dtype=np.float64),
+                          boxes, order, float(bounds.range_abs), float(bounds.range_rel),
+                          float(bounds.bearing), tmap.eps, exact, write, is_old, stats)
+    tmap.set_arrays(*arrays)
+    return UpdateResult(is_old, stats)
+
+
+def _scan(scans: Scans, k: int):
+    b0, b1 = int(scans.offsets[k]), int(scans.offsets[k + 1])
+    return scans.ranges[b0:b1], scans.valid[b0:b1], float(scans.angle_min[k]), float(scans.angle_increment[k])
+
+
+def scan_sets(scans: Scans, k: int, robot_box, bounds: LidarBounds, eps: float,
+              exact: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """P_EMPTY^k (inner) and P_OBSTACLE^k (outer) of scan ``k`` as cell indices ``(n, 2)``."""
+    ensure_round_to_nearest()
+    bounds.check()
+    _check_scans(scans)
+    box = _boxes(robot_box, scans.mount)[0]
+    r, v, a0, inc = _scan(scans, k)
+    ex, ey, ox, oy = K.scan_cells(r, v, a0, inc, box, float(bounds.range_abs),
+                                  float(bounds.range_rel), float(bounds.bearing), float(eps), exact)
+    return np.column_stack([ex, ey]), np.column_stack([ox, oy])
+
+
+def inclusion_new(tmap: TileMap, scans: Scans, k: int, robot_box, bounds: LidarBounds) -> np.ndarray:
+    """The seed's full old/new test for scan ``k`` against ``tmap``: ``new`` per beam (see
+    :func:`ivslam_cli.slam.lidar_kernel.inclusion_new`)."""
+    ensure_round_to_nearest()
+    bounds.check()
+    box = _boxes(robot_box, scans.mount)[0]
+    r, v, a0, inc = _scan(scans, k)
+    return K.inclusion_new(tmap.keys, tmap.slots, tmap.cells, r, v, a0, inc, box,
+                           float(bounds.range_abs), float(bounds.range_rel), float(bounds.bearing),
+                           tmap.eps)
