@@ -46,6 +46,7 @@ from ivslam_cli.interval.rounding import (
     PI_HI,
     PI_LO,
     TWO_PI_LO,
+    down,
     down2,
     up,
     up2,
@@ -92,6 +93,43 @@ def _tan_quadrant(pl, ph):
     return _tan_lo(pl), _tan_hi(ph)
 
 
+# Nonnegative interval arithmetic: the operations of :mod:`arith` (same float operations, same
+# outward rounding, hence the same bounds) for intervals in [0, inf] with a finite lower bound,
+# where the sign cases and NaN guards of the general ones cannot occur.
+@njit(cache=True)
+def _div_nonneg(al, ah, bl, bh):
+    """``div(a, b)`` for ``0 <= al < inf``, ``0 <= bl < inf``."""
+    if bh == 0.0:  # b = {0}
+        return EMPTY_LO, EMPTY_HI
+    if bl > 0.0:
+        return down(al / bh), up(ah / bl)
+    if ah == 0.0:  # a = {0}, 0 in b
+        return 0.0, 0.0
+    return down(al / bh), INF
+
+
+@njit(cache=True)
+def _mul_nonneg(al, ah, bl, bh):
+    """``mul(a, b)`` for ``0 <= al``, ``0 <= bl`` (``0 * inf = 0``)."""
+    lo = 0.0 if (al == 0.0 or bl == 0.0) else al * bl
+    hi = 0.0 if (ah == 0.0 or bh == 0.0) else ah * bh
+    return down(lo), up(hi)
+
+
+@njit(cache=True)
+def _bwd_mul_nonneg(zl, zh, xl, xh, yl, yh):
+    """``bwd_mul(z, x, y)`` (contract ``z = x y``) for nonnegative ``x, y, z``, finite lower bounds."""
+    if not (zl <= zh):
+        return EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI
+    if not (zl <= 0.0 and yl <= 0.0):
+        xl, xh = inter(xl, xh, *_div_nonneg(zl, zh, yl, yh))
+    if not (zl <= 0.0 and xl <= 0.0) and xl <= xh:
+        yl, yh = inter(yl, yh, *_div_nonneg(zl, zh, xl, xh))
+    if not (xl <= xh) or not (yl <= yh):
+        return EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI
+    return xl, xh, yl, yh
+
+
 @njit(cache=True)
 def _atan2_first_quadrant(ul, uh, vl, vh, pl, ph, m=NO_MEMO):
     """Contract ``v = u tan(phi)``, ``phi = atan(v / u)`` for ``u, v >= 0``, ``phi ⊂ [0, pi/2]``.
@@ -110,14 +148,20 @@ def _atan2_first_quadrant(ul, uh, vl, vh, pl, ph, m=NO_MEMO):
     if ph != m2:
         m2, m3 = ph, _tan_hi(ph)
     m = (m0, m1, m2, m3, m4, m5, m6, m7)
-    ul, uh, tl, th = bwd_mul(vl, vh, ul, uh, m1, m3)
-    if not (ul <= uh):
-        return E, F, E, F, E, F, m
-    vl, vh = inter(vl, vh, *mul(ul, uh, tl, th))
+    if ul < INF and vl < INF:  # the usual case, in nonnegative arithmetic
+        ul, uh, tl, th = _bwd_mul_nonneg(vl, vh, ul, uh, m1, m3)
+        if not (ul <= uh):
+            return E, F, E, F, E, F, m
+        vl, vh = inter(vl, vh, *_mul_nonneg(ul, uh, tl, th))
+    else:
+        ul, uh, tl, th = bwd_mul(vl, vh, ul, uh, m1, m3)
+        if not (ul <= uh):
+            return E, F, E, F, E, F, m
+        vl, vh = inter(vl, vh, *mul(ul, uh, tl, th))
     if not (vl <= vh):
         return E, F, E, F, E, F, m
     if not (ul == 0.0 and vl == 0.0):  # the box misses the origin: phi = atan(v / u)
-        ql, qh = div(vl, vh, ul, uh)
+        ql, qh = _div_nonneg(vl, vh, ul, uh) if vl < INF else div(vl, vh, ul, uh)
         if ql <= qh:
             if ql != m4:
                 m4, m5 = ql, _atan_lo(ql)
