@@ -295,10 +295,25 @@ def _shrink(ol, oh, nl, nh):
     return (w0 - w1) / w0
 
 
+# 3 pi / 2, enclosed (1.5 * math.pi is within 2 ulps of it; tests check against mpmath)
+THREE_HALF_PI_LO = float(np.nextafter(np.nextafter(1.5 * math.pi, -INF), -INF))
+THREE_HALF_PI_HI = float(np.nextafter(np.nextafter(1.5 * math.pi, INF), INF))
+
+
 @njit(cache=True)
-def _sin_cos(tl, th, w):
-    """``sin`` and ``cos`` of ``[tl, th]`` exactly as :func:`arith.sin` / :func:`arith.cos`, with
-    the libm values at each bound memoised in ``w = (tl, sin tl, cos tl, th, sin th, cos th)``."""
+def _meets(pl, ph, cl, ch):
+    return pl <= ch and cl <= ph
+
+
+@njit(cache=True)
+def _sin_cos(tl, th, w, pl=0.0, ph=-1.0):
+    """``cos`` and ``sin`` of ``[tl, th]`` as :func:`arith.cos` / :func:`arith.sin`, with the libm
+    values at each bound memoised in ``w = (tl, sin tl, cos tl, th, sin th, cos th)``.
+
+    ``[pl, ph]`` (when not empty) is ``[tl, th] - 2 k pi`` for some integer k, enclosed, within
+    ``(-6, 6)``: the extrema of sin and cos it may hold are then among ``-3pi/2 .. 3pi/2``, tested
+    by comparisons instead of :func:`arith._has_point`'s division by 2 pi.
+    """
     if not (tl <= th):
         return EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI, w
     if not (th - tl < 6.0) or tl == -INF or th == INF:  # >= 2pi - margin: whole range
@@ -311,16 +326,26 @@ def _sin_cos(tl, th, w):
     w = (w0, s1, c1, w3, s2, c2)
     sl = max(-1.0, down2(min(s1, s2)))
     sh = min(1.0, up2(max(s1, s2)))
-    if _has_point(tl, th, HALF_PI_LO, HALF_PI_HI):
-        sh = 1.0
-    if _has_point(tl, th, -HALF_PI_HI, -HALF_PI_LO):
-        sl = -1.0
     cl = max(-1.0, down2(min(c1, c2)))
     ch = min(1.0, up2(max(c1, c2)))
-    if _has_point(tl, th, 0.0, 0.0):
-        ch = 1.0
-    if _has_point(tl, th, PI_LO, PI_HI):
-        cl = -1.0
+    if pl <= ph and -6.0 < pl and ph < 6.0:
+        if _meets(pl, ph, HALF_PI_LO, HALF_PI_HI) or _meets(pl, ph, -THREE_HALF_PI_HI, -THREE_HALF_PI_LO):
+            sh = 1.0
+        if _meets(pl, ph, -HALF_PI_HI, -HALF_PI_LO) or _meets(pl, ph, THREE_HALF_PI_LO, THREE_HALF_PI_HI):
+            sl = -1.0
+        if _meets(pl, ph, 0.0, 0.0):
+            ch = 1.0
+        if _meets(pl, ph, PI_LO, PI_HI) or _meets(pl, ph, -PI_HI, -PI_LO):
+            cl = -1.0
+    else:
+        if _has_point(tl, th, HALF_PI_LO, HALF_PI_HI):
+            sh = 1.0
+        if _has_point(tl, th, -HALF_PI_HI, -HALF_PI_LO):
+            sl = -1.0
+        if _has_point(tl, th, 0.0, 0.0):
+            ch = 1.0
+        if _has_point(tl, th, PI_LO, PI_HI):
+            cl = -1.0
     return cl, ch, sl, sh, w
 
 
@@ -338,7 +363,8 @@ def polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns=0.0, m=NO_MEMO, w=NO_TRIG):
     E = EMPTY_LO
     F = EMPTY_HI
     if turns == 0.0:
-        xl, xh, yl, yh, ntl, nth, m = catan2(xl, xh, yl, yh, tl, th, -6.0 < tl and th < 6.0, m)
+        xl, xh, yl, yh, pl, ph, m = catan2(xl, xh, yl, yh, tl, th, -6.0 < tl and th < 6.0, m)
+        ntl, nth = pl, ph
     else:  # catan2 in the principal branch, then back to theta's own
         pl, ph = shift(tl, th, -turns)
         near = -6.0 < pl and ph < 6.0
@@ -356,7 +382,7 @@ def polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns=0.0, m=NO_MEMO, w=NO_TRIG):
     a1l, a1h, a2l, a2h = bwd_add(a3l, a3h, a1l, a1h, a2l, a2h)
     xl, xh = bwd_sqr(a1l, a1h, xl, xh)
     yl, yh = bwd_sqr(a2l, a2h, yl, yh)
-    cl, ch, sl, sh, w = _sin_cos(ntl, nth, w)
+    cl, ch, sl, sh, w = _sin_cos(ntl, nth, w, pl, ph)
     xl, xh = inter(xl, xh, *mul(rl, rh, cl, ch))
     yl, yh = inter(yl, yh, *mul(rl, rh, sl, sh))
     if not (xl <= xh) or not (yl <= yh) or not (rl <= rh):
