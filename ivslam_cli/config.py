@@ -41,8 +41,9 @@ SECTIONS: dict[str, str] = {
 }
 
 # Value types: "float" (int accepted), "int", "bool", "str", "int?" (int, unset = None),
-# "float2" (two floats), "interval" (two floats lo <= hi).
-TYPES = ("float", "int", "bool", "str", "int?", "float2", "interval")
+# "float2" (two floats), "interval" (two floats lo <= hi), "float3" (three floats),
+# "float3?" (three floats, unset = None).
+TYPES = ("float", "int", "bool", "str", "int?", "float2", "interval", "float3", "float3?")
 
 
 @dataclass(frozen=True)
@@ -72,8 +73,17 @@ KEYS: tuple[Key, ...] = (
     Key("bounds", "odom_trans_rel", 0.0, "float", "odometry translation bound per metre travelled", "", 0.0),
     Key("bounds", "odom_rot_abs", 0.0, "float", "odometry rotation bound per step (absolute)", "rad", 0.0),
     Key("bounds", "odom_rot_rel", 0.0, "float", "odometry rotation bound per radian turned", "", 0.0),
+    Key("bounds", "odom_v", 0.0, "float", "twist odometry: speed bound |z_v − v| ≤ odom_v + odom_v_rel·|v| (v the true speed)", "m/s", 0.0),
+    Key("bounds", "odom_v_rel", 0.0, "float", "twist odometry: speed bound proportional to the true speed", "", 0.0),
+    Key("bounds", "odom_w", 0.0, "float", "twist odometry: turn-rate bound |z_ω − ω| ≤ odom_w + odom_w_rel·|v|", "rad/s", 0.0),
+    Key("bounds", "odom_lag_xy", 0.0, "float", "twist odometry: the true position stays within this of the one the twist bounds drive (lag of commanded velocities, transients)", "m", 0.0),
+    Key("bounds", "odom_lag_th", 0.0, "float", "twist odometry: the true heading stays within this of the one the twist bounds drive", "rad", 0.0),
+    Key("bounds", "odom_w_rel", 0.0, "float", "twist odometry: turn-rate bound proportional to the true speed", "rad/m", 0.0),
     # --- [robust]
     Key("robust", "q_pair", 0, "int", "q-relaxed intersection per pair: tolerate up to q inconsistent observations (0 = plain intersection)", "", 0),
+    Key("robust", "q_landmark", 0, "int", "landmarks mode: inconsistent observations tolerated per landmark (q-relaxed intersection of its observations)", "", 0),
+    Key("robust", "q_landmark_frac", 0.0, "float", "landmarks mode: ... or this fraction of the landmark's observations, whichever is larger", "", 0.0),
+    Key("robust", "q_pose", 0, "int", "landmarks mode: inconsistent observations tolerated per pose, among those within landmarks.pose_window", "", 0),
     Key("robust", "strict", False, "bool", "stop at the first empty intersection instead of applying the q policy"),
     # --- [pairs]
     Key("pairs", "heading", (0.0, 0.0), "interval", "known heading interval [lo, hi] at every step; with heading_source = odometry, the bound added to the odometry heading", "rad"),
@@ -84,6 +94,13 @@ KEYS: tuple[Key, ...] = (
     Key("pairs", "reference_id", None, "int?", "landmark a relative map is expressed against; unset: the smallest id"),
     Key("pairs", "max_pairs", 10_000, "int", "safety limit: error out beyond this many landmark pairs", "", 1),
     Key("pairs", "max_boxes", 100_000, "int", "safety limit on the boxes of one pair's subpaving", "", 1),
+    Key("landmarks", "initial_pose", None, "float3?", "initial pose [x, y, θ] (the map frame's anchor); unset: from the truth with --initial-pose-from-truth, else the origin", "m, m, rad"),
+    Key("landmarks", "initial_pose_from_truth", False, "bool", "take the initial pose from the log's ground truth (interpolated at the first odometry stamp)"),
+    Key("landmarks", "initial_margin", (0.01, 0.01, 0.01), "float3", "half-widths of the initial pose box around initial_pose", "m, m, rad"),
+    Key("landmarks", "pose_window", 0.0, "float", "observations within this time of a pose join its q-relaxed intersection (their pose sets widened by the motion possible in between); 0: only the pose's own", "s", 0.0),
+    Key("landmarks", "heading_slices", 16, "int", "a pose's heading interval is cut into this many pieces when contracted by its observations (set inversion in pose space; 1: plain box contraction)", "", 1),
+    Key("landmarks", "max_iterations", 30, "int", "cap on forward-backward sweeps over the trajectory", "", 1),
+    Key("landmarks", "tolerance", 1e-3, "float", "stop when a sweep shrinks the summed widths by less than this fraction", "", 0.0),
 )
 
 KEYS_BY_NAME: dict[str, Key] = {k.dotted: k for k in KEYS}
@@ -142,6 +159,10 @@ def _coerce(key: Key, value: Any, where: str) -> Any:
         if not isinstance(value, str):
             raise bad("a string")
         out = value
+    elif t in ("float3", "float3?"):
+        if not isinstance(value, (list, tuple)) or len(value) != 3:
+            raise bad("a list of three numbers")
+        out = (as_float(value[0]), as_float(value[1]), as_float(value[2]))
     elif t in ("float2", "interval"):
         if not isinstance(value, (list, tuple)) or len(value) != 2:
             raise bad("a list of two numbers")

@@ -44,16 +44,29 @@ def _default_output(log: str, mode: str) -> Path:
 @click.option("--anchor", type=(int, float, float), default=None, metavar="ID X Y",
               help="Anchoring landmark and its known position (absolute map).")
 @click.option("--reference", type=int, default=None, help="pairs.reference_id for a relative map.")
+@click.option("--initial-pose", type=(float, float, float), default=None, metavar="X Y THETA",
+              help="landmarks.initial_pose: the first pose (box: ± landmarks.initial_margin).")
+@click.option("--initial-pose-from-truth", is_flag=True, default=None,
+              help="landmarks.initial_pose_from_truth: anchor the map frame at the true first pose.")
+@click.option("--q-landmark", type=int, default=None, help="robust.q_landmark: outliers tolerated per landmark.")
+@click.option("--q-pose", type=int, default=None, help="robust.q_pose: outliers tolerated per pose window.")
+@click.option("--max-iterations", type=int, default=None, help="landmarks.max_iterations: sweep cap.")
+@click.option("--tolerance", type=float, default=None, help="landmarks.tolerance: stop when widths shrink less.")
+@click.option("--tum", type=click.Path(dir_okay=False), default=None,
+              help="Also write the pose box centres as a TUM trajectory (landmarks mode).")
 @click.pass_context
 def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, odom_topic, landmark_topic,
-            truth_topic, range_abs, range_rel, bearing, q_pair, strict, eps, heading, heading_source, anchor, reference):
+            truth_topic, range_abs, range_rel, bearing, q_pair, strict, eps, heading, heading_source, anchor, reference,
+            initial_pose, initial_pose_from_truth, q_landmark, q_pose, max_iterations, tolerance, tum):
     """Run a guaranteed SLAM pipeline over LOG and write the result (HDF5).
 
     \b
     Examples:
       ivslam run sample_logs/pairs.mcap --mode pairs -o pairs.h5
       ivslam run log.bag --mode pairs --q 1 --anchor 6 1.5 2.0 --force
-      ivslam run log.mcap --config configs/mrclam.toml -o out.h5
+      ivslam run sample_logs/landmarks.bag --mode landmarks --initial-pose-from-truth
+      ivslam run ../shared/datasets/mrclam/MRCLAM_Dataset6 --robot 1 --mode landmarks \
+          --config configs/mrclam.toml --tum robot1.tum -o robot1.h5
     """
     from ivslam_cli.config import resolve_config
     from ivslam_cli.errors import InconsistentData, IvslamError
@@ -63,6 +76,10 @@ def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, 
     out = Path(output) if output else _default_output(log, mode)
     if out.exists() and not force:
         raise IvslamError("result exists; use --force to overwrite it", out)
+    if tum is not None and mode != "landmarks":
+        raise IvslamError(f"--tum needs pose enclosures: --mode landmarks (not {mode})")
+    if tum is not None and Path(tum).exists() and not force:
+        raise IvslamError("TUM file exists; use --force to overwrite it", tum)
     data = read_log(log, fmt, scan_topic=scan_topic, odom_topic=odom_topic, landmark_topic=landmark_topic,
                     truth_topic=truth_topic, robot=robot)
     overrides = {
@@ -71,6 +88,9 @@ def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, 
         "pairs.heading": heading, "pairs.heading_source": heading_source, "pairs.reference_id": reference,
         "pairs.anchor_id": anchor[0] if anchor else None,
         "pairs.anchor_xy": (anchor[1], anchor[2]) if anchor else None,
+        "landmarks.initial_pose": initial_pose, "landmarks.initial_pose_from_truth": initial_pose_from_truth,
+        "robust.q_landmark": q_landmark, "robust.q_pose": q_pose, "landmarks.max_iterations": max_iterations,
+        "landmarks.tolerance": tolerance,
     }
     cfg = resolve_config(config_file, overrides, log_bounds=data.bounds)
     result = run_pipeline(data, cfg, mode, argv=sys.argv[1:] if ctx.parent else None)
@@ -79,8 +99,18 @@ def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, 
     write_result(out, result, force=force)
     s = result.stats
     events = len(result.consistency.empty_events)
-    click.echo(f"{mode}: {s.get('intersections', 0)} intersections, {s.get('pairs', 0)} pairs, "
-               f"{len(result.landmarks) if result.landmarks is not None else 0} landmarks, "
-               f"{events} empty event(s), {result.runtime_s:.2f} s -> {out}", err=True)
+    if tum is not None:
+        from ivslam_cli.results.export import write_tum
+
+        write_tum(tum, result.poses, force=force)
+    if mode == "landmarks":
+        click.echo(f"landmarks: {s['nodes']} poses, {s['landmarks']} landmarks, {s['observations']} observations "
+                   f"({s['observations_rejected']} rejected), {s['sweeps']} sweep(s)"
+                   f"{'' if s['converged'] else ' (not converged)'}, {events} empty event(s), "
+                   f"{result.runtime_s:.2f} s -> {out}", err=True)
+    else:
+        click.echo(f"{mode}: {s.get('intersections', 0)} intersections, {s.get('pairs', 0)} pairs, "
+                   f"{len(result.landmarks) if result.landmarks is not None else 0} landmarks, "
+                   f"{events} empty event(s), {result.runtime_s:.2f} s -> {out}", err=True)
     if result.consistency.stopped:
         raise InconsistentData(f"stopped (--strict): {result.consistency.stopped}; result written to {out}")

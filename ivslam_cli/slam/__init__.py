@@ -50,10 +50,28 @@ def run_pipeline(log: LogData, cfg: Config, mode: str, argv: Sequence[str] | Non
             truth=log.truth,
             stats=out.stats,
         )
+    elif mode == "landmarks":
+        from ivslam_cli.slam.landmarks import run_landmarks
+
+        out = run_landmarks(log, cfg)
+        prov = make_provenance(log.provenance, cfg.as_dict(), argv)
+        prov.dropped = list(prov.dropped) + list(out.dropped)
+        result = Result(
+            mode=mode,
+            provenance=prov,
+            runtime_s=0.0,
+            poses=out.poses,
+            landmarks=out.landmarks,
+            consistency=out.consistency,
+            truth=log.truth,
+            stats=out.stats,
+        )
+        if cfg["robust.strict"] and len(out.consistency.empty_events):
+            result.consistency.stopped = "--strict: " + str(out.consistency.empty_events.text[0])
     else:
-        raise IvslamError(f"--mode {mode} is not implemented yet in this version (available: pairs)")
+        raise IvslamError(f"--mode {mode} is not implemented yet in this version (available: pairs, landmarks)")
     ev = result.consistency.empty_events
-    if cfg["robust.strict"] and len(ev):
+    if cfg["robust.strict"] and len(ev) and not result.consistency.stopped:
         result.consistency.stopped = f"first empty intersection at t={ev.stamp[0]:.3f} s: {ev.text[0]}"
     result.runtime_s = time.perf_counter() - t0
     result.validate()

@@ -1,0 +1,401 @@
+"""The landmark CSP pipeline (seed 001): pose enclosures and landmark boxes over a whole log.
+
+Variables: the poses ``s_0 .. s_n`` at every node (odometry stamps, plus the stamps of
+observations made between them) and the landmarks ``m_1 .. m_L``. Constraints: the motion
+model between consecutive nodes and the range-bearing observation model, contracted to a
+fixpoint by forward-backward sweeps over the whole trajectory (``landmarks_kernel.solve``),
+with q-relaxed intersections per landmark and per pose (outliers).
+
+Motion, by the odometry the log has:
+
+- **twist** ``(v, ω)`` (MRCLAM's commanded velocities, simulated logs): zero-order hold, so an
+  observation between two odometry stamps splits the step exactly (a node at its stamp). The
+  true speed ``v`` satisfies ``|z_v − v| ≤ odom_v + odom_v_rel·|v|`` and the true turn rate
+  ``|z_ω − ω| ≤ odom_w + odom_w_rel·|v|`` at every instant of the step; the unicycle step uses
+  the heading at the start of the step, and the error that makes for any path within those
+  bounds (at most ``max|v| · max|ω| · dt²`` per axis) is a noise term of the step;
+- **pose increments** (``nav_msgs/Odometry``, CARMEN, Victoria Park): the increment between two
+  odometry poses in the frame of the first, translation within ``odom_trans_abs +
+  odom_trans_rel·|Δ|`` per axis and rotation within ``odom_rot_abs + odom_rot_rel·|Δθ|``.
+  An observation between two odometry stamps is attached to the nearer node, widened by the
+  step's largest displacement and rotation (assumes the robot stays within its step's bound
+  between two odometry poses).
+
+Observations outside the odometry's time span, and of unknown landmarks, are not used.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ivslam_cli import interval as iv
+from ivslam_cli.config import Config
+from ivslam_cli.errors import IvslamError
+from ivslam_cli.logs.model import Dropped, LogData
+from ivslam_cli.results.model import (
+    Consistency,
+    EmptyEvents,
+    Landmarks,
+    Poses,
+    Rejections,
+    WidthHistory,
+)
+from ivslam_cli.slam import landmarks_kernel as K
+
+REASONS = {
+    K.OBS_REJECTED_LANDMARK: "misses the q-relaxed intersection of its landmark's observations",
+    K.OBS_REJECTED_POSE: "misses the q-relaxed intersection of the observations at its pose",
+}
+
+
+@dataclass
+class Problem:
+    """The CSP in arrays (see ``landmarks_kernel``)."""
+
+    node_stamp: np.ndarray  # (N,)
+    kind: np.ndarray  # (N-1,) int8
+    U: np.ndarray  # (N-1, 5, 2)
+    travel: np.ndarray  # (N,) cumulative upper bound of the distance travelled
+    turn: np.ndarray  # (N,) cumulative upper bound of the rotation
+    obs_index: np.ndarray  # (M,) index of each used observation in log.observations
+    node: np.ndarray  # (M,)
+    lm: np.ndarray  # (M,) landmark index
+    rho: np.ndarray  # (M, 2)
+    alpha: np.ndarray  # (M, 2)
+    reach: np.ndarray  # (M, 2)
+    ids: np.ndarray  # (L,) landmark ids
+    q: np.ndarray  # (L,)
+    initial: np.ndarray  # (3, 2) of the modelled pose
+    lag: tuple[float, float]  # true pose = modelled pose ± (lag_xy, lag_xy, lag_th)
+    motion: str
+    dropped: list[Dropped]
+    initial_source: str
+
+
+def _sym(half: np.ndarray) -> np.ndarray:
+    """``[-h, h]`` rows for non-negative upper bounds ``h``."""
+    return np.column_stack([-half, half])
+
+
+def _bound(value: float) -> float:
+    """The upper end of the interval enclosing a decimal bound."""
+    return iv.enclose(value)[1] if value else 0.0
+
+
+def _col(a: np.ndarray) -> np.ndarray:
+    a = np.asarray(a, dtype=np.float64)
+    return np.column_stack([a, a])
+
+
+def speed_interval(z: np.ndarray, a: float, r: float) -> np.ndarray:
+    """Every true ``v`` with ``|z − v| ≤ a + r·|v|`` (``r < 1``), rows ``(lo, hi)``, outward."""
+    if r >= 1.0:
+        raise IvslamError(f"bounds.odom_v_rel = {r} must be < 1 (a relative speed bound of 100 % bounds nothing)")
+    z = np.asarray(z, dtype=np.float64)
+    A = _col(np.full(z.shape, a))
+    lo_num = iv.sub(_col(z), A)  # z - a
+    hi_num = iv.add(_col(z), A)  # z + a
+    one_p = _col(np.full(z.shape, 1.0 + 0.0))
+    R = _col(np.full(z.shape, r))
+    den_plus = iv.add(one_p, R)  # 1 + r
+    den_minus = iv.sub(one_p, R)  # 1 - r
+    # lo = (z - a)/(1 + r) if z - a >= 0 else (z - a)/(1 - r); hi symmetric
+    lo_a = iv.div(lo_num, den_plus)[:, 0]
+    lo_b = iv.div(lo_num, den_minus)[:, 0]
+    hi_a = iv.div(hi_num, den_minus)[:, 1]
+    hi_b = iv.div(hi_num, den_plus)[:, 1]
+    lo = np.where(lo_num[:, 0] >= 0.0, lo_a, lo_b)
+    hi = np.where(hi_num[:, 1] > 0.0, hi_a, hi_b)
+    return np.column_stack([lo, hi])
+
+
+def observation_boxes(log: LogData, cfg: Config) -> tuple[np.ndarray, np.ndarray]:
+    """``rho ∈ z ± (range_abs + range_rel·z)`` (``rho ≥ 0``), ``alpha ∈ z_α ± bearing``; outward."""
+    obs = log.observations
+    z = _col(obs.range)
+    n = z.shape[0]
+    rel = iv.mul(z, np.tile(list(iv.enclose(cfg["bounds.range_rel"])), (n, 1)))
+    half = iv.add(rel, np.tile(list(iv.enclose(cfg["bounds.range_abs"])), (n, 1)))[:, 1]
+    rho = iv.add(z, _sym(half))
+    rho[:, 0] = np.maximum(rho[:, 0], 0.0)
+    alpha = iv.add(_col(obs.bearing), _sym(np.full(n, _bound(cfg["bounds.bearing"]))))
+    return rho, alpha
+
+
+def _interp_truth(log: LogData, t: float) -> np.ndarray | None:
+    tr = log.truth
+    if tr is None or tr.pose is None or tr.pose_stamp is None or len(tr.pose_stamp) < 1:
+        return None
+    ts = np.asarray(tr.pose_stamp, float)
+    if t < ts[0] or t > ts[-1]:
+        return None
+    p = np.asarray(tr.pose, float)
+    th = np.unwrap(p[:, 2])
+    return np.array([np.interp(t, ts, p[:, 0]), np.interp(t, ts, p[:, 1]), np.interp(t, ts, th)])
+
+
+def initial_box(log: LogData, cfg: Config, t0: float) -> tuple[np.ndarray, str]:
+    """The initial pose box (3, 2) and where it comes from."""
+    margin = [_bound(m) for m in cfg["landmarks.initial_margin"]]
+    if cfg["landmarks.initial_pose"] is not None:
+        centre, source = np.array(cfg["landmarks.initial_pose"], float), "landmarks.initial_pose"
+    elif cfg["landmarks.initial_pose_from_truth"]:
+        centre = _interp_truth(log, t0)
+        if centre is None:
+            raise IvslamError(f"--initial-pose-from-truth: the log has no ground-truth pose at t={t0:.6f}",
+                              log.provenance.path)
+        source = "ground truth interpolated at the first odometry stamp"
+    else:
+        centre, source = np.zeros(3), "origin (the map frame is the first pose)"
+    box = iv.add(_col(centre), _sym(np.array(margin)))
+    return box, source
+
+
+def _cumulative(step: np.ndarray) -> np.ndarray:
+    """Cumulative sums of non-negative step bounds, rounded up (relative float error ≤ n·2⁻⁵³)."""
+    c = np.concatenate([[0.0], np.cumsum(step)])
+    return np.nextafter(c * (1.0 + (len(c) + 2) * 2.0**-52), np.inf)
+
+
+def build_problem(log: LogData, cfg: Config) -> Problem:
+    """Nodes, motion steps, observation intervals and landmark q's from a log and a config."""
+    path = log.provenance.path
+    odo, obs = log.odometry, log.observations
+    if obs is None or len(obs) == 0:
+        raise IvslamError("no landmark observations: --mode landmarks needs range-bearing observations", path)
+    if odo is None or len(odo) < 2:
+        raise IvslamError("no odometry (at least two samples): --mode landmarks needs a motion model", path)
+    dropped: list[Dropped] = []
+    t = np.asarray(odo.stamp, float)
+    s = np.asarray(obs.stamp, float)
+    inside = (s >= t[0]) & (s <= t[-1])
+    if (~inside).any():
+        dropped.append(Dropped("observations", int((~inside).sum()), "outside the odometry's time span (not used)"))
+    used = np.flatnonzero(inside)
+    if used.size == 0:
+        raise IvslamError("no landmark observation falls within the odometry's time span", path)
+    rho_all, alpha_all = observation_boxes(log, cfg)
+
+    if odo.twist is not None:
+        motion = "twist"
+        # nodes: where the held twist changes (a run of equal twists is one exact step), the
+        # observation stamps, and the last odometry stamp
+        tw_all = np.asarray(odo.twist, float)
+        change = np.concatenate([[True], np.any(tw_all[1:] != tw_all[:-1], axis=1)])
+        change[-1] = True
+        node_stamp = np.unique(np.concatenate([t[change], s[used]]))
+        n = node_stamp.shape[0]
+        j = np.clip(np.searchsorted(t, node_stamp[:-1], side="right") - 1, 0, len(t) - 1)
+        z = np.asarray(odo.twist, float)[j]
+        V = speed_interval(z[:, 0], _bound(cfg["bounds.odom_v"]), _bound(cfg["bounds.odom_v_rel"]))
+        vmax = np.maximum(np.abs(V[:, 0]), np.abs(V[:, 1]))
+        w_half = iv.add(_col(np.full(n - 1, _bound(cfg["bounds.odom_w"]))),
+                        iv.mul(_col(np.full(n - 1, _bound(cfg["bounds.odom_w_rel"]))), _col(vmax)))[:, 1]
+        W = iv.add(_col(z[:, 1]), _sym(w_half))
+        wmax = np.maximum(np.abs(W[:, 0]), np.abs(W[:, 1]))
+        dt = iv.sub(_col(node_stamp[1:]), _col(node_stamp[:-1]))
+        dt[:, 0] = np.maximum(dt[:, 0], 0.0)
+        lag_xy, lag_th = _bound(cfg["bounds.odom_lag_xy"]), _bound(cfg["bounds.odom_lag_th"])
+        # the step moves along the true heading, within max|w| dt + lag_th of the step's start
+        # heading: error per axis <= max|v| dt (max|w| dt + lag_th)
+        turn_dt = iv.add(iv.mul(_col(wmax), dt), _col(np.full(n - 1, lag_th)))
+        q_xy = iv.mul(iv.mul(_col(vmax), dt), turn_dt)[:, 1]
+        U = np.zeros((n - 1, 5, 2))
+        U[:, 0], U[:, 1], U[:, 2], U[:, 3] = V, W, dt, _sym(q_xy)
+        kind = np.full(n - 1, K.TWIST, np.int8)
+        step_travel = iv.add(iv.mul(_col(vmax), dt), _col(q_xy))[:, 1]
+        step_turn = iv.mul(_col(wmax), dt)[:, 1]
+        node = np.searchsorted(node_stamp, s[used])
+        # the true pose at an observation is within the lag of the modelled one
+        reach = np.tile([lag_xy, lag_th], (used.size, 1))
+        lag = (lag_xy, lag_th)
+    elif odo.pose is not None:
+        motion = "pose increments"
+        node_stamp = t.copy()
+        if np.any(np.diff(node_stamp) <= 0):
+            raise IvslamError("odometry stamps are not strictly increasing", path)
+        n = node_stamp.shape[0]
+        p = np.asarray(odo.pose, float)
+        d = p[1:, :2] - p[:-1, :2]
+        c, sn = np.cos(p[:-1, 2]), np.sin(p[:-1, 2])
+        bx, by = c * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + c * d[:, 1]
+        raw = p[1:, 2] - p[:-1, 2]
+        dth = raw - np.round(raw / (2 * np.pi)) * (2 * np.pi)
+        # float error of the increments: a few ulps of the coordinates involved
+        eps_xy = 8.0 * np.spacing(np.abs(p[1:, :2]).max(axis=1) + np.abs(p[:-1, :2]).max(axis=1) + 1.0)
+        eps_th = 8.0 * np.spacing(np.abs(p[1:, 2]) + np.abs(p[:-1, 2]) + 2 * np.pi)
+        norm = np.hypot(bx, by)
+        half_t = _bound(cfg["bounds.odom_trans_abs"]) + _bound(cfg["bounds.odom_trans_rel"]) * norm * (1 + 1e-15)
+        half_t = np.nextafter(half_t + eps_xy, np.inf)
+        half_r = _bound(cfg["bounds.odom_rot_abs"]) + _bound(cfg["bounds.odom_rot_rel"]) * np.abs(dth) * (1 + 1e-15)
+        half_r = np.nextafter(half_r + eps_th, np.inf)
+        BX, BY = iv.add(_col(bx), _sym(half_t)), iv.add(_col(by), _sym(half_t))
+        R = iv.sqrt(iv.add(iv.sqr(BX), iv.sqr(BY)))
+        A = iv.atan2(BY, BX)
+        U = np.zeros((n - 1, 5, 2))
+        U[:, 0], U[:, 1], U[:, 2] = R, A, iv.add(_col(dth), _sym(half_r))
+        kind = np.full(n - 1, K.INCREMENT, np.int8)
+        step_travel = R[:, 1]
+        step_turn = np.maximum(np.abs(U[:, 2, 0]), np.abs(U[:, 2, 1]))
+        # attach each observation to the nearer odometry node, widened by its step's motion
+        su = s[used]
+        k = np.clip(np.searchsorted(t, su, side="right") - 1, 0, n - 2)
+        nearer_next = (t[k + 1] - su) < (su - t[k])
+        node = np.where(nearer_next, k + 1, k)
+        exact = t[node] == su
+        reach = np.column_stack([np.where(exact, 0.0, step_travel[k]), np.where(exact, 0.0, step_turn[k])])
+        lag = (0.0, 0.0)
+    else:
+        raise IvslamError("the odometry has neither twist nor poses", path)
+
+    lm_ids, lm_index = np.unique(obs.landmark_id[used], return_inverse=True)
+    counts = np.bincount(lm_index, minlength=lm_ids.size)
+    q = np.maximum(int(cfg["robust.q_landmark"]),
+                   np.floor(float(cfg["robust.q_landmark_frac"]) * counts).astype(np.int64)).astype(np.int64)
+    initial, source = initial_box(log, cfg, float(node_stamp[0]))
+    initial = iv.add(initial, _sym(np.array([lag[0], lag[0], lag[1]])))
+    return Problem(
+        node_stamp=node_stamp, kind=kind, U=np.ascontiguousarray(U), travel=_cumulative(step_travel),
+        turn=_cumulative(step_turn), obs_index=used, node=node.astype(np.int64), lm=lm_index.astype(np.int64),
+        rho=np.ascontiguousarray(rho_all[used]), alpha=np.ascontiguousarray(alpha_all[used]),
+        reach=np.ascontiguousarray(reach), ids=lm_ids.astype(np.int64), q=q, initial=initial, lag=lag, motion=motion,
+        dropped=dropped, initial_source=source,
+    )
+
+
+@dataclass
+class LandmarksOutput:
+    poses: Poses
+    landmarks: Landmarks
+    consistency: Consistency
+    stats: dict
+    dropped: list[Dropped]
+
+
+def solve_problem(pb: Problem, cfg: Config):
+    """Run the kernel; returns the arrays it fills."""
+    n = pb.node_stamp.shape[0]
+    P = np.empty((n, 3, 2))
+    P[:, :, 0] = -np.inf
+    P[:, :, 1] = np.inf
+    P[0] = pb.initial
+    L = np.empty((pb.ids.size, 2, 2))
+    L[:, :, 0] = -np.inf
+    L[:, :, 1] = np.inf
+    by_node = np.argsort(pb.node, kind="stable").astype(np.int64)
+    obs_node_stamp = np.ascontiguousarray(pb.node_stamp[pb.node[by_node]])
+    node_first = np.full(n, -1, np.int64)
+    node_first[pb.node[by_node][::-1]] = by_node[::-1]
+    lm_order = np.argsort(pb.lm, kind="stable").astype(np.int64)
+    lm_offsets = np.concatenate([[0], np.cumsum(np.bincount(pb.lm, minlength=pb.ids.size))]).astype(np.int64)
+    status = np.zeros(pb.node.size, np.int8)
+    step_events = np.zeros(n - 1, np.int64)
+    pose_events = np.zeros(n, np.int64)
+    lm_events = np.zeros(pb.ids.size, np.int64)
+    max_it = int(cfg["landmarks.max_iterations"])
+    trace = np.full(max_it, np.nan)
+    sweeps = K.solve(P, L, pb.kind, pb.U, pb.node_stamp, pb.travel, pb.turn, pb.node, pb.lm, pb.rho, pb.alpha,
+                     pb.reach, obs_node_stamp, by_node, node_first, lm_offsets, lm_order, pb.q,
+                     int(cfg["robust.q_pose"]), float(cfg["landmarks.pose_window"]),
+                     int(cfg["landmarks.heading_slices"]), max_it,
+                     float(cfg["landmarks.tolerance"]), status, step_events, pose_events, lm_events, trace)
+    return P, L, status, step_events, pose_events, lm_events, trace[:sweeps], int(sweeps)
+
+
+def _box_width(box: np.ndarray) -> np.ndarray:
+    w = box[..., 1] - box[..., 0]
+    return np.where(np.all(box[..., 0] <= box[..., 1], axis=-1), np.max(w, axis=-1), np.nan)
+
+
+def run_landmarks(log: LogData, cfg: Config) -> LandmarksOutput:
+    """The landmark CSP over a log (see the module docstring)."""
+    t0 = time.perf_counter()
+    pb = build_problem(log, cfg)
+    P, L, status, step_ev, pose_ev, lm_ev, trace, sweeps = solve_problem(pb, cfg)
+    n = pb.node_stamp.shape[0]
+    tol = float(cfg["landmarks.tolerance"])
+    if pb.lag != (0.0, 0.0):  # enclosures of the true poses
+        ok = np.all(P[..., 0] <= P[..., 1], axis=-1)
+        P = iv.add(P.reshape(-1, 2), np.tile(_sym(np.array([pb.lag[0], pb.lag[0], pb.lag[1]])), (n, 1))).reshape(n, 3, 2)
+        P[~ok] = [np.inf, -np.inf]
+    converged = sweeps >= 2 and (trace[-2] - trace[-1]) <= tol * trace[-2] if sweeps >= 2 else False
+
+    # consistency record
+    rows = []  # (stamp, step, constraint, entity, measurement, text)
+    for k in np.flatnonzero(step_ev):
+        rows.append((pb.node_stamp[k], k, "motion", (int(k), -1), -1,
+                     f"motion step {k} -> {k + 1} (t={pb.node_stamp[k]:.3f} s) contradicts the poses "
+                     f"({step_ev[k]} sweep(s)); its contraction was skipped"))
+    for k in np.flatnonzero(pose_ev):
+        rows.append((pb.node_stamp[k], k, "pose_qinter", (int(k), -1), -1,
+                     f"the observations at pose {k} (t={pb.node_stamp[k]:.3f} s) contradict it beyond "
+                     f"q={cfg['robust.q_pose']} ({pose_ev[k]} sweep(s)); skipped"))
+    for i in np.flatnonzero(lm_ev):
+        rows.append((pb.node_stamp[-1], n - 1, "landmark_qinter", (int(pb.ids[i]), -1), -1,
+                     f"landmark {pb.ids[i]}: its observations contradict each other beyond q={pb.q[i]} "
+                     f"({lm_ev[i]} sweep(s)); its box kept"))
+    rows.sort(key=lambda r: r[0])
+    events = EmptyEvents(
+        stamp=np.array([r[0] for r in rows], float),
+        step=np.array([r[1] for r in rows], np.int64),
+        constraint=np.array([r[2] for r in rows], dtype=str).reshape(-1),
+        entity=np.array([r[3] for r in rows], np.int64).reshape(-1, 2),
+        measurement=np.array([r[4] for r in rows], np.int64),
+        text=np.array([r[5] for r in rows], dtype=str).reshape(-1),
+    )
+    rej = np.flatnonzero(status != K.OBS_USED)
+    rejections = Rejections(
+        stream=np.array(["observations"] * rej.size, dtype=str).reshape(-1),
+        index=pb.obs_index[rej].astype(np.int64),
+        reason=np.array([REASONS[int(status[j])] for j in rej], dtype=str).reshape(-1),
+    )
+    pose_w = _box_width(P[:, :2])
+    pose_hist = WidthHistory(
+        entity=np.column_stack([np.arange(n), np.full(n, -1)]).astype(np.int64),
+        step=np.arange(n, dtype=np.int64), stamp=pb.node_stamp.astype(float), width=pose_w,
+        definition="largest side (x, y) of the pose box at each node, metres",
+    )
+    lm_w = _box_width(L)
+    lm_hist = WidthHistory(
+        entity=np.column_stack([pb.ids, np.full(pb.ids.size, -1)]).astype(np.int64),
+        step=np.full(pb.ids.size, n - 1, np.int64), stamp=np.full(pb.ids.size, pb.node_stamp[-1]),
+        width=lm_w, definition="largest side of the landmark box after the last sweep, metres",
+    )
+    motion_bounds = ("|z_v − v| ≤ odom_v + odom_v_rel·|v| and |z_ω − ω| ≤ odom_w + odom_w_rel·|v| at every "
+                     "instant (commanded/measured twist held between odometry stamps) for a modelled pose the true "
+                     f"one stays within ±{pb.lag[0]} m, ±{pb.lag[1]} rad of" if pb.motion == "twist" else
+                     "each odometry increment within ±(odom_trans_abs + odom_trans_rel·|Δ|) per axis and "
+                     "±(odom_rot_abs + odom_rot_rel·|Δθ|), the robot staying within its step's bound between "
+                     "two odometry poses")
+    assumption = (
+        f"the initial pose in its box ({pb.initial_source}); {motion_bounds}; every range error within "
+        f"±(range_abs + range_rel·range) and bearing error within ±bearing, except for at most q observations "
+        f"per landmark (q = max(q_landmark, ⌊q_landmark_frac·m⌋), here {int(pb.q.min())}..{int(pb.q.max())}) "
+        f"and at most q_pose = {cfg['robust.q_pose']} among the observations within "
+        f"{cfg['landmarks.pose_window']} s of each pose; observations proven to break it are rejected "
+        f"({rej.size}) and listed"
+    )
+    if len(events):
+        assumption += (f"; {len(events)} contraction(s) would have emptied a box and were skipped (empty events): "
+                       "the data contradict the model there")
+    consistency = Consistency(
+        empty_events=events, q={"landmark": int(cfg["robust.q_landmark"]), "pose": int(cfg["robust.q_pose"])},
+        rejected=rejections, widths={"pose": pose_hist, "landmark": lm_hist}, assumption=assumption,
+    )
+    runtime = time.perf_counter() - t0
+    stats = {
+        "motion": pb.motion, "nodes": int(n), "steps": int(n - 1), "observations": int(pb.node.size),
+        "observations_rejected": int(rej.size), "landmarks": int(pb.ids.size), "sweeps": int(sweeps),
+        "converged": int(bool(converged)), "final_width_sum": float(trace[-1]) if sweeps else float("nan"),
+        "median_pose_width": float(np.nanmedian(pose_w)) if np.isfinite(pose_w).any() else float("nan"),
+        "median_landmark_width": float(np.nanmedian(lm_w)) if np.isfinite(lm_w).any() else float("nan"),
+        "solve_s": float(runtime),
+    }
+    return LandmarksOutput(
+        poses=Poses(stamp=pb.node_stamp.astype(float), box=P),
+        landmarks=Landmarks(id=pb.ids, box=L),
+        consistency=consistency, stats=stats, dropped=pb.dropped,
+    )
