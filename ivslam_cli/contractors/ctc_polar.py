@@ -353,15 +353,21 @@ NO_TRIG = (math.nan,) * 6
 
 
 @njit(cache=True)
-def polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns=0.0, m=NO_MEMO, w=NO_TRIG):
+def polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns=0.0, m=NO_MEMO, w=NO_TRIG, settled=False):
     """One forward-backward pass (the body of Codac's ``CtcPolar::_contract``).
 
     ``turns`` (an integer as float) moves theta's branch near ``[-pi, pi]`` for catan2; ``m`` and
     ``w`` memoise libm values between passes (``NO_MEMO``, ``NO_TRIG`` for none). Returns the 8
-    contracted bounds (all empty if there is no solution) and the updated memos.
+    contracted bounds (all empty if there is no solution), the updated memos, and whether the
+    steps after catan2 changed nothing.
+
+    ``settled`` says the previous pass's steps after catan2 changed nothing (so the box is their
+    output on the catan2 result it got): if catan2 now changes nothing either, they would get
+    that same input again and the whole pass changes nothing, so they are skipped.
     """
     E = EMPTY_LO
     F = EMPTY_HI
+    x0l, x0h, y0l, y0h, t0l, t0h = xl, xh, yl, yh, tl, th
     if turns == 0.0:
         xl, xh, yl, yh, pl, ph, m = catan2(xl, xh, yl, yh, tl, th, -6.0 < tl and th < 6.0, m)
         ntl, nth = pl, ph
@@ -371,7 +377,10 @@ def polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns=0.0, m=NO_MEMO, w=NO_TRIG):
         xl, xh, yl, yh, pl, ph, m = catan2(xl, xh, yl, yh, pl, ph, near, m)
         ntl, nth = inter(tl, th, *shift(pl, ph, turns))
     if not (xl <= xh) or not (ntl <= nth):
-        return E, F, E, F, E, F, E, F, m, w
+        return E, F, E, F, E, F, E, F, m, w, False
+    if settled and xl == x0l and xh == x0h and yl == y0l and yh == y0h and ntl == t0l and nth == t0h:
+        return xl, xh, yl, yh, rl, rh, ntl, nth, m, w, True
+    x1l, x1h, y1l, y1h, r1l, r1h = xl, xh, yl, yh, rl, rh
     a1l, a1h = sqr(xl, xh)
     a2l, a2h = sqr(yl, yh)
     a3l, a3h = add(a1l, a1h, a2l, a2h)
@@ -386,8 +395,9 @@ def polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns=0.0, m=NO_MEMO, w=NO_TRIG):
     xl, xh = inter(xl, xh, *mul(rl, rh, cl, ch))
     yl, yh = inter(yl, yh, *mul(rl, rh, sl, sh))
     if not (xl <= xh) or not (yl <= yh) or not (rl <= rh):
-        return E, F, E, F, E, F, E, F, m, w
-    return xl, xh, yl, yh, rl, rh, ntl, nth, m, w
+        return E, F, E, F, E, F, E, F, m, w, False
+    settled = (xl == x1l and xh == x1h and yl == y1l and yh == y1h and rl == r1l and rh == r1h)
+    return xl, xh, yl, yh, rl, rh, ntl, nth, m, w, settled
 
 
 @njit(cache=True)
@@ -408,8 +418,9 @@ def polar_scalar(xl, xh, yl, yh, rl, rh, tl, th):
         turns = float(round(0.5 * (tl + th) * INV_TWO_PI_LO))
     m = NO_MEMO
     w = NO_TRIG
+    settled = False
     for k in range(MAX_PASSES):
-        r = polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns, m, w)
+        r = polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns, m, w, settled)
         if not (r[0] <= r[1]):
             return E, F, E, F, E, F, E, F
         progress = max(
@@ -423,6 +434,7 @@ def polar_scalar(xl, xh, yl, yh, rl, rh, tl, th):
         xl, xh, yl, yh, rl, rh, tl, th = r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7]
         m = r[8]
         w = r[9]
+        settled = r[10]
         if unchanged or (k >= 1 and progress < RELATIVE_STOP):
             break
     return xl, xh, yl, yh, rl, rh, tl, th
