@@ -45,6 +45,7 @@ from ivslam_cli.interval.rounding import (
     INV_TWO_PI_LO,
     PI_HI,
     PI_LO,
+    TWO_PI_HI,
     TWO_PI_LO,
     down,
     down2,
@@ -96,7 +97,7 @@ def _tan_quadrant(pl, ph):
 # Nonnegative interval arithmetic: the operations of :mod:`arith` (same float operations, same
 # outward rounding, hence the same bounds) for intervals in [0, inf] with a finite lower bound,
 # where the sign cases and NaN guards of the general ones cannot occur.
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _div_nonneg(al, ah, bl, bh):
     """``div(a, b)`` for ``0 <= al < inf``, ``0 <= bl < inf``."""
     if bh == 0.0:  # b = {0}
@@ -108,7 +109,7 @@ def _div_nonneg(al, ah, bl, bh):
     return down(al / bh), INF
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _mul_nonneg(al, ah, bl, bh):
     """``mul(a, b)`` for ``0 <= al``, ``0 <= bl`` (``0 * inf = 0``)."""
     lo = 0.0 if (al == 0.0 or bl == 0.0) else al * bl
@@ -116,7 +117,7 @@ def _mul_nonneg(al, ah, bl, bh):
     return down(lo), up(hi)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _bwd_mul_nonneg(zl, zh, xl, xh, yl, yh):
     """``bwd_mul(z, x, y)`` (contract ``z = x y``) for nonnegative ``x, y, z``, finite lower bounds."""
     if not (zl <= zh):
@@ -130,7 +131,7 @@ def _bwd_mul_nonneg(zl, zh, xl, xh, yl, yh):
     return xl, xh, yl, yh
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _atan2_first_quadrant(ul, uh, vl, vh, pl, ph, m=NO_MEMO):
     """Contract ``v = u tan(phi)``, ``phi = atan(v / u)`` for ``u, v >= 0``, ``phi ⊂ [0, pi/2]``.
 
@@ -179,49 +180,74 @@ def _atan2_first_quadrant(ul, uh, vl, vh, pl, ph, m=NO_MEMO):
     return ul, uh, vl, vh, pl, ph, m
 
 
-@njit(cache=True)
-def _meet_near(tl, th, al, ah):
-    """``angle_meet(tl, th, al, ah)`` when only the copies ``k = -1, 0, 1`` of ``[a] + 2 k pi``
-    can meet ``[t]`` (both within ``(-6, 6)``, say): the same pieces, without the search for k.
-    """
+@njit(cache=True, inline="always")
+def _offsets(k0):
+    """``2 k pi`` enclosed as :func:`angles.shift` does, for ``k = k0 - 1, k0, k0 + 1``."""
+    al, ah = mul(k0 - 1.0, k0 - 1.0, TWO_PI_LO, TWO_PI_HI)
+    bl, bh = mul(k0, k0, TWO_PI_LO, TWO_PI_HI)
+    cl, ch = mul(k0 + 1.0, k0 + 1.0, TWO_PI_LO, TWO_PI_HI)
+    return (k0, al, ah, bl, bh, cl, ch)
+
+
+NO_OFFSETS = (0.0,) * 7
+
+
+@njit(cache=True, inline="always")
+def _shifted(al, ah, k, ol, oh):
+    """``shift(al, ah, k)`` given ``[ol, oh] = mul(k, k, 2 pi)``."""
+    if k == 0.0:
+        return al, ah
+    return add(al, ah, ol, oh)
+
+
+@njit(cache=True, inline="always")
+def _meet_near(tl, th, al, ah, o):
+    """``angle_meet(tl, th, al, ah)`` when only the copies ``[a] + 2 k pi``, ``k = k0 - 1, k0,
+    k0 + 1`` (``o = _offsets(k0)``), can meet ``[t]``: the same pieces and roundings, without
+    the search for k."""
     if not (tl <= th) or not (al <= ah):
         return EMPTY_LO, EMPTY_HI
     if ah - al >= TWO_PI_LO or tl == -INF or th == INF:
         return tl, th
-    if up(up(th - tl) + up(ah - al)) < TWO_PI_LO:  # at most one copy meets [t]
-        pl, ph = inter(tl, th, al, ah)
+    k0 = o[0]
+    if up(up(th - tl) + up(ah - al)) < TWO_PI_LO:  # at most one copy meets [t]: try k0's
+        pl, ph = inter(tl, th, *_shifted(al, ah, k0, o[3], o[4]))
         if pl <= ph:
             return pl, ph
-    lo = EMPTY_LO
-    for k in (-1.0, 0.0, 1.0):
-        pl, ph = inter(tl, th, *shift(al, ah, k))
-        if pl <= ph:
-            lo = pl
-            break
-    if lo == EMPTY_LO:
+    p1l, p1h = inter(tl, th, *_shifted(al, ah, k0 - 1.0, o[1], o[2]))
+    p2l, p2h = inter(tl, th, *_shifted(al, ah, k0, o[3], o[4]))
+    p3l, p3h = inter(tl, th, *_shifted(al, ah, k0 + 1.0, o[5], o[6]))
+    if p1l <= p1h:
+        lo = p1l
+    elif p2l <= p2h:
+        lo = p2l
+    elif p3l <= p3h:
+        lo = p3l
+    else:
         return EMPTY_LO, EMPTY_HI
-    hi = EMPTY_HI
-    for k in (1.0, 0.0, -1.0):
-        pl, ph = inter(tl, th, *shift(al, ah, k))
-        if pl <= ph:
-            hi = ph
-            break
+    if p3l <= p3h:
+        hi = p3h
+    elif p2l <= p2h:
+        hi = p2h
+    else:
+        hi = p1h
     return lo, hi
 
 
-@njit(cache=True)
-def _meet(tl, th, al, ah, near):
+@njit(cache=True, inline="always")
+def _meet(tl, th, al, ah, near, o):
     if near:
-        return _meet_near(tl, th, al, ah)
+        return _meet_near(tl, th, al, ah, o)
     return angle_meet(tl, th, al, ah)
 
 
-@njit(cache=True)
-def catan2(xl, xh, yl, yh, tl, th, near=False, m=NO_MEMO):
+@njit(cache=True, inline="always")
+def catan2(xl, xh, yl, yh, tl, th, near=False, o_in=NO_OFFSETS, o_out=NO_OFFSETS, m=NO_MEMO):
     """Contract ``(x, y, theta)`` under ``theta = atan2(y, x) mod 2 pi`` (quadrant by quadrant).
 
-    ``near`` asserts ``[tl, th] ⊂ (-6, 6)`` (so only the copies k = -1, 0, 1 of each quadrant
-    can meet it); the result is the same, found faster. ``m`` is the libm memo (``NO_MEMO``);
+    ``near`` asserts ``[tl, th] - 2 pi turns ⊂ (-6, 6)`` for an integer ``turns``, so only three
+    copies of theta can meet each quadrant; then ``o_in = _offsets(-turns)`` and ``o_out =
+    _offsets(turns)``. The result is the same, found faster. ``m`` is the libm memo (``NO_MEMO``);
     returns the six bounds and the updated memo.
     """
     rxl = EMPTY_LO
@@ -245,16 +271,16 @@ def catan2(xl, xh, yl, yh, tl, th, near=False, m=NO_MEMO):
             continue
         # phi in [0, pi/2] is the angle of (u, v); theta = s(phi)
         if q == 0:
-            ql, qh = _meet(0.0, HALF_PI_HI, tl, th, near)
+            ql, qh = _meet(0.0, HALF_PI_HI, tl, th, near, o_in)
             pl, ph = ql, qh
         elif q == 1:
-            ql, qh = _meet(-HALF_PI_HI, 0.0, tl, th, near)
+            ql, qh = _meet(-HALF_PI_HI, 0.0, tl, th, near, o_in)
             pl, ph = neg(ql, qh)
         elif q == 2:
-            ql, qh = _meet(-PI_HI, -HALF_PI_LO, tl, th, near)
+            ql, qh = _meet(-PI_HI, -HALF_PI_LO, tl, th, near, o_in)
             pl, ph = add(ql, qh, PI_LO, PI_HI)
         else:
-            ql, qh = _meet(HALF_PI_LO, PI_HI, tl, th, near)
+            ql, qh = _meet(HALF_PI_LO, PI_HI, tl, th, near, o_in)
             pl, ph = sub(PI_LO, PI_HI, ql, qh)
         pl, ph = inter(pl, ph, 0.0, HALF_PI_HI)
         if not (pl <= ph):
@@ -270,7 +296,7 @@ def catan2(xl, xh, yl, yh, tl, th, near=False, m=NO_MEMO):
             sl, sh = sub(pl, ph, PI_LO, PI_HI)
         else:
             sl, sh = sub(PI_LO, PI_HI, pl, ph)
-        sl, sh = _meet(tl, th, sl, sh, near)
+        sl, sh = _meet(tl, th, sl, sh, near, o_out)
         if not (sl <= sh):
             continue
         if q >= 2:
@@ -300,12 +326,12 @@ THREE_HALF_PI_LO = float(np.nextafter(np.nextafter(1.5 * math.pi, -INF), -INF))
 THREE_HALF_PI_HI = float(np.nextafter(np.nextafter(1.5 * math.pi, INF), INF))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _meets(pl, ph, cl, ch):
     return pl <= ch and cl <= ph
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _sin_cos(tl, th, w, pl=0.0, ph=-1.0):
     """``cos`` and ``sin`` of ``[tl, th]`` as :func:`arith.cos` / :func:`arith.sin`, with the libm
     values at each bound memoised in ``w = (tl, sin tl, cos tl, th, sin th, cos th)``.
@@ -352,11 +378,13 @@ def _sin_cos(tl, th, w, pl=0.0, ph=-1.0):
 NO_TRIG = (math.nan,) * 6
 
 
-@njit(cache=True)
-def polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns=0.0, m=NO_MEMO, w=NO_TRIG, settled=False):
+@njit(cache=True, inline="always")
+def polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns=0.0, o_in=NO_OFFSETS, o_out=NO_OFFSETS,
+               m=NO_MEMO, w=NO_TRIG, settled=False):
     """One forward-backward pass (the body of Codac's ``CtcPolar::_contract``).
 
-    ``turns`` (an integer as float) moves theta's branch near ``[-pi, pi]`` for catan2; ``m`` and
+    ``turns`` (an integer as float): ``theta - 2 pi turns`` is near ``[-pi, pi]``, ``o_in =
+    _offsets(-turns)``, ``o_out = _offsets(turns)`` (default: turns = 0); ``m`` and
     ``w`` memoise libm values between passes (``NO_MEMO``, ``NO_TRIG`` for none). Returns the 8
     contracted bounds (all empty if there is no solution), the updated memos, and whether the
     steps after catan2 changed nothing.
@@ -368,14 +396,9 @@ def polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns=0.0, m=NO_MEMO, w=NO_TRIG, 
     E = EMPTY_LO
     F = EMPTY_HI
     x0l, x0h, y0l, y0h, t0l, t0h = xl, xh, yl, yh, tl, th
-    if turns == 0.0:
-        xl, xh, yl, yh, pl, ph, m = catan2(xl, xh, yl, yh, tl, th, -6.0 < tl and th < 6.0, m)
-        ntl, nth = pl, ph
-    else:  # catan2 in the principal branch, then back to theta's own
-        pl, ph = shift(tl, th, -turns)
-        near = -6.0 < pl and ph < 6.0
-        xl, xh, yl, yh, pl, ph, m = catan2(xl, xh, yl, yh, pl, ph, near, m)
-        ntl, nth = inter(tl, th, *shift(pl, ph, turns))
+    pl, ph = _shifted(tl, th, -turns, o_in[3], o_in[4])  # theta - 2 pi turns, enclosed
+    near = -6.0 < pl and ph < 6.0
+    xl, xh, yl, yh, ntl, nth, m = catan2(xl, xh, yl, yh, tl, th, near, o_in, o_out, m)
     if not (xl <= xh) or not (ntl <= nth):
         return E, F, E, F, E, F, E, F, m, w, False
     if settled and xl == x0l and xh == x0h and yl == y0l and yh == y0h and ntl == t0l and nth == t0h:
@@ -391,6 +414,7 @@ def polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns=0.0, m=NO_MEMO, w=NO_TRIG, 
     a1l, a1h, a2l, a2h = bwd_add(a3l, a3h, a1l, a1h, a2l, a2h)
     xl, xh = bwd_sqr(a1l, a1h, xl, xh)
     yl, yh = bwd_sqr(a2l, a2h, yl, yh)
+    pl, ph = _shifted(ntl, nth, -turns, o_in[3], o_in[4])
     cl, ch, sl, sh, w = _sin_cos(ntl, nth, w, pl, ph)
     xl, xh = inter(xl, xh, *mul(rl, rh, cl, ch))
     yl, yh = inter(yl, yh, *mul(rl, rh, sl, sh))
@@ -416,11 +440,13 @@ def polar_scalar(xl, xh, yl, yh, rl, rh, tl, th):
     turns = 0.0
     if th - tl < TWO_PI_LO and -1e15 < tl and th < 1e15:
         turns = float(round(0.5 * (tl + th) * INV_TWO_PI_LO))
+    o_in = _offsets(-turns)
+    o_out = _offsets(turns)
     m = NO_MEMO
     w = NO_TRIG
     settled = False
     for k in range(MAX_PASSES):
-        r = polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns, m, w, settled)
+        r = polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns, o_in, o_out, m, w, settled)
         if not (r[0] <= r[1]):
             return E, F, E, F, E, F, E, F
         progress = max(
