@@ -1,0 +1,436 @@
+"""LiDAR map update (second seed): tiles, P_OBSTACLE outer, P_EMPTY inner, old/new, map update.
+
+Scans come from a cone LiDAR in random wall worlds: beam ``i`` returns the distance to the
+nearest wall point within its cone ``a_i + [-r_α, r_α]`` (the seed's sensor model), plus a
+bounded error ``|e| <= 0.999 (abs + rel d)``, as float32. The hit point is that nearest point.
+Pose boxes (up to ±0.2 m, ±3°) hold the true robot pose at a random place.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from ivslam_cli.logs.model import Scans
+from ivslam_cli.paving.tiles import EMPTY, OBST_NEW, OBST_OLD, OBSTACLE, TILE, TileMap
+from ivslam_cli.paving.tiles import EMPTY_STATE
+from ivslam_cli.slam.lidar_geometry import box_bearings, box_ranges, sensor_box
+from ivslam_cli.slam.lidar_map import LidarBounds, inclusion_new, scan_sets, update_map
+
+SETTINGS = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow])
+BEAMS, INC = 683, 2 * math.pi / 1024  # URG-04LX-like: 683 beams over 240 degrees
+A0 = -0.5 * (BEAMS - 1) * INC
+RANGE_MIN, RANGE_MAX = 0.02, 5.6
+
+
+# ---------------------------------------------------------------- worlds and a cone LiDAR
+def random_world(rng: np.random.Generator) -> tuple[np.ndarray, tuple[float, float, float, float]]:
+    """A rectangular room with random inner walls and boxes: segments (K, 4) and the room."""
+    w, h = rng.uniform(3.0, 9.0), rng.uniform(3.0, 7.0)
+    x0, y0 = rng.uniform(-20, 20), rng.uniform(-20, 20)
+    segs = [[x0, y0, x0 + w, y0], [x0 + w, y0, x0 + w, y0 + h], [x0 + w, y0 + h, x0, y0 + h],
+            [x0, y0 + h, x0, y0]]
+    for _ in range(rng.integers(0, 5)):
+        ax, ay = x0 + rng.uniform(0, w), y0 + rng.uniform(0, h)
+        ang, ln = rng.uniform(0, math.pi), rng.uniform(0.3, 2.5)
+        segs.append([ax, ay, ax + ln * math.cos(ang), ay + ln * math.sin(ang)])
+    for _ in range(rng.integers(0, 3)):
+        cx, cy, s = x0 + rng.uniform(0, w), y0 + rng.uniform(0, h), rng.uniform(0.1, 0.5)
+        segs += [[cx - s, cy - s, cx + s, cy - s], [cx + s, cy - s, cx + s, cy + s],
+                 [cx + s, cy + s, cx - s, cy + s], [cx - s, cy + s, cx - s, cy - s]]
+    return np.asarray(segs, dtype=np.float64), (x0, y0, w, h)
+
+
+def seg_dist(p: np.ndarray, segs: np.ndarray) -> np.ndarray:
+    a, b = segs[:, :2], segs[:, 2:]
+    ab = b - a
+    t = np.clip(((p - a) * ab).sum(1) / np.maximum((ab * ab).sum(1), 1e-300), 0.0, 1.0)
+    return np.hypot(*(p - (a + t[:, None] * ab)).T)
+
+
+def random_pose(rng, segs, room) -> np.ndarray:
+    x0, y0, w, h = room
+    for _ in range(1000):
+        p = np.array([x0 + rng.uniform(0.4, w - 0.4), y0 + rng.uniform(0.4, h - 0.4)])
+        if seg_dist(p, segs).min() > 0.4:
+            return np.array([p[0], p[1], rng.uniform(-math.pi, math.pi)])
+    pytest.skip("no free pose in this world")  # pragma: no cover
+
+
+def cone_scan(origin: np.ndarray, yaw: float, segs: np.ndarray, half: float):
+    """Nearest wall point within each beam's cone: distances (B,) (inf: none) and points (B, 2)."""
+    beta = yaw + A0 + INC * np.arange(BEAMS)
+    rel = segs.reshape(-1, 2, 2) - origin  # (K, 2, 2)
+    a, b = rel[:, 0], rel[:, 1]
+    best = np.full(BEAMS, np.inf)
+    pts = np.zeros((BEAMS, 2))
+
+    def consider(p, ok):  # p (B, K, 2), ok (B, K)
+        d = np.where(ok, np.hypot(p[..., 0], p[..., 1]), np.inf)
+        k = d.argmin(1)
+        dk = d[np.arange(BEAMS), k]
+        better = dk < best
+        best[better] = dk[better]
+        pts[better] = p[np.arange(BEAMS), k][better]
+
+    def in_cone(p):
+        ang = np.arctan2(p[..., 1], p[..., 0]) - beta[:, None]
+        ang = (ang + math.pi) % (2 * math.pi) - math.pi
+        return np.abs(ang) <= half
+
+    for end in (a, b):  # end points inside the cone
+        p = np.broadcast_to(end, (BEAMS,) + end.shape)
+        consider(p, in_cone(p))
+    ab = b - a
+    t = np.clip(-(a * ab).sum(1) / np.maximum((ab * ab).sum(1), 1e-300), 0.0, 1.0)
+    foot = np.broadcast_to(a + t[:, None] * ab, (BEAMS,) + a.shape)  # nearest point of each segment
+    consider(foot, in_cone(foot))
+    for edge in (-half, half):  # crossings of the cone's two boundary rays
+        u = np.stack([np.cos(beta + edge), np.sin(beta + edge)], 1)[:, None, :]
+        den = u[..., 0] * ab[None, :, 1] - u[..., 1] * ab[None, :, 0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = (a[None, :, 0] * u[..., 1] - a[None, :, 1] * u[..., 0]) / den
+            r = (a[None, :, 0] * ab[None, :, 1] - a[None, :, 1] * ab[None, :, 0]) / den
+        ok = (den != 0) & (s >= 0) & (s <= 1) & (r > 0)
+        consider(u * np.where(ok, r, 0.0)[..., None], ok)
+    pts = pts + origin
+    return best, pts
+
+
+def make_scans(rng, segs, poses, mount, half, r_abs, r_rel, noise="uniform"):
+    """Scans of the cone LiDAR from robot poses (T, 3); returns (Scans, hit points (T, B, 2), hit (T, B))."""
+    T = poses.shape[0]
+    ranges, valid, hits, hitmask = [], [], [], []
+    for k in range(T):
+        x, y, th = poses[k]
+        o = np.array([x + math.cos(th) * mount[0] - math.sin(th) * mount[1],
+                      y + math.sin(th) * mount[0] + math.cos(th) * mount[1]])
+        d, p = cone_scan(o, th + mount[2], segs, half)
+        b = r_abs + r_rel * np.where(np.isfinite(d), d, 0.0)
+        u = rng.uniform(-1, 1, BEAMS) if noise == "uniform" else np.where(rng.random(BEAMS) < 0.5, -1.0, 1.0)
+        z = np.where(np.isfinite(d), d + 0.999 * u * b, 0.0).astype(np.float32)
+        ok = np.isfinite(d) & (z >= np.float32(RANGE_MIN)) & (z <= np.float32(RANGE_MAX))
+        assert np.all(np.abs(z[ok].astype(np.float64) - d[ok]) <= b[ok])
+        ranges.append(np.where(ok, z, np.float32(0.0)))
+        valid.append(ok)
+        hits.append(p)
+        hitmask.append(ok)
+    ones = np.ones(T)
+    scans = Scans(stamp=np.arange(T) * 0.1, angle_min=ones * A0, angle_increment=ones * INC,
+                  range_min=ones * RANGE_MIN, range_max=ones * RANGE_MAX,
+                  offsets=np.arange(T + 1, dtype=np.int64) * BEAMS,
+                  ranges=np.concatenate(ranges).astype(np.float32), valid=np.concatenate(valid),
+                  mount=tuple(mount))
+    return scans, np.stack(hits), np.stack(hitmask)
+
+
+def random_box(rng, pose, wxy, wth, full=False) -> np.ndarray:
+    """A box of half-widths up to (exactly, with ``full``) (wxy, wxy, wth) holding ``pose``."""
+    hw = (1.0 if full else rng.uniform(0.3, 1.0, 3)) * np.array([wxy, wxy, wth])
+    f = rng.uniform(0, 1, 3)
+    lo = pose - 2 * hw * f
+    return np.array([lo[0], lo[0] + 2 * hw[0], lo[1], lo[1] + 2 * hw[1], lo[2], lo[2] + 2 * hw[2]])
+
+
+# ---------------------------------------------------------------- truth checks
+def cells_of_point(p: np.ndarray, eps: float) -> list[tuple[int, int]]:
+    """Every closed cell that may hold ``p`` (both neighbours when it is on/near a border)."""
+    out = []
+    ixs = {math.floor(p[0] / eps), math.floor(p[0] / eps - 1e-9), math.floor(p[0] / eps + 1e-9)}
+    iys = {math.floor(p[1] / eps), math.floor(p[1] / eps - 1e-9), math.floor(p[1] / eps + 1e-9)}
+    for i in ixs:
+        for j in iys:
+            if i * eps - 1e-12 <= p[0] <= (i + 1) * eps + 1e-12 and j * eps - 1e-12 <= p[1] <= (j + 1) * eps + 1e-12:
+                out.append((i, j))
+    return out
+
+
+def segments_meet_cells(segs: np.ndarray, cells: np.ndarray, eps: float, margin: float = 1e-9) -> np.ndarray:
+    """Whether each cell (closed square, grown by ``margin``: the safe side) meets any segment."""
+    if cells.shape[0] == 0:
+        return np.zeros(0, bool)
+    lo = cells[:, None, :] * eps - margin  # (N, 1, 2)
+    hi = (cells[:, None, :] + 1) * eps + margin
+    a, d = segs[None, :, :2], segs[None, :, 2:] - segs[None, :, :2]  # (1, K, 2)
+    t0 = np.zeros(lo.shape[:1] + (segs.shape[0],))
+    t1 = np.ones_like(t0)
+    ok = np.ones_like(t0, dtype=bool)
+    for ax in range(2):  # Liang-Barsky clipping of a + t d, t in [0, 1]
+        dd = np.broadcast_to(d[..., ax], t0.shape)
+        aa = np.broadcast_to(a[..., ax], t0.shape)
+        par = dd == 0
+        ok &= ~par | ((aa >= lo[..., ax]) & (aa <= hi[..., ax]))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ta = (lo[..., ax] - aa) / dd
+            tb = (hi[..., ax] - aa) / dd
+        t0 = np.where(par, t0, np.maximum(t0, np.minimum(ta, tb)))
+        t1 = np.where(par, t1, np.minimum(t1, np.maximum(ta, tb)))
+    return np.any(ok & (t0 <= t1), axis=1)
+
+
+def assert_obstacle_outer(obst: np.ndarray, hits: np.ndarray, mask: np.ndarray, eps: float) -> None:
+    marked = set(map(tuple, obst.tolist()))
+    for p in hits[mask]:
+        cands = cells_of_point(p, eps)
+        assert any(c in marked for c in cands), f"hit point {p} outside P_OBSTACLE (cells {cands})"
+
+
+# ---------------------------------------------------------------- geometry kernels
+@given(st.integers(0, 2**32 - 1))
+@settings(max_examples=40, **SETTINGS)
+def test_box_ranges_and_bearings_enclose_points(seed):
+    rng = np.random.default_rng(seed)
+    c = rng.uniform(-3, 3, 2)
+    w = rng.uniform(0, 2, 2) * rng.choice([0.0, 1e-9, 0.1, 1.0], 2)
+    xl, xh, yl, yh = c[0] - w[0], c[0] + w[0], c[1] - w[1], c[1] + w[1]
+    lo, hi = box_ranges(xl, xh, yl, yh)
+    bl, bh, full = box_bearings(xl, xh, yl, yh)
+    pts = np.column_stack([rng.uniform(xl, xh, 500), rng.uniform(yl, yh, 500)])
+    pts = np.vstack([pts, [[xl, yl], [xl, yh], [xh, yl], [xh, yh]]])
+    r = np.hypot(pts[:, 0], pts[:, 1])
+    assert np.all((lo <= r) & (r <= hi))
+    assert full == (xl <= 0 <= xh and yl <= 0 <= yh)
+    if not full:
+        assert bh - bl < math.pi + 1e-9  # a box that misses the origin spans less than pi
+        ang = np.arctan2(pts[:, 1], pts[:, 0])
+        k = np.ceil((bl - ang) / (2 * math.pi))  # the copy of each angle at or above bl
+        ang = ang + 2 * math.pi * k
+        assert np.all((bl <= ang) & (ang <= bh)), (bl, bh)
+
+
+@given(st.integers(0, 2**32 - 1))
+@settings(max_examples=30, **SETTINGS)
+def test_sensor_box_encloses_mounted_poses(seed):
+    rng = np.random.default_rng(seed)
+    pose = np.array([*rng.uniform(-50, 50, 2), rng.uniform(-10, 10)])
+    box = random_box(rng, pose, 0.2, 0.05)
+    mount = (*rng.uniform(-0.3, 0.3, 2), rng.uniform(-math.pi, math.pi))
+    sb = sensor_box(*box, *mount)
+    for _ in range(200):
+        x, y, th = (rng.uniform(box[0], box[1]), rng.uniform(box[2], box[3]), rng.uniform(box[4], box[5]))
+        s = (x + math.cos(th) * mount[0] - math.sin(th) * mount[1],
+             y + math.sin(th) * mount[0] + math.cos(th) * mount[1], th + mount[2])
+        assert sb[0] <= s[0] <= sb[1] and sb[2] <= s[1] <= sb[3] and sb[4] <= s[2] <= sb[5]
+
+
+# ---------------------------------------------------------------- tiles
+@given(st.integers(0, 2**32 - 1), st.sampled_from([0.05, 0.1, 0.013]))
+@settings(max_examples=20, **SETTINGS)
+def test_tiles_store_union_intersection_dense(seed, eps):
+    rng = np.random.default_rng(seed)
+    spread = int(rng.choice([50, 500, 5000]))
+    n = int(rng.integers(1, 3000))
+    a_ix, a_iy = rng.integers(-spread, spread, n), rng.integers(-spread, spread, n)
+    a_f = rng.integers(1, 8, n).astype(np.uint8)
+    b_ix, b_iy = a_ix + rng.integers(-3, 4, n), a_iy + rng.integers(-3, 4, n)
+    b_f = rng.integers(1, 8, n).astype(np.uint8)
+    A, B = TileMap(eps, capacity=1), TileMap(eps)
+    A.set(a_ix, a_iy, a_f)
+    B.set(b_ix, b_iy, b_f)
+    ref_a, ref_b = {}, {}
+    for ref, ix, iy, f in ((ref_a, a_ix, a_iy, a_f), (ref_b, b_ix, b_iy, b_f)):
+        for i, j, v in zip(ix.tolist(), iy.tolist(), f.tolist()):
+            ref[(i, j)] = ref.get((i, j), 0) | v
+    keys = list(ref_a)
+    assert np.array_equal(A.get(*np.array(keys).T), np.array([ref_a[k] for k in keys], np.uint8))
+    assert np.all(A.get(a_ix + 10 * spread + 10 * TILE, a_iy) == 0)  # never written
+    tiles_a = {(i >> 6, j >> 6) for i, j in ref_a}
+    assert A.n_tiles == len(tiles_a)
+    U, I = A.union(B), A.intersection(B)
+    probe = np.array(sorted(set(ref_a) | set(ref_b)))
+    exp_u = np.array([ref_a.get(k, 0) | ref_b.get(k, 0) for k in map(tuple, probe.tolist())], np.uint8)
+    exp_i = np.array([ref_a.get(k, 0) & ref_b.get(k, 0) for k in map(tuple, probe.tolist())], np.uint8)
+    assert np.array_equal(U.get(*probe.T), exp_u)
+    assert np.array_equal(I.get(*probe.T), exp_i)
+    # dense export: every cell in place, states derived from flags
+    D = U.dense(raw=True)
+    assert np.array_equal(D.data[probe[:, 0] - D.i0, probe[:, 1] - D.j0], exp_u)
+    assert D.data.sum(dtype=np.int64) == exp_u.sum(dtype=np.int64)
+    S = U.dense()
+    st_exp = np.where(exp_u & EMPTY, EMPTY_STATE, np.where(((exp_u & OBST_NEW) > 0) & ((exp_u & OBST_OLD) > 0), OBSTACLE, 0))
+    assert np.array_equal(S.data[probe[:, 0] - D.i0, probe[:, 1] - D.j0], st_exp)
+    counts = U.counts()
+    assert counts["empty"] == int((st_exp == EMPTY_STATE).sum())
+    assert counts["obstacle"] == int((st_exp == OBSTACLE).sum())
+    assert counts["unknown"] + counts["empty"] + counts["obstacle"] == U.n_tiles * TILE * TILE
+    k_empty = counts["empty"]
+    assert U.area("empty", upward=False) <= k_empty * eps * eps <= U.area("empty", upward=True)
+
+
+def test_tiles_reject_other_resolutions():
+    with pytest.raises(ValueError):
+        TileMap(0.05).union(TileMap(0.1))
+    with pytest.raises(ValueError):
+        TileMap(0.0)
+
+
+# ---------------------------------------------------------------- P_OBSTACLE, P_EMPTY
+def _case(seed: int, wxy: float, wth: float, alpha_factor: float, eps: float, full=False):
+    rng = np.random.default_rng(seed)
+    segs, room = random_world(rng)
+    pose = random_pose(rng, segs, room)
+    mount = (float(rng.uniform(-0.15, 0.15)), float(rng.uniform(-0.05, 0.05)), float(rng.choice([0.0, math.pi / 2, math.pi])))
+    half = alpha_factor * INC
+    bounds = LidarBounds(0.03, 0.01, half)
+    scans, hits, mask = make_scans(rng, segs, pose[None], mount, half, bounds.range_abs, bounds.range_rel,
+                                   noise=str(rng.choice(["uniform", "edges"])))
+    box = random_box(rng, pose, wxy, wth, full)
+    return segs, pose, box, bounds, scans, hits[0], mask[0]
+
+
+@given(st.integers(0, 2**32 - 1), st.floats(0.0, 0.2), st.floats(0.0, math.radians(3)),
+       st.sampled_from([0.5, 0.75, 2.0]), st.sampled_from([0.05, 0.1]))
+@settings(max_examples=25, **SETTINGS)
+def test_scan_sets_sound_against_truth(seed, wxy, wth, alpha_factor, eps):
+    """Every true hit point is in P_OBSTACLE^k; no P_EMPTY^k cell meets a wall."""
+    segs, pose, box, bounds, scans, hits, mask = _case(seed, wxy, wth, alpha_factor, eps)
+    assert mask.sum() > 100
+    empty, obst = scan_sets(scans, 0, box, bounds, eps)
+    assert_obstacle_outer(obst, hits, mask, eps)
+    bad = segments_meet_cells(segs, empty, eps)
+    assert not bad.any(), f"{bad.sum()} P_EMPTY cells meet a wall, e.g. {empty[bad][:3]}"
+    assert len(set(map(tuple, empty.tolist()))) == empty.shape[0]  # blocks do not overlap
+    # the hull-only leaf test is outer too, and never tighter than the beam-by-beam one
+    _, obst_hull = scan_sets(scans, 0, box, bounds, eps, exact=False)
+    assert set(map(tuple, obst.tolist())) <= set(map(tuple, obst_hull.tolist()))
+
+
+def test_no_return_beams_prove_nothing():
+    rng = np.random.default_rng(5)
+    segs, pose, box, bounds, scans, hits, mask = _case(5, 0.1, 0.02, 0.5, 0.05)
+    scans.valid[:] = False
+    empty, obst = scan_sets(scans, 0, box, bounds, 0.05)
+    assert empty.shape[0] == 0 and obst.shape[0] == 0
+
+
+@given(st.integers(0, 2**32 - 1))
+@settings(max_examples=15, **SETTINGS)
+def test_empty_is_nontrivial_with_uncertain_heading(seed):
+    """With ±3° (17 beams) of heading, no single beam cone holds a cell's bearings, yet the scan
+    as a whole proves every cell clearly inside the sensed free disk."""
+    eps = 0.05
+    segs, pose, box, bounds, scans, hits, mask = _case(seed, 0.2, math.radians(3), 0.5, eps, full=True)
+    hw_th = 0.5 * (box[5] - box[4])
+    assert 2 * hw_th > 10 * 2 * max(bounds.bearing, INC / 2)  # beam by beam: nothing provable
+    empty, _ = scan_sets(scans, 0, box, bounds, eps)
+    proven = set(map(tuple, empty.tolist()))
+    # cells that must be proven: inside the FOV with margin, closer than the nearest return
+    sb = sensor_box(*box, *scans.mount)
+    c = np.array([pose[0] + math.cos(pose[2]) * scans.mount[0] - math.sin(pose[2]) * scans.mount[1],
+                  pose[1] + math.sin(pose[2]) * scans.mount[0] + math.cos(pose[2]) * scans.mount[1]])
+    yaw = pose[2] + scans.mount[2]
+    d = np.where(scans.valid, scans.ranges, np.inf)
+    diam = math.hypot(sb[1] - sb[0], sb[3] - sb[2])
+    r_free = (d.min() - 0.03) / 1.01 - diam - 2 * eps * math.sqrt(2) - 0.01
+    if not np.all(scans.valid) or r_free < 1.0:
+        return  # this world has a no-return beam or a wall too close: nothing required
+    ix = np.arange(math.floor((c[0] - r_free) / eps), math.floor((c[0] + r_free) / eps) + 1)
+    iy = np.arange(math.floor((c[1] - r_free) / eps), math.floor((c[1] + r_free) / eps) + 1)
+    gx, gy = np.meshgrid(ix, iy, indexing="ij")
+    cells = np.column_stack([gx.ravel(), gy.ravel()])
+    centre = (cells + 0.5) * eps - c
+    dist = np.hypot(centre[:, 0], centre[:, 1])
+    ang = (np.arctan2(centre[:, 1], centre[:, 0]) - yaw + math.pi) % (2 * math.pi) - math.pi
+    spread = np.arcsin(np.minimum(1.0, (diam + eps) / np.maximum(dist, 1e-9)))
+    margin = (sb[5] - sb[4]) + spread + INC + 0.01
+    need = (dist >= 0.8) & (dist + eps < r_free) & (ang - margin > A0) & (ang + margin < -A0)
+    required = cells[need]
+    assert required.shape[0] > 50
+    missing = [tuple(p) for p in required.tolist() if tuple(p) not in proven]
+    assert not missing, f"{len(missing)} of {required.shape[0]} clearly free cells not proven"
+
+
+# ---------------------------------------------------------------- map update and old/new
+def _walk(seed: int, n: int, step: float, wxy: float = 0.2, wth: float = math.radians(3),
+          length: float = 30.0):
+    """Scans every ``step`` m along a 3 m wide corridor of ``length`` m with a few obstacles."""
+    rng = np.random.default_rng(seed)
+    L = length
+    segs = np.array([[0, 0, L, 0], [L, 0, L, 3], [L, 3, 0, 3], [0, 3, 0, 0],
+                     [5, 0, 5, 0.8], [12, 3, 12, 2.0], [20, 1.3, 20.6, 1.3]], dtype=np.float64)
+    segs = segs[np.maximum(segs[:, 0], segs[:, 2]) <= L]
+    poses = np.column_stack([1.5 + step * np.arange(n), np.full(n, 1.5) + rng.uniform(-0.2, 0.2, n),
+                             rng.uniform(-0.3, 0.3, n)])
+    bounds = LidarBounds(0.03, 0.01, INC)
+    scans, hits, mask = make_scans(rng, segs, poses, (0.1, 0.0, 0.0), bounds.bearing, 0.03, 0.01)
+    boxes = np.array([random_box(rng, p, wxy, wth) for p in poses])
+    return segs, poses, boxes, bounds, scans, hits, mask
+
+
+def test_tiles_grow_with_explored_area():
+    segs, poses, boxes, bounds, scans, hits, mask = _walk(1, 12, 2.0)
+    m = TileMap(0.05)
+    tiles, nbytes = [], []
+    for k in range(len(scans)):
+        update_map(m, scans, boxes, bounds, order=[k])
+        tiles.append(m.n_tiles)
+        nbytes.append(m.nbytes)
+    assert all(b >= a for a, b in zip(tiles, tiles[1:]))
+    assert tiles[-1] >= 3 * tiles[0]  # 22 m of corridor vs one 5.6 m scan
+    assert nbytes[-1] > nbytes[0]
+    co = m.tile_coords() * TILE * 0.05
+    # from the start (the wall behind it is outside the 240° field of view) to 5.6 m past the
+    # last pose, and below y = 0 (the outer band of the wall y = 0 reaches past it)
+    assert co[:, 0].min() <= poses[0, 0] and co[:, 0].max() + TILE * 0.05 >= poses[-1, 0] + 3.0
+    assert co[:, 1].min() < 0
+    # the tiles are those written: a map of the first scan alone has as many as step 0
+    m0 = TileMap(0.05)
+    update_map(m0, scans, boxes, bounds, order=[0])
+    assert m0.n_tiles == tiles[0]
+
+
+@given(st.integers(0, 2**32 - 1))
+@settings(max_examples=6, **SETTINGS)
+def test_map_update_sound_and_old_new(seed):
+    """Scans along a corridor, twice: first pass beams over new ground are new, a second pass
+    over the same scans finds every valid beam old; P_EMPTY never meets a wall; every hit
+    point seen by a new and an old beam is a P_OBSTACLE cell."""
+    eps = 0.05
+    segs, poses, boxes, bounds, scans, hits, mask = _walk(seed, 6, 0.7)
+    m = TileMap(eps)
+    first = update_map(m, scans, boxes, bounds)
+    b0, b1 = scans.offsets[0], scans.offsets[1]
+    assert not first.is_old[b0:b1].any()  # the very first scan: an empty map, all new
+    assert first.stats[0, 3] == scans.valid[b0:b1].sum()
+    second = update_map(m, scans, boxes, bounds)
+    assert np.array_equal(second.is_old, scans.valid)  # everything was measured by pass one
+    assert np.all(second.stats[:, 3] == 0)
+    d = m.dense()
+    free = np.argwhere(d.data == EMPTY_STATE) + [d.i0, d.j0]
+    assert free.shape[0] > 1000
+    assert not segments_meet_cells(segs, free, eps).any()
+    obst = np.argwhere(d.data == OBSTACLE) + [d.i0, d.j0]
+    for k in range(len(scans)):
+        assert_obstacle_outer(obst, hits[k], mask[k], eps)
+
+
+def test_old_new_full_and_cheap_forms():
+    """Both forms on an 8 m corridor (every beam returns): all new on an empty map; after five
+    scans 0.5 m apart, most beams of the next scan are old in both forms, not all."""
+    eps = 0.05
+    segs, poses, boxes, bounds, scans, hits, mask = _walk(3, 7, 0.5, length=8.0)
+    m = TileMap(eps)
+    valid0 = scans.valid[:BEAMS]
+    assert np.array_equal(inclusion_new(m, scans, 0, boxes[0], bounds), valid0)
+    assert not update_map(m, scans, boxes, bounds, order=[0], write=False).is_old.any()
+    assert m.n_tiles == 0  # write=False leaves the map untouched
+    update_map(m, scans, boxes, bounds, order=[0, 1, 2, 3, 4])
+    before = m.cells[: m.n].copy()
+    k = 5
+    sl = slice(k * BEAMS, (k + 1) * BEAMS)
+    v = scans.valid[sl]
+    cheap_old = update_map(m, scans, boxes, bounds, order=[k], write=False).is_old[sl]
+    assert np.array_equal(m.cells[: m.n], before)
+    full_new = inclusion_new(m, scans, k, boxes[k], bounds)
+    assert not cheap_old[~v].any() and not full_new[~v].any()
+    full_old = v & ~full_new
+    assert 0.6 * v.sum() < cheap_old.sum() < v.sum()
+    assert 0.6 * v.sum() < full_old.sum() < v.sum()
+    # the cheap form is exact for what it tests: a beam is new iff a cell of its
+    # P_OBSTACLE^{i,k} was unmeasured; beams far from the explored end are old in both
+    _, obst = scan_sets(scans, k, boxes[k], bounds, eps)
+    assert (m.get(obst[:, 0], obst[:, 1]) == 0).any() == bool((v & ~cheap_old).any())
