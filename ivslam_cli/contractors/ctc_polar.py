@@ -449,19 +449,21 @@ def polar_scalar(xl, xh, yl, yh, rl, rh, tl, th):
         r = polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns, o_in, o_out, m, w, settled)
         if not (r[0] <= r[1]):
             return E, F, E, F, E, F, E, F
-        progress = max(
-            max(_shrink(xl, xh, r[0], r[1]), _shrink(yl, yh, r[2], r[3])),
-            max(_shrink(rl, rh, r[4], r[5]), _shrink(tl, th, r[6], r[7])),
-        )
         unchanged = (
             r[0] == xl and r[1] == xh and r[2] == yl and r[3] == yh
             and r[4] == rl and r[5] == rh and r[6] == tl and r[7] == th
         )
+        if unchanged:
+            break
+        stop = k >= 1 and max(
+            max(_shrink(xl, xh, r[0], r[1]), _shrink(yl, yh, r[2], r[3])),
+            max(_shrink(rl, rh, r[4], r[5]), _shrink(tl, th, r[6], r[7])),
+        ) < RELATIVE_STOP
         xl, xh, yl, yh, rl, rh, tl, th = r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7]
         m = r[8]
         w = r[9]
         settled = r[10]
-        if unchanged or (k >= 1 and progress < RELATIVE_STOP):
+        if stop:
             break
     return xl, xh, yl, yh, rl, rh, tl, th
 
