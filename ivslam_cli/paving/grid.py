@@ -247,16 +247,19 @@ def _area(box: np.ndarray, up: bool) -> float:
 
 @njit(cache=True)
 def _cell_parts_area(parts, start):
-    """Per cell, the sum of its parts' areas rounded up (a single part: as :func:`_box_areas`)."""
+    """Per cell, the sum of its parts' areas rounded up (a single part of non-zero area: as
+    :func:`_box_areas`; degenerate parts add exactly 0)."""
     n = start.shape[0] - 1
     out = np.empty(n)
     for k in range(n):
         s = 0.0
         for q in range(start[k], start[k + 1]):
+            if parts[q, 0, 1] == parts[q, 0, 0] or parts[q, 1, 1] == parts[q, 1, 0]:
+                continue  # a segment or a point: area exactly 0
             w = np.nextafter(parts[q, 0, 1] - parts[q, 0, 0], np.inf)
             v = np.nextafter(parts[q, 1, 1] - parts[q, 1, 0], np.inf)
             a = np.nextafter(w * v, np.inf)
-            s = a if q == start[k] else np.nextafter(s + a, np.inf)
+            s = a if s == 0.0 else np.nextafter(s + a, np.inf)
         out[k] = s
     return out
 

@@ -58,9 +58,9 @@ def _meet(P, p, Q, q):
 
 
 @njit(cache=True)
-def _intersect(kA, lA, sA, pA, kB, lB, sB, pB, max_parts):
-    """Cells of both operands: parts = the non-empty pairwise intersections of their parts
-    (INNER ∩ INNER: the cell); cells with none are dropped; over ``max_parts``: their hull."""
+def _intersect(kA, lA, sA, pA, kB, lB, sB, pB):
+    """Cells of both operands, each with the non-empty pairwise intersections of their parts
+    (cells with none are dropped), INNER if INNER in both: rows for :func:`_reduce`."""
     # pass 1: matched cells and their part counts (exact, so memory is what is kept)
     n = min(kA.shape[0], kB.shape[0])
     ia = np.empty(n, np.int64)
@@ -83,7 +83,7 @@ def _intersect(kA, lA, sA, pA, kB, lB, sB, pB, max_parts):
             if c > 0:
                 ia[m] = a
                 ib[m] = b
-                cnt[m] = 1 if (c > max_parts or (lA[a] == INNER and lB[b] == INNER)) else c
+                cnt[m] = c
                 m += 1
             a += 1
             b += 1
@@ -94,7 +94,6 @@ def _intersect(kA, lA, sA, pA, kB, lB, sB, pB, max_parts):
     for r in range(m):
         start[r + 1] = start[r] + cnt[r]
     parts = np.empty((start[m], 2, 2))
-    box = np.empty((m, 2, 2))
     for r in range(m):
         a = ia[r]
         b = ib[r]
@@ -104,29 +103,39 @@ def _intersect(kA, lA, sA, pA, kB, lB, sB, pB, max_parts):
         for p in range(sA[a], sA[a + 1]):
             for q in range(sB[b], sB[b + 1]):
                 xl, xh, yl, yh, ok = _meet(pA, p, pB, q)
-                if not ok:
-                    continue
-                if w == start[r + 1]:  # over max_parts: grow the one part to the hull
-                    w -= 1
-                    xl = min(xl, parts[w, 0, 0])
-                    xh = max(xh, parts[w, 0, 1])
-                    yl = min(yl, parts[w, 1, 0])
-                    yh = max(yh, parts[w, 1, 1])
-                parts[w, 0, 0], parts[w, 0, 1], parts[w, 1, 0], parts[w, 1, 1] = xl, xh, yl, yh
-                w += 1
-        _set_hull(box, r, parts, start[r], start[r + 1])
-    return keys, label, box, parts, start
+                if ok:
+                    parts[w, 0, 0], parts[w, 0, 1], parts[w, 1, 0], parts[w, 1, 1] = xl, xh, yl, yh
+                    w += 1
+    return keys, label, start, parts
+
+
+@njit(cache=True)
+def _prune(parts, lo, hi, keep):
+    """``keep[q]`` for ``q`` in ``lo..hi``: False when another part of the pool contains part
+    ``q`` (of equal parts, the first is kept). The union of the kept parts is the pool's."""
+    for q in range(lo, hi):
+        keep[q] = True
+        for r in range(lo, hi):
+            if r == q:
+                continue
+            if (parts[r, 0, 0] <= parts[q, 0, 0] and parts[q, 0, 1] <= parts[r, 0, 1]
+                    and parts[r, 1, 0] <= parts[q, 1, 0] and parts[q, 1, 1] <= parts[r, 1, 1]):
+                equal = (parts[r, 0, 0] == parts[q, 0, 0] and parts[q, 0, 1] == parts[r, 0, 1]
+                         and parts[r, 1, 0] == parts[q, 1, 0] and parts[q, 1, 1] == parts[r, 1, 1])
+                if not equal or r < q:
+                    keep[q] = False
+                    break
 
 
 @njit(cache=True)
 def _reduce(keys, label, start, parts, ox, oy, h, max_parts):
     """Merge rows with equal keys (``keys`` sorted; row ``r``'s parts ``parts[start[r]:start[r+1]]``):
-    INNER wins (one part: the cell), else the parts are pooled (over ``max_parts``: their hull)."""
+    INNER wins (one part: the cell), else the parts are pooled, dropping those contained in
+    another (over ``max_parts`` left: their hull)."""
     n = keys.shape[0]
     # pass 1: output cells, their first row, label and part count
     first = np.empty(n + 1, np.int64)
     ol = np.empty(n, np.uint8)
-    cnt = np.zeros(n, np.int64)
     m = -1
     for r in range(n):
         if m < 0 or keys[r] != keys[first[m]]:
@@ -135,15 +144,25 @@ def _reduce(keys, label, start, parts, ox, oy, h, max_parts):
             ol[m] = BOUNDARY
         if label[r] == INNER:
             ol[m] = INNER
-        cnt[m] += start[r + 1] - start[r]
     m += 1
     first[m] = n
+    keep = np.zeros(parts.shape[0], np.bool_)
     ok = np.empty(m, np.int64)
     ostart = np.empty(m + 1, np.int64)
     ostart[0] = 0
     for c in range(m):
         ok[c] = keys[first[c]]
-        ostart[c + 1] = ostart[c] + (1 if (ol[c] == INNER or cnt[c] > max_parts) else cnt[c])
+        lo = start[first[c]]
+        hi = start[first[c + 1]]
+        cnt = 1
+        if ol[c] != INNER:
+            _prune(parts, lo, hi, keep)
+            cnt = 0
+            for q in range(lo, hi):
+                cnt += keep[q]
+            if cnt > max_parts:
+                cnt = 1
+        ostart[c + 1] = ostart[c] + cnt
     op = np.empty((ostart[m], 2, 2))
     ob = np.empty((m, 2, 2))
     for c in range(m):
@@ -159,8 +178,9 @@ def _reduce(keys, label, start, parts, ox, oy, h, max_parts):
             _set_hull(op, w, parts, lo, hi)
         else:
             for q in range(lo, hi):
-                op[w] = parts[q]
-                w += 1
+                if keep[q]:
+                    op[w] = parts[q]
+                    w += 1
         _set_hull(ob, c, op, ostart[c], ostart[c + 1])
     return ok, ol[:m].copy(), ob, op, ostart
 
@@ -373,17 +393,22 @@ def _sorted(grid: Grid, keys, label, start, parts) -> GridPaving:
 def intersection(a: GridPaving, b: GridPaving) -> GridPaving:
     """``A ∩ B``: outer (parts intersected pairwise, cell by cell) and inner (INNER ∩ INNER).
 
-    A cell with more than ``MAX_PARTS`` non-empty intersections keeps their hull."""
+    Intersections contained in another are dropped; a cell with more than ``MAX_PARTS`` left
+    keeps their hull."""
     a.same_grid(b)
-    k, l, bx, p, s = _intersect(a.key, a.label, a.start, a.parts, b.key, b.label, b.start,
-                                b.parts, MAX_PARTS)
-    return GridPaving(a.grid, k, l, bx, p, s)
+    k, l, s, p = _intersect(a.key, a.label, a.start, a.parts, b.key, b.label, b.start, b.parts)
+    if k.shape[0] == 0:
+        return empty_paving(a.grid)
+    g = a.grid
+    k, l, bx, p, s = _reduce(k, l, s, p, g.ox, g.oy, g.eps, MAX_PARTS)
+    return GridPaving(g, k, l, bx, p, s)
 
 
 def union(a: GridPaving, b: GridPaving) -> GridPaving:
     """``A ∪ B``: outer (parts pooled cell by cell) and inner (INNER ∪ INNER).
 
-    A cell with more than ``MAX_PARTS`` parts keeps their hull."""
+    Parts contained in another are dropped; a cell with more than ``MAX_PARTS`` left keeps
+    their hull."""
     a.same_grid(b)
     return _sorted(a.grid, np.concatenate([a.key, b.key]), np.concatenate([a.label, b.label]),
                    np.concatenate([a.start[:-1], b.start + a.start[-1]]),
