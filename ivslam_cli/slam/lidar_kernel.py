@@ -160,6 +160,7 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     sy = np.empty(4 * _LEVELS + 4, dtype=np.int64)
     nodes = 0
     n_empty = 0
+    iters = 0
     for tx in range(tx0, tx1 + 1):
         for ty in range(ty0, ty1 + 1):
             t = find(keys, slots, tx, ty)
@@ -202,7 +203,9 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                         continue
                     unknown = _unmeasured(cells, t, lx, ly)
                     found = not exact
-                    for i in range(o_lo, o_hi + 1):
+                    # the hull test passed: a measured cell needs the beams only for `exact`
+                    for i in range(o_lo, o_hi + 1 if (exact or unknown) else o_lo):
+                        iters += 1
                         if t_lo[0, i] <= r_hi and t_hi[0, i] >= r_lo:
                             found = True
                             if unknown:
@@ -227,6 +230,7 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                     sp += 1
     stats[0] += nodes
     stats[1] += n_empty
+    stats[2] += iters
     return n_blk, n_cand, blk, cand, cand_f
 
 
@@ -283,7 +287,7 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
     blk = np.empty((1024, 3), dtype=np.int64)
     cand = np.empty((4096, 4), dtype=np.int64)
     cand_f = np.empty((4096, 2))
-    st = np.zeros(2, dtype=np.int64)
+    st = np.zeros(3, dtype=np.int64)
     for s in order:
         b0, b1 = offsets[s], offsets[s + 1]
         nb = b1 - b0
@@ -313,6 +317,7 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
         scan_stats[s, 2] = n_cand
         scan_stats[s, 3] = n_new
         scan_stats[s, 4] = n_old
+        scan_stats[s, 5] = st[2]
     return keys, slots, cells, coords, n
 
 
@@ -334,7 +339,7 @@ def scan_cells(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact):
     blk = np.empty((1024, 3), dtype=np.int64)
     cand = np.empty((4096, 4), dtype=np.int64)
     cand_f = np.empty((4096, 2))
-    st = np.zeros(2, dtype=np.int64)
+    st = np.zeros(3, dtype=np.int64)
     n_blk, n_cand, blk, cand, cand_f = traverse(keys, slots, cells, ranges, valid, a0, inc, box,
                                                 r_abs, r_rel, r_alpha, eps, exact, lg, t_free,
                                                 t_lo, t_hi, t_fmax, new, blk, cand, cand_f, st)

@@ -36,7 +36,7 @@ from ivslam_cli.paving.tiles import TileMap
 from ivslam_cli.slam import lidar_kernel as K
 from ivslam_cli.slam.lidar_geometry import sensor_box
 
-STAT_FIELDS = ("nodes", "empty_cells", "obstacle_cells", "new_beams", "old_beams")
+STAT_FIELDS = ("nodes", "empty_cells", "obstacle_cells", "new_beams", "old_beams", "leaf_beam_tests")
 
 
 @dataclass(frozen=True)
@@ -62,7 +62,7 @@ class LidarBounds:
 @dataclass
 class UpdateResult:
     """``is_old`` (B,) per beam of the log (False for invalid or unprocessed beams);
-    ``stats`` (S, 5) per scan, columns :data:`STAT_FIELDS` (zeros for unprocessed scans)."""
+    ``stats`` (S, 6) per scan, columns :data:`STAT_FIELDS` (zeros for unprocessed scans)."""
 
     is_old: np.ndarray
     stats: np.ndarray
