@@ -189,7 +189,7 @@ def _offsets(k0):
     return (k0, al, ah, bl, bh, cl, ch)
 
 
-NO_OFFSETS = (0.0,) * 7
+OFFSETS_0 = _offsets(0.0)
 
 
 @njit(cache=True, inline="always")
@@ -242,7 +242,7 @@ def _meet(tl, th, al, ah, near, o):
 
 
 @njit(cache=True, inline="always")
-def catan2(xl, xh, yl, yh, tl, th, near=False, o_in=NO_OFFSETS, o_out=NO_OFFSETS, m=NO_MEMO):
+def catan2(xl, xh, yl, yh, tl, th, near=False, o_in=OFFSETS_0, o_out=OFFSETS_0, m=NO_MEMO):
     """Contract ``(x, y, theta)`` under ``theta = atan2(y, x) mod 2 pi`` (quadrant by quadrant).
 
     ``near`` asserts ``[tl, th] - 2 pi turns ⊂ (-6, 6)`` for an integer ``turns``, so only three
@@ -379,8 +379,8 @@ NO_TRIG = (math.nan,) * 6
 
 
 @njit(cache=True, inline="always")
-def polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns=0.0, o_in=NO_OFFSETS, o_out=NO_OFFSETS,
-               m=NO_MEMO, w=NO_TRIG, settled=False):
+def polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns=0.0, o_in=OFFSETS_0, o_out=OFFSETS_0,
+               m=NO_MEMO, w=NO_TRIG, settled=False, fast=True):
     """One forward-backward pass (the body of Codac's ``CtcPolar::_contract``).
 
     ``turns`` (an integer as float): ``theta - 2 pi turns`` is near ``[-pi, pi]``, ``o_in =
@@ -392,12 +392,13 @@ def polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns=0.0, o_in=NO_OFFSETS, o_out
     ``settled`` says the previous pass's steps after catan2 changed nothing (so the box is their
     output on the catan2 result it got): if catan2 now changes nothing either, they would get
     that same input again and the whole pass changes nothing, so they are skipped.
+    ``fast=False`` takes the general paths (``angle_meet``, ``_has_point``): for tests.
     """
     E = EMPTY_LO
     F = EMPTY_HI
     x0l, x0h, y0l, y0h, t0l, t0h = xl, xh, yl, yh, tl, th
     pl, ph = _shifted(tl, th, -turns, o_in[3], o_in[4])  # theta - 2 pi turns, enclosed
-    near = -6.0 < pl and ph < 6.0
+    near = fast and -6.0 < pl and ph < 6.0
     xl, xh, yl, yh, ntl, nth, m = catan2(xl, xh, yl, yh, tl, th, near, o_in, o_out, m)
     if not (xl <= xh) or not (ntl <= nth):
         return E, F, E, F, E, F, E, F, m, w, False
@@ -415,6 +416,8 @@ def polar_pass(xl, xh, yl, yh, rl, rh, tl, th, turns=0.0, o_in=NO_OFFSETS, o_out
     xl, xh = bwd_sqr(a1l, a1h, xl, xh)
     yl, yh = bwd_sqr(a2l, a2h, yl, yh)
     pl, ph = _shifted(ntl, nth, -turns, o_in[3], o_in[4])
+    if not fast:
+        pl, ph = EMPTY_LO, EMPTY_HI
     cl, ch, sl, sh, w = _sin_cos(ntl, nth, w, pl, ph)
     xl, xh = inter(xl, xh, *mul(rl, rh, cl, ch))
     yl, yh = inter(yl, yh, *mul(rl, rh, sl, sh))
