@@ -194,6 +194,27 @@ def test_ring_sector_benchmark_case():
     assert (areas[2] - exact) / exact <= 0.032
 
 
+@pytest.mark.parametrize("sub", [1, 2, 3])
+def test_ring_sector_parts_keep_boundary_points(sub):
+    """The issue's sector with several boxes per cell: true points on and near its four edges
+    (where the parts are cut closest) are all in the outer approximation."""
+    rng = np.random.default_rng(sub)
+    c, rho, theta = (0.0, 0.0), (4.9, 5.1), (0.3, 0.32)
+    p = P.pave(P.polar_set(c, rho, theta), DOMAIN, 0.01, sub=sub)
+    check_layout(p)
+    n = 300
+    t = rng.uniform(*theta, n)
+    r = rng.uniform(*rho, n)
+    near = np.concatenate([rho[0] + rng.uniform(0, 1e-9, n), rho[1] - rng.uniform(0, 1e-9, n)])
+    tt = np.concatenate([theta[0] + rng.uniform(0, 1e-9, n), theta[1] - rng.uniform(0, 1e-9, n)])
+    rr = np.concatenate([r, near, np.tile(r, 2)])
+    aa = np.concatenate([np.tile(t, 3), tt])
+    pts = np.stack([rr * np.cos(aa), rr * np.sin(aa)], axis=1)
+    pts = pts[[in_polar(x, y, c, rho, theta) for x, y in pts]]
+    assert len(pts) > 3 * n
+    assert P.contains_points(p, pts)[0].all()
+
+
 def test_full_annulus_and_disc_centre():
     p = P.pave(P.polar_set((0.5, -0.5), (0.0, 1.0), (-10.0, 10.0)), DOMAIN, 0.1)
     o, i = P.contains_points(p, np.array([[0.5, -0.5], [1.5, -0.5], [1.6, -0.5]]))
