@@ -300,7 +300,6 @@ def test_scan_sets_sound_against_truth(seed, wxy, wth, alpha_factor, eps):
 
 
 def test_no_return_beams_prove_nothing():
-    rng = np.random.default_rng(5)
     segs, pose, box, bounds, scans, hits, mask = _case(5, 0.1, 0.02, 0.5, 0.05)
     scans.valid[:] = False
     empty, obst = scan_sets(scans, 0, box, bounds, 0.05)

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 from ivslam_cli.interval.arith import add, cos, mul, sin, sub
