@@ -264,22 +264,5 @@ def _cell_parts_area(parts, start):
     return out
 
 
-@njit(cache=True)
-def hulls(parts, start):
-    """(N, 2, 2) hull of each cell's parts."""
-    n = start.shape[0] - 1
-    out = np.empty((n, 2, 2))
-    for k in range(n):
-        out[k, 0, 0] = np.inf
-        out[k, 0, 1] = -np.inf
-        out[k, 1, 0] = np.inf
-        out[k, 1, 1] = -np.inf
-        for q in range(start[k], start[k + 1]):
-            for d in range(2):
-                out[k, d, 0] = min(out[k, d, 0], parts[q, d, 0])
-                out[k, d, 1] = max(out[k, d, 1], parts[q, d, 1])
-    return out
-
-
 def empty_paving(grid: Grid) -> GridPaving:
     return GridPaving(grid, np.empty(0, np.int64), np.empty(0, np.uint8), np.empty((0, 2, 2)))
