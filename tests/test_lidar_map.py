@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli.logs.model import Scans
@@ -222,7 +222,7 @@ def test_sensor_box_encloses_mounted_poses(seed):
 @settings(max_examples=20, **SETTINGS)
 def test_tiles_store_union_intersection_dense(seed, eps):
     rng = np.random.default_rng(seed)
-    spread = int(rng.choice([50, 500, 5000]))
+    spread = int(rng.choice([50, 300, 1500]))
     n = int(rng.integers(1, 3000))
     a_ix, a_iy = rng.integers(-spread, spread, n), rng.integers(-spread, spread, n)
     a_f = rng.integers(1, 8, n).astype(np.uint8)
@@ -246,6 +246,8 @@ def test_tiles_store_union_intersection_dense(seed, eps):
     exp_i = np.array([ref_a.get(k, 0) & ref_b.get(k, 0) for k in map(tuple, probe.tolist())], np.uint8)
     assert np.array_equal(U.get(*probe.T), exp_u)
     assert np.array_equal(I.get(*probe.T), exp_i)
+    if spread > 300:
+        return  # the dense export of a 3000-cell-wide box is tested at smaller spreads
     # dense export: every cell in place, states derived from flags
     D = U.dense(raw=True)
     assert np.array_equal(D.data[probe[:, 0] - D.i0, probe[:, 1] - D.j0], exp_u)
@@ -307,40 +309,50 @@ def test_no_return_beams_prove_nothing():
 
 
 @given(st.integers(0, 2**32 - 1))
-@settings(max_examples=15, **SETTINGS)
+@settings(max_examples=12, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 def test_empty_is_nontrivial_with_uncertain_heading(seed):
-    """With ±3° (17 beams) of heading, no single beam cone holds a cell's bearings, yet the scan
-    as a whole proves every cell clearly inside the sensed free disk."""
+    """With ±3° (17 beams) of heading no single beam cone holds a cell's bearings, yet the scan as
+    a whole proves every cell that a generous independent bound says is clearly free: seen from
+    the true sensor pose, every beam within (heading width + the cell's angular spread over the
+    box) of its bearing returns farther than the cell's distance + (box diameter + cell)."""
     eps = 0.05
     segs, pose, box, bounds, scans, hits, mask = _case(seed, 0.2, math.radians(3), 0.5, eps, full=True)
-    hw_th = 0.5 * (box[5] - box[4])
-    assert 2 * hw_th > 10 * 2 * max(bounds.bearing, INC / 2)  # beam by beam: nothing provable
+    assert box[5] - box[4] > 10 * 2 * max(bounds.bearing, INC / 2)  # beam by beam: nothing provable
     empty, _ = scan_sets(scans, 0, box, bounds, eps)
     proven = set(map(tuple, empty.tolist()))
-    # cells that must be proven: inside the FOV with margin, closer than the nearest return
     sb = sensor_box(*box, *scans.mount)
-    c = np.array([pose[0] + math.cos(pose[2]) * scans.mount[0] - math.sin(pose[2]) * scans.mount[1],
-                  pose[1] + math.sin(pose[2]) * scans.mount[0] + math.cos(pose[2]) * scans.mount[1]])
-    yaw = pose[2] + scans.mount[2]
-    d = np.where(scans.valid, scans.ranges, np.inf)
+    mx, my, myaw = scans.mount
+    c = np.array([pose[0] + math.cos(pose[2]) * mx - math.sin(pose[2]) * my,
+                  pose[1] + math.sin(pose[2]) * mx + math.cos(pose[2]) * my])
+    yaw = pose[2] + myaw
+    free = np.where(scans.valid, (scans.ranges.astype(np.float64) - 0.03) / 1.01, -np.inf)
     diam = math.hypot(sb[1] - sb[0], sb[3] - sb[2])
-    r_free = (d.min() - 0.03) / 1.01 - diam - 2 * eps * math.sqrt(2) - 0.01
-    if not np.all(scans.valid) or r_free < 1.0:
-        return  # this world has a no-return beam or a wall too close: nothing required
-    ix = np.arange(math.floor((c[0] - r_free) / eps), math.floor((c[0] + r_free) / eps) + 1)
-    iy = np.arange(math.floor((c[1] - r_free) / eps), math.floor((c[1] + r_free) / eps) + 1)
+    R = RANGE_MAX
+    ix = np.arange(math.floor((c[0] - R) / eps), math.floor((c[0] + R) / eps) + 1)
+    iy = np.arange(math.floor((c[1] - R) / eps), math.floor((c[1] + R) / eps) + 1)
     gx, gy = np.meshgrid(ix, iy, indexing="ij")
     cells = np.column_stack([gx.ravel(), gy.ravel()])
-    centre = (cells + 0.5) * eps - c
-    dist = np.hypot(centre[:, 0], centre[:, 1])
-    ang = (np.arctan2(centre[:, 1], centre[:, 0]) - yaw + math.pi) % (2 * math.pi) - math.pi
-    spread = np.arcsin(np.minimum(1.0, (diam + eps) / np.maximum(dist, 1e-9)))
-    margin = (sb[5] - sb[4]) + spread + INC + 0.01
-    need = (dist >= 0.8) & (dist + eps < r_free) & (ang - margin > A0) & (ang + margin < -A0)
-    required = cells[need]
-    assert required.shape[0] > 50
+    v = (cells + 0.5) * eps - c
+    dist = np.hypot(v[:, 0], v[:, 1])
+    keep = dist > diam + 2 * eps
+    cells, dist, v = cells[keep], dist[keep], v[keep]
+    ang = (np.arctan2(v[:, 1], v[:, 0]) - yaw + math.pi) % (2 * math.pi) - math.pi
+    margin = (sb[5] - sb[4]) + np.arcsin(np.minimum(1.0, (diam + eps) / dist)) + 2 * INC + 1e-3
+    j0 = np.floor((ang - margin - A0) / INC).astype(np.int64)
+    j1 = np.ceil((ang + margin - A0) / INC).astype(np.int64)
+    inside = (j0 >= 0) & (j1 <= BEAMS - 1)
+    cells, dist, j0, j1 = cells[inside], dist[inside], j0[inside], j1[inside]
+    lvl = [free]  # sparse table of minima (numpy): the oracle's own, independent of the kernel's
+    while 2 ** len(lvl) <= BEAMS:
+        prev, half = lvl[-1], 2 ** (len(lvl) - 1)
+        lvl.append(np.minimum(prev[:-half], prev[half:]))
+    k = np.floor(np.log2(j1 - j0 + 1)).astype(np.int64)
+    wmin = np.array([min(lvl[kk][a], lvl[kk][b - 2**kk + 1]) for kk, a, b in zip(k, j0, j1)])
+    required = cells[dist + eps + diam + 0.02 < wmin]
     missing = [tuple(p) for p in required.tolist() if tuple(p) not in proven]
     assert not missing, f"{len(missing)} of {required.shape[0]} clearly free cells not proven"
+    assume(required.shape[0] >= 50)  # count only the worlds where the oracle requires something
 
 
 # ---------------------------------------------------------------- map update and old/new
