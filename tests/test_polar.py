@@ -254,3 +254,12 @@ def test_fast_kernel_equals_plain_passes(rho, theta, turns, m, shift):
         assert not (ref[0] <= ref[1])
     else:
         assert fast == ref
+
+
+@FAST
+@given(k=st.one_of(st.integers(-10**6, 10**6), st.integers(-10**15, 10**15)).map(float))
+def test_branch_offsets_are_shift_offsets(k):
+    assert cp._two_pi_times(k) == arith.mul(k, k, cp.TWO_PI_LO, cp.TWO_PI_HI)
+    o = cp._offsets(k)
+    for j, kk in enumerate((k - 1.0, k, k + 1.0)):
+        assert (o[1 + 2 * j], o[2 + 2 * j]) == arith.mul(kk, kk, cp.TWO_PI_LO, cp.TWO_PI_HI)

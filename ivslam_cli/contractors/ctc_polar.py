@@ -181,11 +181,19 @@ def _atan2_first_quadrant(ul, uh, vl, vh, pl, ph, m=NO_MEMO):
 
 
 @njit(cache=True, inline="always")
+def _two_pi_times(k):
+    """``mul(k, k, TWO_PI_LO, TWO_PI_HI)`` (the same two products, rounded the same way)."""
+    if k >= 0.0:
+        return down(k * TWO_PI_LO), up(k * TWO_PI_HI)
+    return down(k * TWO_PI_HI), up(k * TWO_PI_LO)
+
+
+@njit(cache=True, inline="always")
 def _offsets(k0):
     """``2 k pi`` enclosed as :func:`angles.shift` does, for ``k = k0 - 1, k0, k0 + 1``."""
-    al, ah = mul(k0 - 1.0, k0 - 1.0, TWO_PI_LO, TWO_PI_HI)
-    bl, bh = mul(k0, k0, TWO_PI_LO, TWO_PI_HI)
-    cl, ch = mul(k0 + 1.0, k0 + 1.0, TWO_PI_LO, TWO_PI_HI)
+    al, ah = _two_pi_times(k0 - 1.0)
+    bl, bh = _two_pi_times(k0)
+    cl, ch = _two_pi_times(k0 + 1.0)
     return (k0, al, ah, bl, bh, cl, ch)
 
 
