@@ -263,3 +263,21 @@ def test_branch_offsets_are_shift_offsets(k):
     o = cp._offsets(k)
     for j, kk in enumerate((k - 1.0, k, k + 1.0)):
         assert (o[1 + 2 * j], o[2 + 2 * j]) == arith.mul(kk, kk, cp.TWO_PI_LO, cp.TWO_PI_HI)
+
+
+@FAST
+@given(p=st.one_of(st.just(0.0), st.just(-0.0), st.floats(-1.0, 2.0), st.just(cp.HALF_PI_LO)),
+       q=st.one_of(st.just(0.0), st.just(-0.0), st.floats(-1e300, 1e300), st.just(math.inf),
+                   st.just(-math.inf)))
+def test_tan_atan_bounds_shortcuts_are_exact(p, q):
+    """The libm shortcuts (tan 0, atan 0) give the bounds the general expressions give, and
+    the bounds enclose the real values."""
+    lo = cp.HALF_PI_LO
+    want_lo = arith.down2(math.tan(lo)) if p >= lo else max(0.0, arith.down2(math.tan(max(p, 0.0))))
+    assert cp._tan_lo(p) == want_lo
+    assert cp._atan_lo(q) == arith.atan(q, q)[0] and cp._atan_hi(q) == arith.atan(q, q)[1]
+    mpmath.mp.prec = 120
+    if 0.0 <= p < lo:
+        assert cp._tan_lo(p) <= mpmath.tan(mpmath.mpf(p)) <= cp._tan_hi(p)
+    if math.isfinite(q):
+        assert cp._atan_lo(q) <= mpmath.atan(mpmath.mpf(q)) <= cp._atan_hi(q)

@@ -68,7 +68,9 @@ NO_MEMO = (math.nan,) * 8
 def _tan_lo(pl):
     if pl >= HALF_PI_LO:
         return down2(math.tan(HALF_PI_LO))
-    return max(0.0, down2(math.tan(max(pl, 0.0))))
+    if pl <= 0.0:  # tan(0) = 0: the libm call below would give max(0, down2(0)) = 0
+        return 0.0
+    return max(0.0, down2(math.tan(pl)))
 
 
 @njit(cache=True)
@@ -80,11 +82,15 @@ def _tan_hi(ph):
 
 @njit(cache=True)
 def _atan_lo(ql):
+    if ql == 0.0:  # atan(±0) = ±0, exactly: the same bound without the libm call
+        return down2(0.0)
     return -HALF_PI_HI if ql == -INF else max(-HALF_PI_HI, down2(math.atan(ql)))
 
 
 @njit(cache=True)
 def _atan_hi(qh):
+    if qh == 0.0:
+        return up2(0.0)
     return HALF_PI_HI if qh == INF else min(HALF_PI_HI, up2(math.atan(qh)))
 
 
