@@ -1,0 +1,106 @@
+"""The landmark benchmark's figures, tables and verdicts on a small simulated log (no real data,
+no timing targets: those live in ``python -m bench.bench_landmarks``)."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+
+import numpy as np
+import pytest
+
+from bench.bench_landmarks import (
+    VICTORIA_COLUMNS,
+    format_table,
+    gtsam_bounds,
+    mrclam_columns,
+    our_figures,
+    run_case,
+    verdicts,
+)
+from ivslam_cli.config import resolve_config
+from ivslam_cli.report.core import landmark_containment, pose_containment
+from ivslam_cli.simulate import SimConfig, simulate
+from ivslam_cli.slam.landmarks import run_landmarks
+
+HAVE_GTSAM = importlib.util.find_spec("gtsam") is not None
+OVERRIDES = {"landmarks.initial_pose_from_truth": True}
+
+
+@pytest.fixture(scope="module")
+def sim():
+    return simulate(SimConfig(scenario="landmarks", seed=3, steps=80, landmarks=8, world_size=10.0))
+
+
+@pytest.fixture(scope="module")
+def row(sim):
+    r = run_case(sim, None, gtsam=HAVE_GTSAM, overrides=OVERRIDES)
+    return {"robot": 7, **r}
+
+
+def test_our_figures_match_the_report(sim):
+    out = run_landmarks(sim, resolve_config(None, OVERRIDES, log_bounds=sim.bounds))
+    fig = our_figures(sim, out)
+    pc, lc = pose_containment(out.poses, sim.truth), landmark_containment(out.landmarks, sim.truth)
+    assert (fig["pose_checked"], fig["pose_contained"]) == (pc.checked, pc.contained) and pc.checked > 0
+    assert (fig["lm_checked"], fig["lm_contained"]) == (lc.checked, lc.contained) and lc.checked > 0
+    assert fig["pose_fraction"] == pc.fraction == 1.0  # honest bounds: the truth is kept
+    assert fig["pose_centre_err_median"] == pytest.approx(np.median(pc.centre_error))
+    assert fig["pose_centre_err_rmse"] == pytest.approx(np.sqrt(np.mean(pc.centre_error**2)))
+    assert fig["lm_centre_err_median"] == pytest.approx(np.median(lc.centre_error))
+    assert fig["nodes"] == len(out.poses.stamp) and fig["landmarks"] == len(out.landmarks.id)
+    assert fig["empty_events"] == len(out.consistency.empty_events) == 0
+    assert fig["rejected"] == out.stats["observations_rejected"]
+    assert fig["pose_width_median"] == out.stats["median_pose_width"] > 0
+
+
+def test_figures_without_truth_are_nan(sim):
+    from dataclasses import replace
+
+    log = replace(sim, truth=None)
+    out = run_landmarks(log, resolve_config(None, {"landmarks.initial_pose": [0.0, 0.0, 0.0]}, log_bounds=log.bounds))
+    fig = our_figures(log, out)
+    assert fig["pose_checked"] == 0 and math.isnan(fig["pose_fraction"]) and fig["lm_checked"] == 0
+    text = format_table([{"name": "no truth", **fig, "ours_s": 0.5}], VICTORIA_COLUMNS)
+    assert "no truth" in text and str(fig["nodes"]) in text
+
+
+def test_gtsam_bounds_map_the_same_values_and_name_the_rest():
+    bounds = {"range_abs": 0.2, "range_rel": 0.15, "bearing": 0.1, "odom_v": 0.02, "odom_v_rel": 0.1,
+              "odom_w": 0.05, "odom_w_rel": 0.0, "odom_lag_xy": 0.15, "odom_lag_th": 0.2, "odom_trans_abs": 0.0}
+    mapped, unmodelled = gtsam_bounds(bounds)
+    assert mapped == {k: bounds[k] for k in mapped} and set(mapped) >= {"range_abs", "bearing", "odom_w_rel"}
+    assert unmodelled == ["odom_lag_th", "odom_lag_xy"]  # zero-valued keys are not listed
+
+
+def test_table_has_a_cell_per_column_and_markdown_form(row):
+    cols = mrclam_columns(HAVE_GTSAM)
+    text = format_table([row, row], cols)
+    lines = text.splitlines()
+    assert len(lines) == 3 and len({len(line) for line in lines}) == 1  # fixed width
+    md = format_table([row], cols, markdown=True).splitlines()
+    assert len(md) == 3 and all(line.count("|") == len(cols) + 1 for line in md)
+    assert md[0].startswith("| robot |") and md[2].startswith("| 7 |")
+    assert f"{row['lm_contained']}/{row['lm_checked']}" in md[2]
+    assert f"{row['ours_s']:.2f}" in md[2]
+    if HAVE_GTSAM:
+        assert "GTSAM s" in md[0] and f"{row['gtsam_pos_err_median']:.3f}" in md[2]
+
+
+@pytest.mark.skipif(not HAVE_GTSAM, reason="gtsam (dev extra) not installed")
+def test_gtsam_columns_on_the_simulated_log(row):
+    assert row["gtsam_s"] > 0 and 0 <= row["gtsam_pose_xy_in_3sigma"] <= 1
+    assert 0 <= row["gtsam_lm_in_3sigma"] <= row["gtsam_lm_checked"] == row["lm_checked"]
+    assert math.isfinite(row["gtsam_pos_err_rmse"]) and 0 <= row["gtsam_pos_err_median"] < 1.0
+
+
+def test_verdicts_pass_and_fail_on_the_targets(row):
+    good = dict(row, ours_s=1.0, pose_fraction=0.995, pose_contained=995, pose_checked=1000,
+                lm_contained=15, lm_checked=15)
+    assert all(ok for ok, _ in verdicts([good], {"ours_s": 1.5, "empty_events": 0}))
+    for bad in (dict(good, ours_s=2.5), dict(good, pose_fraction=0.98), dict(good, lm_contained=14),
+                dict(good, pose_fraction=math.nan), dict(good, lm_checked=0, lm_contained=0)):
+        checks = verdicts([bad], None)
+        assert len(checks) == 3 and sum(not ok for ok, _ in checks) == 1
+    v = verdicts([], {"ours_s": 3.0, "empty_events": 2})
+    assert [ok for ok, _ in v] == [False, False] and "2 empty events" in v[1][1]
