@@ -104,3 +104,37 @@ def test_verdicts_pass_and_fail_on_the_targets(row):
         assert len(checks) == 3 and sum(not ok for ok, _ in checks) == 1
     v = verdicts([], {"ours_s": 3.0, "empty_events": 2})
     assert [ok for ok, _ in v] == [False, False] and "2 empty events" in v[1][1]
+
+
+def test_main_writes_markdown_and_json_and_fails_on_a_missed_target(row, tmp_path, monkeypatch, capsys):
+    import json
+
+    import bench.bench_landmarks as B
+
+    good = dict(row, ours_s=1.0, pose_fraction=1.0, pose_contained=10, pose_checked=10, lm_contained=15,
+                lm_checked=15, cold_s=30.0)
+
+    def fake(args, robots, use_gtsam, mrclam):  # the cases' processes, replaced by known rows
+        second = {k: v for k, v in good.items() if k != "cold_s"}  # cold: measured once, first robot
+        mrclam.extend([good, dict(second, robot=8, ours_s=2.5)])
+        return dict(good, name="Victoria Park", pose_fraction=math.nan)
+
+    monkeypatch.setattr(B, "_run_all", fake)
+    monkeypatch.setattr(B, "_have_gtsam", lambda: HAVE_GTSAM)
+    monkeypatch.setattr(B, "MRCLAM", tmp_path)
+    monkeypatch.setattr(B, "VICTORIA", tmp_path)
+    md, js = tmp_path / "t.md", tmp_path / "f.json"
+    assert B.main(["--robots", "7,8", "--markdown", str(md), "--json", str(js)]) == 1
+    out = capsys.readouterr().out
+    assert "FAIL MRCLAM robot 8: warm 2.50 s" in out and "PASS MRCLAM robot 7: warm 1.00 s" in out
+    text = md.read_text()
+    assert "| 7 | 30.0 | 1.00 |" in text and "| 8 | – | 2.50 |" in text and "| Victoria Park |" in text
+    doc = json.loads(js.read_text())  # standard JSON: NaN written as null
+    assert doc["victoria"]["pose_fraction"] is None and doc["mrclam"][1]["ours_s"] == 2.5
+
+
+def test_a_failing_case_process_is_reported(tmp_path):
+    import bench.bench_landmarks as B
+
+    with pytest.raises(B.WorkerError, match="no-such-case"):
+        B._spawn("no-such-case", tmp_path / "cache", gtsam=False)
