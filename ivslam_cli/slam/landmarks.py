@@ -59,7 +59,8 @@ class Problem:
     kind: np.ndarray  # (N-1,) int8
     U: np.ndarray  # (N-1, 5, 2)
     travel: np.ndarray  # (N,) cumulative upper bound of the distance travelled
-    turn: np.ndarray  # (N,) cumulative upper bound of the rotation
+    turn: np.ndarray  # (N, 2) cumulative heading change [lo, hi] (float sums, error below turn_err)
+    turn_err: float
     obs_index: np.ndarray  # (M,) index of each used observation in log.observations
     node: np.ndarray  # (M,)
     lm: np.ndarray  # (M,) landmark index
@@ -207,7 +208,7 @@ def build_problem(log: LogData, cfg: Config) -> Problem:
         U[:, 0], U[:, 1], U[:, 2], U[:, 3] = V, W, dt, _sym(q_xy)
         kind = np.full(n - 1, K.TWIST, np.int8)
         step_travel = iv.add(iv.mul(_col(vmax), dt), _col(q_xy))[:, 1]
-        step_turn = iv.mul(_col(wmax), dt)[:, 1]
+        step_dth = iv.mul(W, dt)
         node = np.searchsorted(node_stamp, s[used])
         # the true pose at an observation is within the lag of the modelled one
         reach = np.tile([lag_xy, lag_th], (used.size, 1))
@@ -239,6 +240,7 @@ def build_problem(log: LogData, cfg: Config) -> Problem:
         U[:, 0], U[:, 1], U[:, 2] = R, A, iv.add(_col(dth), _sym(half_r))
         kind = np.full(n - 1, K.INCREMENT, np.int8)
         step_travel = R[:, 1]
+        step_dth = U[:, 2].copy()
         step_turn = np.maximum(np.abs(U[:, 2, 0]), np.abs(U[:, 2, 1]))
         # attach each observation to the nearer odometry node, widened by its step's motion
         su = s[used]
@@ -259,7 +261,11 @@ def build_problem(log: LogData, cfg: Config) -> Problem:
     initial = iv.add(initial, _sym(np.array([lag[0], lag[0], lag[1]])))
     return Problem(
         node_stamp=node_stamp, kind=kind, U=np.ascontiguousarray(U), travel=_cumulative(step_travel),
-        turn=_cumulative(step_turn), obs_index=used, node=node.astype(np.int64), lm=lm_index.astype(np.int64),
+        turn=np.column_stack([np.concatenate([[0.0], np.cumsum(step_dth[:, 0])]),
+                             np.concatenate([[0.0], np.cumsum(step_dth[:, 1])])]),
+        # recursive summation: |error| <= (n-1)·u·Σ|terms| (doubled, plus a tiny absolute term)
+        turn_err=float((n + 4) * 2.0**-52 * np.abs(step_dth).sum() + 1e-300),
+        obs_index=used, node=node.astype(np.int64), lm=lm_index.astype(np.int64),
         rho=np.ascontiguousarray(rho_all[used]), alpha=np.ascontiguousarray(alpha_all[used]),
         reach=np.ascontiguousarray(reach), ids=lm_ids.astype(np.int64), q=q, initial=initial, lag=lag, motion=motion,
         dropped=dropped, initial_source=source,
@@ -297,7 +303,7 @@ def solve_problem(pb: Problem, cfg: Config):
     lm_events = np.zeros(pb.ids.size, np.int64)
     max_it = int(cfg["landmarks.max_iterations"])
     trace = np.full(max_it, np.nan)
-    sweeps = K.solve(P, L, pb.kind, pb.U, pb.node_stamp, pb.travel, pb.turn, pb.node, pb.lm, pb.rho, pb.alpha,
+    sweeps = K.solve(P, L, pb.kind, pb.U, pb.node_stamp, pb.travel, pb.turn, pb.turn_err, pb.node, pb.lm, pb.rho, pb.alpha,
                      pb.reach, obs_node_stamp, by_node, node_first, lm_offsets, lm_order, pb.q,
                      int(cfg["robust.q_pose"]), float(cfg["landmarks.pose_window"]),
                      int(cfg["landmarks.heading_slices"]), max_it,

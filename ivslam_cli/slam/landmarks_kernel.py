@@ -20,7 +20,8 @@ Robustness (q-relaxed intersections where constraints meet):
 - per pose (at nodes with observations): ``P_k ∩= qinter(pose candidates, q_pose)`` over the
   non-rejected observations within ``window`` seconds, each candidate being the pose box its
   observation and landmark box allow, widened by the motion possible between the two stamps
-  (``travel`` / ``turn``: cumulative upper bounds along the trajectory). An observation whose
+  (``travel``: cumulative upper bound of the distance along the trajectory; ``turn``: cumulative
+  lower and upper bounds of the heading change, ``turn_err`` bounding their float error). An observation whose
   pose candidate misses the result is rejected.
 
 Empty motion steps (the data contradict the motion bounds, or an undetected outlier
@@ -207,7 +208,7 @@ def landmark_update(P, L, q, lm_offsets, lm_order, node, rho, alpha, reach, stat
 
 
 @njit(cache=True)
-def _obs_pose_candidate(P, L, B, k, j, node, lm, rho, alpha, reach, travel, turn, out):
+def _obs_pose_candidate(P, L, B, k, j, node, lm, rho, alpha, reach, travel, turn, turn_err, out):
     """The part of pose box ``B`` (node ``k``) that observation ``j`` allows, in ``out``; False if none.
 
     ``B`` is carried to the observation's node (widened by the motion possible in between) and
@@ -217,16 +218,25 @@ def _obs_pose_candidate(P, L, B, k, j, node, lm, rho, alpha, reach, travel, turn
     kj = node[j]
     i = lm[j]
     dp = 0.0
+    # heading change from node k to node kj: [dl, dh] (exact along the chain of steps)
+    dl = 0.0
     dh = 0.0
     if kj != k:
         dp = up(up(abs(travel[k] - travel[kj])) * (1.0 + 1e-15))
-        dh = up(up(abs(turn[k] - turn[kj])) * (1.0 + 1e-15))
+        a = min(k, kj)
+        b = max(k, kj)
+        el = down(down(turn[b, 0] - turn[a, 0]) - turn_err)
+        eh = up(up(turn[b, 1] - turn[a, 1]) + turn_err)
+        if kj > k:
+            dl, dh = el, eh
+        else:
+            dl, dh = -eh, -el
     rp = up(dp + reach[j, 0])
-    rt = up(dh + reach[j, 1])
+    rt = reach[j, 1]
     # B at the observation's stamp (and within P[kj] at its node, when that is another one)
     xl, xh = _widen(B[0, 0], B[0, 1], rp)
     yl, yh = _widen(B[1, 0], B[1, 1], rp)
-    tl, th = _widen(B[2, 0], B[2, 1], rt)
+    tl, th = _widen(down(B[2, 0] + dl), up(B[2, 1] + dh), rt)
     if kj != k:
         xl = max(xl, down(P[kj, 0, 0] - reach[j, 0]))
         xh = min(xh, up(P[kj, 0, 1] + reach[j, 0]))
@@ -243,7 +253,7 @@ def _obs_pose_candidate(P, L, B, k, j, node, lm, rho, alpha, reach, travel, turn
     # back to node k, within B
     xl, xh = _widen(r[0], r[1], rp)
     yl, yh = _widen(r[2], r[3], rp)
-    tl, th = _widen(r[4], r[5], rt)
+    tl, th = _widen(down(r[4] - dh), up(r[5] - dl), rt)
     out[0, 0], out[0, 1] = max(xl, B[0, 0]), min(xh, B[0, 1])
     out[1, 0], out[1, 1] = max(yl, B[1, 0]), min(yh, B[1, 1])
     out[2, 0], out[2, 1] = angle_meet(B[2, 0], B[2, 1], tl, th)
@@ -251,7 +261,7 @@ def _obs_pose_candidate(P, L, B, k, j, node, lm, rho, alpha, reach, travel, turn
 
 
 @njit(cache=True)
-def pose_update(P, L, k, node_obs, node_stamp, obs_node_stamp, travel, turn, window, q_pose, slices,
+def pose_update(P, L, k, node_obs, node_stamp, obs_node_stamp, travel, turn, turn_err, window, q_pose, slices,
                 node, lm, rho, alpha, reach, status, buf, lo, hi, idx, agree):
     """``P_k ∩= hull over heading slices of qinter(pose candidates in the window, q_pose)``.
 
@@ -291,7 +301,7 @@ def pose_update(P, L, k, node_obs, node_stamp, obs_node_stamp, travel, turn, win
         B[2, 0] = thl if sl == 0 else thl + width * sl / ns
         B[2, 1] = thh if sl == ns - 1 else thl + width * (sl + 1) / ns
         for s in range(m):
-            if not _obs_pose_candidate(P, L, B, k, idx[s], node, lm, rho, alpha, reach, travel, turn, buf[s]):
+            if not _obs_pose_candidate(P, L, B, k, idx[s], node, lm, rho, alpha, reach, travel, turn, turn_err, buf[s]):
                 for d in range(3):
                     buf[s, d, 0] = EMPTY_LO
                     buf[s, d, 1] = EMPTY_HI
@@ -364,7 +374,7 @@ def total_width(P, L):
 
 
 @njit(cache=True)
-def solve(P, L, kind, U, node_stamp, travel, turn, node, lm, rho, alpha, reach, obs_node_stamp, by_node,
+def solve(P, L, kind, U, node_stamp, travel, turn, turn_err, node, lm, rho, alpha, reach, obs_node_stamp, by_node,
           node_first_obs, lm_offsets, lm_order, q, q_pose, window, slices, max_iterations, tolerance,
           status, step_events, pose_events, lm_events, width_trace):
     """Sweep forward and backward to a fixpoint (see the module docstring). In place.
@@ -389,7 +399,7 @@ def solve(P, L, kind, U, node_stamp, travel, turn, node, lm, rho, alpha, reach, 
             if not step_contract(P, k, kind, U):
                 step_events[k] += 1
             if node_first_obs[k + 1] >= 0:
-                if not pose_update(P, L, k + 1, by_node, node_stamp, obs_node_stamp, travel, turn, window, q_pose,
+                if not pose_update(P, L, k + 1, by_node, node_stamp, obs_node_stamp, travel, turn, turn_err, window, q_pose,
                                    slices, node, lm, rho, alpha, reach, status, buf, lo, hi, idx, agree):
                     pose_events[k + 1] += 1
         landmark_update(P, L, q, lm_offsets, lm_order, node, rho, alpha, reach, status, lm_events)
@@ -397,7 +407,7 @@ def solve(P, L, kind, U, node_stamp, travel, turn, node, lm, rho, alpha, reach, 
             if not step_contract(P, k, kind, U):
                 step_events[k] += 1
             if node_first_obs[k] >= 0:
-                if not pose_update(P, L, k, by_node, node_stamp, obs_node_stamp, travel, turn, window, q_pose,
+                if not pose_update(P, L, k, by_node, node_stamp, obs_node_stamp, travel, turn, turn_err, window, q_pose,
                                    slices, node, lm, rho, alpha, reach, status, buf, lo, hi, idx, agree):
                     pose_events[k] += 1
         landmark_update(P, L, q, lm_offsets, lm_order, node, rho, alpha, reach, status, lm_events)
