@@ -99,6 +99,7 @@ KEYS: tuple[Key, ...] = (
     Key("landmarks", "initial_margin", (0.01, 0.01, 0.01), "float3", "half-widths of the initial pose box around initial_pose", "m, m, rad"),
     Key("landmarks", "pose_window", 0.0, "float", "observations within this time of a pose join its q-relaxed intersection (their pose sets widened by the motion possible in between); 0: only the pose's own", "s", 0.0),
     Key("landmarks", "heading_slices", 16, "int", "a pose's heading interval is cut into this many pieces when contracted by its observations (set inversion in pose space; 1: plain box contraction)", "", 1),
+    Key("landmarks", "max_step", 0.5, "float", "twist odometry: steps longer than this are cut (the step model's error grows with dt²); 0: never cut", "s", 0.0),
     Key("landmarks", "max_iterations", 30, "int", "cap on forward-backward sweeps over the trajectory", "", 1),
     Key("landmarks", "tolerance", 1e-3, "float", "stop when a sweep shrinks the summed widths by less than this fraction", "", 0.0),
 )

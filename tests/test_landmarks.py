@@ -16,7 +16,7 @@ from ivslam_cli.logs.model import Odometry
 from ivslam_cli.report.core import landmark_containment, pose_containment
 from ivslam_cli.simulate import SimConfig, simulate
 from ivslam_cli.slam import landmarks_kernel as K
-from ivslam_cli.slam.landmarks import run_landmarks, speed_interval
+from ivslam_cli.slam.landmarks import chord_steps, run_landmarks, speed_interval, subdivide
 
 
 def _sim(seed: int, steps: int = 120, **kw):
@@ -158,12 +158,65 @@ def test_speed_interval_is_the_exact_preimage():
         assert grid[ok].min() - lo < 1e-3 and hi - grid[ok].max() < 1e-3
 
 
+def _in_angle(lo: float, hi: float, a: float) -> bool:
+    """a (mod 2π) in [lo, hi]."""
+    if hi - lo >= 2 * np.pi:
+        return True
+    k = np.floor((a - lo) / (2 * np.pi))
+    return lo <= a - 2 * np.pi * k <= hi
+
+
+@settings(max_examples=1500, deadline=None)
+@given(v0=st.floats(-0.3, 1.0), vw=st.floats(0.0, 0.5), w0=st.floats(-1.5, 1.5), ww=st.floats(0.0, 0.6),
+       dt=st.floats(1e-3, 2.0), pieces=st.integers(1, 12), seed=st.integers(0, 2**32 - 1))
+def test_chord_steps_enclose_every_path_within_the_twist_bounds(v0, vw, w0, ww, dt, pieces, seed):
+    """Random piecewise-constant v(t), ω(t) inside V, W (extremes favoured), integrated exactly
+    arc by arc: the displacement in the start frame and the rotation lie in (ρ, α, δθ)."""
+    rng = np.random.default_rng(seed)
+    V = np.array([[v0, v0 + vw]])
+    W = np.array([[w0, w0 + ww]])
+    rho, alpha, dth = chord_steps(V, W, np.array([[dt, dt]]))
+    for _ in range(8):
+        cuts = np.sort(np.concatenate([[0.0, dt], rng.uniform(0, dt, pieces - 1)]))
+        x = y = th = 0.0
+        for a, b in zip(cuts[:-1], cuts[1:]):
+            h = b - a
+            v = V[0, rng.integers(2)] if rng.random() < 0.6 else rng.uniform(*V[0])
+            w = W[0, rng.integers(2)] if rng.random() < 0.6 else rng.uniform(*W[0])
+            if abs(w) * h < 1e-9:
+                x, y = x + v * h * np.cos(th), y + v * h * np.sin(th)
+            else:
+                x += v / w * (np.sin(th + w * h) - np.sin(th))
+                y -= v / w * (np.cos(th + w * h) - np.cos(th))
+            th += w * h
+        r = np.hypot(x, y)
+        tol = 1e-9 * (1 + r)  # the exact-arc integration above is float, not the kernel
+        assert rho[0, 0] - tol <= r <= rho[0, 1] + tol
+        if r > 1e-6:
+            assert _in_angle(alpha[0, 0] - 1e-7 / r, alpha[0, 1] + 1e-7 / r, np.arctan2(y, x))
+        assert dth[0, 0] - 1e-12 <= th <= dth[0, 1] + 1e-12
+
+
+def test_chord_steps_are_tight_for_a_known_twist():
+    """Point V, W: the chord of the arc, to second order in dt (not a cone of directions)."""
+    rho, alpha, _ = chord_steps(np.array([[0.1, 0.1]]), np.array([[0.5, 0.5]]), np.array([[0.5, 0.5]]))
+    assert rho[0, 1] - rho[0, 0] < 1e-5 and alpha[0, 1] - alpha[0, 0] < 1e-5
+    assert rho[0, 0] <= 2 * 0.1 / 0.5 * np.sin(0.125) <= rho[0, 1]
+
+
+def test_subdivide_caps_the_gaps():
+    s = np.array([0.0, 0.2, 1.7, 1.75, 4.0])
+    out = subdivide(s, 0.5)
+    assert np.all(np.isin(s, out)) and np.all(np.diff(out) <= 0.5 + 1e-12) and np.all(np.diff(out) > 0)
+    assert out.size == 5 + 2 + 4
+    assert np.array_equal(subdivide(s, 0.0), s)
+
+
 def test_headings_beyond_the_circle_are_replaced_by_dead_reckoning():
     P = np.array([[[0, 0], [0, 0], [0.1, 0.2]], [[-1, 1], [-1, 1], [-np.inf, np.inf]]], float)
     U = np.zeros((1, 5, 2))
-    U[0, 1] = [0.5, 0.5]
-    U[0, 2] = [1.0, 1.0]
-    K.init_headings(P, np.array([K.TWIST], np.int8), U)
+    U[0, 2] = [0.5, 0.5]
+    K.init_headings(P, np.array([K.INCREMENT], np.int8), U)
     assert P[1, 2, 0] <= 0.6 <= 0.7 <= P[1, 2, 1] and P[1, 2, 1] - P[1, 2, 0] < 0.11
 
 

@@ -11,9 +11,10 @@ Motion, by the odometry the log has:
 - **twist** ``(v, ω)`` (MRCLAM's commanded velocities, simulated logs): zero-order hold, so an
   observation between two odometry stamps splits the step exactly (a node at its stamp). The
   true speed ``v`` satisfies ``|z_v − v| ≤ odom_v + odom_v_rel·|v|`` and the true turn rate
-  ``|z_ω − ω| ≤ odom_w + odom_w_rel·|v|`` at every instant of the step; the unicycle step uses
-  the heading at the start of the step, and the error that makes for any path within those
-  bounds (at most ``max|v| · max|ω| · dt²`` per axis) is a noise term of the step;
+  ``|z_ω − ω| ≤ odom_w + odom_w_rel·|v|`` at every instant of the step; each step is the pose
+  increment enclosing every unicycle path within those bounds (``chord_steps``: errors second
+  order in ``dt``, steps cut at ``landmarks.max_step``). The true pose stays within
+  ``odom_lag_xy``/``odom_lag_th`` of such a path (commands the drive follows late);
 - **pose increments** (``nav_msgs/Odometry``, CARMEN, Victoria Park): the increment between two
   odometry poses in the frame of the first, translation within ``odom_trans_abs +
   odom_trans_rel·|Δ|`` per axis and rotation within ``odom_rot_abs + odom_rot_rel·|Δθ|``.
@@ -161,6 +162,70 @@ def _cumulative(step: np.ndarray) -> np.ndarray:
     return np.nextafter(c * (1.0 + (len(c) + 2) * 2.0**-52), np.inf)
 
 
+def subdivide(stamps: np.ndarray, max_step: float) -> np.ndarray:
+    """``stamps`` (sorted) with evenly spaced stamps added so that no gap exceeds ``max_step``
+    (up to rounding; 0 or less: unchanged)."""
+    if max_step <= 0 or stamps.size < 2:
+        return stamps
+    gap = np.diff(stamps)
+    m = np.ceil(gap / max_step).astype(np.int64)  # pieces per gap
+    if np.all(m <= 1):
+        return stamps
+    k = np.repeat(np.arange(gap.size), np.maximum(m - 1, 0))
+    j = np.arange(k.size) - np.repeat(np.cumsum(np.maximum(m - 1, 0)) - np.maximum(m - 1, 0), np.maximum(m - 1, 0)) + 1
+    extra = stamps[k] + gap[k] * (j / m[k])
+    return np.unique(np.concatenate([stamps, extra]))
+
+
+def chord_steps(V: np.ndarray, W: np.ndarray, dt: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pose increments ``(ρ, α, δθ)`` (in the frame of the step's start) that enclose every path
+    of the unicycle ``ẋ = v (cos θ, sin θ)``, ``θ̇ = ω`` over a step of duration ``dt`` with
+    ``v(t) ∈ V`` and ``ω(t) ∈ W`` at every instant (any variation within the intervals). Rows
+    ``(lo, hi)``, outward.
+
+    With ``ω̄`` the midpoint of ``W``, ``r`` its radius and ``φ = θ_0 + ω̄ dt/2`` (the chord
+    direction of the mean turn), ``|θ(t) − φ − ω̄ (t − dt/2)| ≤ r t``, so in the frame of ``φ``:
+    along ``∈ [v_lo (dt·sinc(ω̄ dt/2) − r dt²/2), v_hi (dt·sinc(ω̄ dt/2) + r dt²/2)]`` (``1 − x²/6 ≤
+    sinc x ≤ 1 − x²/6 + x⁴/120``; valid while
+    ``|ω̄| dt/2 + r dt < π/2``, else ``± max|v| dt``) and lateral ``∈ ± (v_hi r dt²/2 + (v_hi −
+    v_lo) |ω̄| dt²/8)``; when ``V`` holds negative speeds, along ``∈ ± max|v| dt`` and lateral
+    ``∈ ± max|v| (|ω̄| dt²/4 + r dt²/2)``. The rotation is ``W·dt`` exactly. The errors are
+    second order in ``dt`` (keep steps short: ``landmarks.max_step``)."""
+    n = V.shape[0]
+    wbar = np.ascontiguousarray(0.5 * (W[:, 0] + W[:, 1]))
+    WB = _col(wbar)
+    r = np.maximum(iv.sub(WB, _col(W[:, 0]))[:, 1], iv.sub(_col(W[:, 1]), WB)[:, 1])
+    R_ = _col(r)
+    half = iv.mul(iv.mul(WB, dt), _col(np.full(n, 0.5)))  # ω̄ dt / 2
+    dt2 = iv.sqr(dt)
+    vmaxabs = np.maximum(np.abs(V[:, 0]), np.abs(V[:, 1]))
+    # |θ − φ| ≤ |ω̄| dt/2 + r dt
+    delta = iv.add(iv.mul(_col(np.abs(wbar)), iv.mul(dt, _col(np.full(n, 0.5)))), iv.mul(R_, dt))[:, 1]
+    forward = (V[:, 0] >= 0.0) & (delta < 1.5)
+    # forward steps
+    sinc_lo = iv.sub(_col(np.ones(n)), iv.div(iv.sqr(half), _col(np.full(n, 6.0))))
+    along_lo = iv.sub(iv.mul(_col(V[:, 0]), iv.mul(dt, sinc_lo)),
+                      iv.mul(_col(V[:, 0]), iv.mul(R_, iv.mul(dt2, _col(np.full(n, 0.5))))))[:, 0]
+    x2 = iv.sqr(half)
+    sinc_hi = iv.add(sinc_lo, iv.div(iv.sqr(x2), _col(np.full(n, 120.0))))  # sinc x ≤ 1 − x²/6 + x⁴/120
+    along_hi = np.minimum(iv.mul(_col(V[:, 1]), dt)[:, 1],
+                          iv.add(iv.mul(_col(V[:, 1]), iv.mul(dt, sinc_hi)),
+                                 iv.mul(_col(V[:, 1]), iv.mul(R_, iv.mul(dt2, _col(np.full(n, 0.5))))))[:, 1])
+    lat_f = iv.add(iv.mul(_col(V[:, 1]), iv.mul(R_, iv.mul(dt2, _col(np.full(n, 0.5))))),
+                   iv.mul(iv.sub(_col(V[:, 1]), _col(V[:, 0])),
+                          iv.mul(_col(np.abs(wbar)), iv.mul(dt2, _col(np.full(n, 0.125))))))[:, 1]
+    # any other step
+    m_dt = iv.mul(_col(vmaxabs), dt)[:, 1]
+    lat_b = iv.mul(_col(vmaxabs), iv.add(iv.mul(_col(np.abs(wbar)), iv.mul(dt2, _col(np.full(n, 0.25)))),
+                                         iv.mul(R_, iv.mul(dt2, _col(np.full(n, 0.5))))))[:, 1]
+    along = np.where(forward[:, None], np.column_stack([along_lo, along_hi]), np.column_stack([-m_dt, m_dt]))
+    lat = np.where(forward, lat_f, lat_b)
+    LAT = np.column_stack([-lat, lat])
+    rho = iv.sqrt(iv.add(iv.sqr(along), iv.sqr(LAT)))
+    alpha = iv.add(half, iv.atan2(LAT, along))
+    return rho, alpha, iv.mul(W, dt)
+
+
 def build_problem(log: LogData, cfg: Config) -> Problem:
     """Nodes, motion steps, observation intervals and landmark q's from a log and a config."""
     path = log.provenance.path
@@ -187,27 +252,24 @@ def build_problem(log: LogData, cfg: Config) -> Problem:
         tw_all = np.asarray(odo.twist, float)
         change = np.concatenate([[True], np.any(tw_all[1:] != tw_all[:-1], axis=1)])
         change[-1] = True
-        node_stamp = np.unique(np.concatenate([t[change], s[used]]))
+        node_stamp = subdivide(np.unique(np.concatenate([t[change], s[used]])), float(cfg["landmarks.max_step"]))
         n = node_stamp.shape[0]
         j = np.clip(np.searchsorted(t, node_stamp[:-1], side="right") - 1, 0, len(t) - 1)
-        z = np.asarray(odo.twist, float)[j]
-        V = speed_interval(z[:, 0], _bound(cfg["bounds.odom_v"]), _bound(cfg["bounds.odom_v_rel"]))
+        zlo = zhi = tw_all[j]
+        a_v, r_v = _bound(cfg["bounds.odom_v"]), _bound(cfg["bounds.odom_v_rel"])
+        V = np.column_stack([speed_interval(zlo[:, 0], a_v, r_v)[:, 0], speed_interval(zhi[:, 0], a_v, r_v)[:, 1]])
         vmax = np.maximum(np.abs(V[:, 0]), np.abs(V[:, 1]))
         w_half = iv.add(_col(np.full(n - 1, _bound(cfg["bounds.odom_w"]))),
                         iv.mul(_col(np.full(n - 1, _bound(cfg["bounds.odom_w_rel"]))), _col(vmax)))[:, 1]
-        W = iv.add(_col(z[:, 1]), _sym(w_half))
+        W = np.column_stack([iv.sub(_col(zlo[:, 1]), _sym(w_half))[:, 0], iv.add(_col(zhi[:, 1]), _sym(w_half))[:, 1]])
         wmax = np.maximum(np.abs(W[:, 0]), np.abs(W[:, 1]))
         dt = iv.sub(_col(node_stamp[1:]), _col(node_stamp[:-1]))
         dt[:, 0] = np.maximum(dt[:, 0], 0.0)
         lag_xy, lag_th = _bound(cfg["bounds.odom_lag_xy"]), _bound(cfg["bounds.odom_lag_th"])
-        # the step moves along the true heading, within max|w| dt + lag_th of the step's start
-        # heading: error per axis <= max|v| dt (max|w| dt + lag_th)
-        turn_dt = iv.add(iv.mul(_col(wmax), dt), _col(np.full(n - 1, lag_th)))
-        q_xy = iv.mul(iv.mul(_col(vmax), dt), turn_dt)[:, 1]
         U = np.zeros((n - 1, 5, 2))
-        U[:, 0], U[:, 1], U[:, 2], U[:, 3] = V, W, dt, _sym(q_xy)
-        kind = np.full(n - 1, K.TWIST, np.int8)
-        step_travel = iv.add(iv.mul(_col(vmax), dt), _col(q_xy))[:, 1]
+        U[:, 0], U[:, 1], U[:, 2] = chord_steps(V, W, dt)
+        kind = np.full(n - 1, K.INCREMENT, np.int8)
+        step_travel = U[:, 0, 1].copy()
         step_dth = iv.mul(W, dt)
         node = np.searchsorted(node_stamp, s[used])
         # the true pose at an observation is within the lag of the modelled one

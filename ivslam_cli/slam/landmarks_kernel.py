@@ -3,9 +3,8 @@
 Variables: pose boxes ``P`` ``(N, 3, 2)`` (x, y, θ at every node) and landmark boxes ``L``
 ``(L, 2, 2)``. Constraints:
 
-- **motion** between nodes ``k`` and ``k + 1`` (``kind[k]``):
-  ``TWIST``: the unicycle step with ``U[k] = [v, ω, dt, q_xy, q_θ]`` (see ``ctc_unicycle``);
-  ``INCREMENT``: a pose increment measured in the frame of node ``k``, ``U[k] = [ρ, α, δθ]``:
+- **motion** between nodes ``k`` and ``k + 1``: a pose increment in the frame of node ``k``
+  (measured, or the enclosure of every unicycle path a twist allows), ``U[k] = [ρ, α, δθ]``:
   ``(x, y)_{k+1} = (x, y)_k + ρ (cos(θ_k + α), sin(θ_k + α))``, ``θ_{k+1} = θ_k + δθ (mod 2π)``;
 - **observation** ``j`` of landmark ``lm[j]`` from node ``node[j]`` with range ``ρ_j`` and
   bearing ``α_j`` intervals (noise folded in). An observation made between two nodes is
@@ -41,13 +40,12 @@ from numba import njit
 from ivslam_cli.contractors.ctc_difference import angle_difference_scalar
 from ivslam_cli.contractors.ctc_qinter import qinter_interval
 from ivslam_cli.contractors.ctc_range_bearing import range_bearing_scalar
-from ivslam_cli.contractors.ctc_unicycle import shrink, unicycle_scalar
+from ivslam_cli.contractors.ctc_unicycle import shrink
 from ivslam_cli.interval.angles import angle_meet
-from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO, INF, add, mul
+from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO, INF, add
 from ivslam_cli.interval.rounding import TWO_PI_HI, down, up
 
-TWIST = 0
-INCREMENT = 1
+INCREMENT = 1  # the only step kind (``kind`` is kept for other step models)
 
 OBS_USED = 0
 OBS_REJECTED_LANDMARK = 1  # its landmark candidate misses the q-relaxed landmark box
@@ -115,12 +113,6 @@ def step_contract(P, k, kind, U):
     a = P[k]
     c = P[k + 1]
     u = U[k]
-    if kind[k] == TWIST:
-        r = unicycle_scalar(a[0, 0], a[0, 1], a[1, 0], a[1, 1], a[2, 0], a[2, 1],
-                            c[0, 0], c[0, 1], c[1, 0], c[1, 1], c[2, 0], c[2, 1],
-                            u[0, 0], u[0, 1], u[1, 0], u[1, 1], u[2, 0], u[2, 1],
-                            u[3, 0], u[3, 1], u[3, 0], u[3, 1], u[4, 0], u[4, 1])
-        return _write_step(a, c, r[:12])
     r2 = increment_scalar(a[0, 0], a[0, 1], a[1, 0], a[1, 1], a[2, 0], a[2, 1],
                           c[0, 0], c[0, 1], c[1, 0], c[1, 1], c[2, 0], c[2, 1],
                           u[0, 0], u[0, 1], u[1, 0], u[1, 1], u[2, 0], u[2, 1])
@@ -351,11 +343,7 @@ def init_headings(P, kind, U):
     for k in range(P.shape[0] - 1):
         if not (P[k + 1, 2, 1] - P[k + 1, 2, 0] >= TWO_PI_HI) or not (P[k, 2, 0] <= P[k, 2, 1]):
             continue
-        if kind[k] == TWIST:
-            ul, uh = mul(U[k, 1, 0], U[k, 1, 1], U[k, 2, 0], U[k, 2, 1])
-            ul, uh = add(ul, uh, U[k, 4, 0], U[k, 4, 1])
-        else:
-            ul, uh = U[k, 2, 0], U[k, 2, 1]
+        ul, uh = U[k, 2, 0], U[k, 2, 1]
         P[k + 1, 2, 0], P[k + 1, 2, 1] = add(P[k, 2, 0], P[k, 2, 1], ul, uh)
 
 
