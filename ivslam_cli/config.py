@@ -78,6 +78,8 @@ KEYS: tuple[Key, ...] = (
     Key("bounds", "odom_w", 0.0, "float", "twist odometry: turn-rate bound |z_ω − ω| ≤ odom_w + odom_w_rel·|v|", "rad/s", 0.0),
     Key("bounds", "odom_lag_xy", 0.0, "float", "twist odometry: the true position stays within this of the one the twist bounds drive (lag of commanded velocities, transients)", "m", 0.0),
     Key("bounds", "odom_lag_th", 0.0, "float", "twist odometry: the true heading stays within this of the one the twist bounds drive", "rad", 0.0),
+    Key("bounds", "odom_lag_time", 0.0, "float", "twist odometry: the drive follows its commands this late: the lag bounds grow by odom_lag_time × the largest commanded |v| (position) and |ω| (heading) over the last odom_lag_memory seconds", "s", 0.0),
+    Key("bounds", "odom_lag_memory", 2.0, "float", "twist odometry: the window of past commands odom_lag_time applies to (a few time constants of the drive)", "s", 0.0),
     Key("bounds", "odom_w_rel", 0.0, "float", "twist odometry: turn-rate bound proportional to the true speed", "rad/m", 0.0),
     # --- [robust]
     Key("robust", "q_pair", 0, "int", "q-relaxed intersection per pair: tolerate up to q inconsistent observations (0 = plain intersection)", "", 0),

@@ -215,6 +215,46 @@ def test_angle_meet_keeps_every_equivalent_angle(phi, k, a_lo, a_hi, t_spread, t
     assert res[0] >= t_lo and res[1] <= t_hi
 
 
+@SETTINGS
+@given(
+    st.floats(-math.pi, math.pi),
+    st.integers(-5, 5),
+    st.integers(-5, 5),
+    st.floats(0.0, 3.0),
+    st.floats(0.0, 3.0),
+    st.floats(0.0, 30.0),
+    unit,
+)
+def test_angle_meet_narrow_keeps_the_angle_modulo_two_pi(phi, k, j, a_lo, a_hi, t_spread, t_pos):
+    """theta = phi + 2k pi in [t], phi + 2j pi in [a]: some phi + 2m pi is in the result, and the
+    result is no wider than either branch-keeping meet."""
+    from ivslam_cli.interval.angles import angle_meet, angle_meet_narrow
+
+    theta = mpmath.mpf(phi) + 2 * k * mpmath.pi
+    tc = float(theta)
+    t_lo = float(np.nextafter(tc - t_spread * t_pos, -np.inf))
+    t_hi = float(np.nextafter(tc + t_spread * (1 - t_pos), np.inf))
+    ac = float(mpmath.mpf(phi) + 2 * j * mpmath.pi)
+    a = (float(np.nextafter(ac - a_lo, -np.inf)), float(np.nextafter(ac + a_hi, np.inf)))
+    lo, hi = angle_meet_narrow(t_lo, t_hi, *a)
+    assert lo <= hi
+    m = mpmath.floor((mpmath.mpf(lo) - phi) / (2 * mpmath.pi))
+    assert any(lo <= phi + 2 * (m + d) * mpmath.pi <= hi for d in (0, 1, 2))
+    p1 = angle_meet(t_lo, t_hi, *a)
+    p2 = angle_meet(a[0], a[1], t_lo, t_hi)
+    assert hi - lo <= min(p1[1] - p1[0], p2[1] - p2[0])
+
+
+def test_angle_meet_narrow_leaves_the_wide_branch():
+    """A heading known over several turns met with a narrow image: the narrow arc, not the hull
+    of its copies."""
+    from ivslam_cli.interval.angles import angle_meet, angle_meet_narrow
+
+    assert angle_meet(-5.0, 16.0, 3.4, 4.9)[1] - angle_meet(-5.0, 16.0, 3.4, 4.9)[0] > 12
+    lo, hi = angle_meet_narrow(-5.0, 16.0, 3.4, 4.9)
+    assert hi - lo <= 1.5 + 1e-12
+
+
 def test_angle_meet_contracts_and_detects_empty():
     lo, hi = iv.angle_meet([[10.0, 11.0]], [[-3.0, -2.0]])[0]
     assert 10.0 <= lo and abs(hi - (-2.0 + 4 * math.pi)) < 1e-12

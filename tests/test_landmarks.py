@@ -16,7 +16,7 @@ from ivslam_cli.logs.model import Odometry
 from ivslam_cli.report.core import landmark_containment, pose_containment
 from ivslam_cli.simulate import SimConfig, simulate
 from ivslam_cli.slam import landmarks_kernel as K
-from ivslam_cli.slam.landmarks import chord_steps, run_landmarks, speed_interval, subdivide
+from ivslam_cli.slam.landmarks import chord_steps, node_lags, run_landmarks, speed_interval, subdivide
 
 
 def _sim(seed: int, steps: int = 120, **kw):
@@ -210,6 +210,54 @@ def test_subdivide_caps_the_gaps():
     assert np.all(np.isin(s, out)) and np.all(np.diff(out) <= 0.5 + 1e-12) and np.all(np.diff(out) > 0)
     assert out.size == 5 + 2 + 4
     assert np.array_equal(subdivide(s, 0.0), s)
+
+
+def test_a_step_into_a_heading_of_several_turns_gives_the_narrow_image():
+    """Regression: the heading of a node known over several turns was met with its neighbour's
+    image in its own branch, keeping every copy, and never contracted again."""
+    P = np.array([[[0, 0], [0, 0], [0.1, 0.2]], [[-9, 9], [-9, 9], [-5.0, 16.0]]], float)
+    U = np.zeros((1, 5, 2))
+    U[0, 0] = [0.9, 1.1]
+    U[0, 1] = [-0.1, 0.1]
+    U[0, 2] = [0.5, 0.6]
+    assert K.step_contract(P, 0, np.array([K.INCREMENT], np.int8), U)
+    lo, hi = P[1, 2]
+    assert hi - lo < 0.25
+    assert any(lo <= 0.75 + 2 * np.pi * m <= hi for m in range(-3, 4))
+
+
+def test_circular_hull_of_heading_pieces():
+    lo = np.array([-3.1, -2.9, 2.8, 3.0])
+    hi = np.array([-3.0, -2.8, 2.9, 3.1])
+    # one turn [-π, π]: the pieces near ±π make one arc across the cut, not the whole turn
+    a, b = K._circular_hull(lo, hi, 4, -np.pi, np.pi)
+    assert b - a < 0.7
+    for pl, ph in zip(lo, hi):  # every piece, in some turn
+        assert any(a <= pl + 2 * np.pi * m and ph + 2 * np.pi * m <= b for m in (-1, 0, 1))
+    # not a whole turn: the plain hull
+    assert K._circular_hull(lo, hi, 4, -3.1, 3.1) == (-3.1, 3.1)
+
+
+def test_cap_heading_keeps_one_turn():
+    P = np.array([[[0, 0], [0, 0], [-4.0, 20.0]]], float)
+    K.cap_heading(P, 0)
+    assert 2 * np.pi <= P[0, 2, 1] - P[0, 2, 0] < 2 * np.pi + 1e-9
+    P = np.array([[[0, 0], [0, 0], [-1.0, 2.0]]], float)
+    K.cap_heading(P, 0)
+    assert list(P[0, 2]) == [-1.0, 2.0]
+
+
+def test_node_lags_follow_the_recent_commands():
+    t = np.array([0.0, 1.0, 2.0, 5.0])
+    z = np.array([[0.1, 0.5], [0.0, 0.0], [0.2, -1.0], [0.0, 0.0]])
+    stamps = np.array([0.0, 0.5, 2.5, 4.5, 8.0])
+    lag = node_lags(t, z, stamps, 0.01, 0.02, 0.5, 2.0)
+    # windows [s - 2, s]: at 0.5 the first command; at 2.5 (0.5..2.5) both; at 4.5 (2.5..4.5) the
+    # third; at 8.0 (6..8) only the last (zero)
+    np.testing.assert_allclose(lag[:, 0], [0.06, 0.06, 0.11, 0.11, 0.01], rtol=1e-12)
+    np.testing.assert_allclose(lag[:, 1], [0.27, 0.27, 0.52, 0.52, 0.02], rtol=1e-12)
+    assert np.all(lag[:, 0] >= [0.06, 0.06, 0.11, 0.11, 0.01])  # rounded up, never down
+    np.testing.assert_array_equal(node_lags(t, z, stamps, 0.01, 0.02, 0.0, 2.0), [[0.01, 0.02]] * 5)
 
 
 def test_headings_beyond_the_circle_are_replaced_by_dead_reckoning():

@@ -147,3 +147,21 @@ def angle_meet(tl, th, al, ah):
             break
         k -= 1.0
     return lo, hi
+
+
+@njit(cache=True)
+def angle_meet_narrow(tl, th, al, ah):
+    """``[t] ∩ ([a] + 2 pi Z)`` up to representation: the narrower of ``angle_meet(t, a)`` (in
+    ``[t]``'s branch) and ``angle_meet(a, t)`` (in ``[a]``'s branch).
+
+    Both hold every angle of the meet modulo 2 pi, so either is sound where angles are only
+    used modulo 2 pi; a meet in a wide ``[t]`` (several turns) keeps every copy of ``[a]``
+    and its hull hardly shrinks, while the other branch gives the narrow arc.
+    """
+    pl, ph = angle_meet(tl, th, al, ah)
+    if not (pl <= ph):
+        return pl, ph
+    ql, qh = angle_meet(al, ah, tl, th)
+    if ql <= qh and qh - ql < ph - pl:
+        return ql, qh
+    return pl, ph

@@ -71,7 +71,7 @@ class Problem:
     ids: np.ndarray  # (L,) landmark ids
     q: np.ndarray  # (L,)
     initial: np.ndarray  # (3, 2) of the modelled pose
-    lag: tuple[float, float]  # true pose = modelled pose ± (lag_xy, lag_xy, lag_th)
+    lag: np.ndarray  # (N, 2): true pose = modelled pose ± (lag_xy, lag_xy, lag_th) at each node
     motion: str
     dropped: list[Dropped]
     initial_source: str
@@ -177,6 +177,33 @@ def subdivide(stamps: np.ndarray, max_step: float) -> np.ndarray:
     return np.unique(np.concatenate([stamps, extra]))
 
 
+def node_lags(t: np.ndarray, z: np.ndarray, node_stamp: np.ndarray, a_xy: float, a_th: float, tau: float,
+              memory: float) -> np.ndarray:
+    """Per node ``(position, heading)`` half-widths within which the true pose stays of the
+    modelled one: ``a_xy + tau·max|v|`` and ``a_th + tau·max|ω|``, the largest commands (rows of
+    ``z`` = ``(v, ω)``, held from each stamp of ``t`` to the next) over ``[stamp − memory,
+    stamp]``; before the first command, zero. A drive that follows its commands ``tau`` late
+    (or as a first-order lag of time constant ``tau``, ``memory`` a few ``tau``) trails the
+    commanded path by at most the distance and turn those commands make in ``tau``. Rounded up."""
+    n = node_stamp.shape[0]
+    lag = np.empty((n, 2))
+    lag[:, 0], lag[:, 1] = a_xy, a_th
+    if tau <= 0.0:
+        return lag
+    if memory <= 0.0:
+        raise IvslamError(f"bounds.odom_lag_memory = {memory} must be > 0 when bounds.odom_lag_time is set")
+    first = np.searchsorted(t, node_stamp - memory, side="right") - 1
+    last = np.searchsorted(t, node_stamp, side="right") - 1
+    pad = np.vstack([np.abs(z), np.zeros((1, 2))])
+    idx = np.ravel(np.column_stack([np.maximum(first, 0), np.maximum(last, 0) + 1]))
+    top = np.maximum.reduceat(pad, idx, axis=0)[::2]
+    top[last < 0] = 0.0  # the whole window before the first command
+    for d in range(2):
+        grow = iv.mul(_col(np.full(n, tau)), _col(top[:, d]))
+        lag[:, d] = iv.add(_col(lag[:, d]), grow)[:, 1]
+    return lag
+
+
 def chord_steps(V: np.ndarray, W: np.ndarray, dt: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Pose increments ``(ρ, α, δθ)`` (in the frame of the step's start) that enclose every path
     of the unicycle ``ẋ = v (cos θ, sin θ)``, ``θ̇ = ω`` over a step of duration ``dt`` with
@@ -265,7 +292,8 @@ def build_problem(log: LogData, cfg: Config) -> Problem:
         wmax = np.maximum(np.abs(W[:, 0]), np.abs(W[:, 1]))
         dt = iv.sub(_col(node_stamp[1:]), _col(node_stamp[:-1]))
         dt[:, 0] = np.maximum(dt[:, 0], 0.0)
-        lag_xy, lag_th = _bound(cfg["bounds.odom_lag_xy"]), _bound(cfg["bounds.odom_lag_th"])
+        lag = node_lags(t, tw_all, node_stamp, _bound(cfg["bounds.odom_lag_xy"]), _bound(cfg["bounds.odom_lag_th"]),
+                        _bound(cfg["bounds.odom_lag_time"]), float(cfg["bounds.odom_lag_memory"]))
         U = np.zeros((n - 1, 5, 2))
         U[:, 0], U[:, 1], U[:, 2] = chord_steps(V, W, dt)
         kind = np.full(n - 1, K.INCREMENT, np.int8)
@@ -273,8 +301,7 @@ def build_problem(log: LogData, cfg: Config) -> Problem:
         step_dth = iv.mul(W, dt)
         node = np.searchsorted(node_stamp, s[used])
         # the true pose at an observation is within the lag of the modelled one
-        reach = np.tile([lag_xy, lag_th], (used.size, 1))
-        lag = (lag_xy, lag_th)
+        reach = lag[node]
     elif odo.pose is not None:
         motion = "pose increments"
         node_stamp = t.copy()
@@ -311,7 +338,7 @@ def build_problem(log: LogData, cfg: Config) -> Problem:
         node = np.where(nearer_next, k + 1, k)
         exact = t[node] == su
         reach = np.column_stack([np.where(exact, 0.0, step_travel[k]), np.where(exact, 0.0, step_turn[k])])
-        lag = (0.0, 0.0)
+        lag = np.zeros((n, 2))
     else:
         raise IvslamError("the odometry has neither twist nor poses", path)
 
@@ -320,7 +347,7 @@ def build_problem(log: LogData, cfg: Config) -> Problem:
     q = np.maximum(int(cfg["robust.q_landmark"]),
                    np.floor(float(cfg["robust.q_landmark_frac"]) * counts).astype(np.int64)).astype(np.int64)
     initial, source = initial_box(log, cfg, float(node_stamp[0]))
-    initial = iv.add(initial, _sym(np.array([lag[0], lag[0], lag[1]])))
+    initial = iv.add(initial, _sym(lag[0, [0, 0, 1]]))
     return Problem(
         node_stamp=node_stamp, kind=kind, U=np.ascontiguousarray(U), travel=_cumulative(step_travel),
         turn=np.column_stack([np.concatenate([[0.0], np.cumsum(step_dth[:, 0])]),
@@ -385,9 +412,9 @@ def run_landmarks(log: LogData, cfg: Config) -> LandmarksOutput:
     P, L, status, step_ev, pose_ev, lm_ev, trace, sweeps = solve_problem(pb, cfg)
     n = pb.node_stamp.shape[0]
     tol = float(cfg["landmarks.tolerance"])
-    if pb.lag != (0.0, 0.0):  # enclosures of the true poses
+    if pb.lag.any():  # enclosures of the true poses
         ok = np.all(P[..., 0] <= P[..., 1], axis=-1)
-        P = iv.add(P.reshape(-1, 2), np.tile(_sym(np.array([pb.lag[0], pb.lag[0], pb.lag[1]])), (n, 1))).reshape(n, 3, 2)
+        P = iv.add(P.reshape(-1, 2), _sym(pb.lag[:, [0, 0, 1]].reshape(-1))).reshape(n, 3, 2)
         P[~ok] = [np.inf, -np.inf]
     converged = sweeps >= 2 and (trace[-2] - trace[-1]) <= tol * trace[-2] if sweeps >= 2 else False
 
@@ -434,7 +461,9 @@ def run_landmarks(log: LogData, cfg: Config) -> LandmarksOutput:
     )
     motion_bounds = ("|z_v − v| ≤ odom_v + odom_v_rel·|v| and |z_ω − ω| ≤ odom_w + odom_w_rel·|v| at every "
                      "instant (commanded/measured twist held between odometry stamps) for a modelled pose the true "
-                     f"one stays within ±{pb.lag[0]} m, ±{pb.lag[1]} rad of" if pb.motion == "twist" else
+                     f"one stays within ±(odom_lag_xy + odom_lag_time·max|v|) m, ±(odom_lag_th + odom_lag_time·max|ω|) "
+                     f"rad of (largest commands over the last odom_lag_memory s; here up to ±{pb.lag[:, 0].max():.3g} m, "
+                     f"±{pb.lag[:, 1].max():.3g} rad)" if pb.motion == "twist" else
                      "each odometry increment within ±(odom_trans_abs + odom_trans_rel·|Δ|) per axis and "
                      "±(odom_rot_abs + odom_rot_rel·|Δθ|), the robot staying within its step's bound between "
                      "two odometry poses")

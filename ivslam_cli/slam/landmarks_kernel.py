@@ -41,9 +41,9 @@ from ivslam_cli.contractors.ctc_difference import angle_difference_scalar
 from ivslam_cli.contractors.ctc_qinter import qinter_interval
 from ivslam_cli.contractors.ctc_range_bearing import range_bearing_scalar
 from ivslam_cli.contractors.ctc_unicycle import shrink
-from ivslam_cli.interval.angles import angle_meet
-from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO, INF, add
-from ivslam_cli.interval.rounding import TWO_PI_HI, down, up
+from ivslam_cli.interval.angles import angle_meet, angle_meet_narrow
+from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO, INF, add, sub
+from ivslam_cli.interval.rounding import PI_HI, TWO_PI_HI, TWO_PI_LO, down, up
 
 INCREMENT = 1  # the only step kind (``kind`` is kept for other step models)
 
@@ -113,6 +113,14 @@ def step_contract(P, k, kind, U):
     a = P[k]
     c = P[k + 1]
     u = U[k]
+    # headings in the branch where they are narrow (a heading wide over several turns keeps
+    # every copy of its neighbour's image and would not contract)
+    fl, fh = add(a[2, 0], a[2, 1], u[2, 0], u[2, 1])
+    c[2, 0], c[2, 1] = angle_meet_narrow(c[2, 0], c[2, 1], fl, fh)
+    bl, bh = sub(c[2, 0], c[2, 1], u[2, 0], u[2, 1])
+    a[2, 0], a[2, 1] = angle_meet_narrow(a[2, 0], a[2, 1], bl, bh)
+    if not (c[2, 0] <= c[2, 1]) or not (a[2, 0] <= a[2, 1]):
+        return False
     r2 = increment_scalar(a[0, 0], a[0, 1], a[1, 0], a[1, 1], a[2, 0], a[2, 1],
                           c[0, 0], c[0, 1], c[1, 0], c[1, 1], c[2, 0], c[2, 1],
                           u[0, 0], u[0, 1], u[1, 0], u[1, 1], u[2, 0], u[2, 1])
@@ -235,7 +243,7 @@ def _obs_pose_candidate(P, L, B, k, j, node, lm, rho, alpha, reach, travel, turn
         yl = max(yl, down(P[kj, 1, 0] - reach[j, 0]))
         yh = min(yh, up(P[kj, 1, 1] + reach[j, 0]))
         pl, ph = _widen(P[kj, 2, 0], P[kj, 2, 1], reach[j, 1])
-        tl, th = angle_meet(pl, ph, tl, th)
+        tl, th = angle_meet_narrow(pl, ph, tl, th)
     if not (xl <= xh) or not (yl <= yh) or not (tl <= th):
         return False
     r = range_bearing_scalar(xl, xh, yl, yh, tl, th, L[i, 0, 0], L[i, 0, 1], L[i, 1, 0], L[i, 1, 1],
@@ -250,6 +258,43 @@ def _obs_pose_candidate(P, L, B, k, j, node, lm, rho, alpha, reach, travel, turn
     out[1, 0], out[1, 1] = max(yl, B[1, 0]), min(yh, B[1, 1])
     out[2, 0], out[2, 1] = angle_meet(B[2, 0], B[2, 1], tl, th)
     return out[0, 0] <= out[0, 1] and out[1, 0] <= out[1, 1] and out[2, 0] <= out[2, 1]
+
+
+@njit(cache=True)
+def _circular_hull(h_lo, h_hi, n, thl, thh):
+    """Hull of the ``n`` increasing pieces ``[h_lo, h_hi]`` of ``[thl, thh]``, on the circle
+    when ``[thl, thh]`` is a whole turn: the largest gap (the one across the wrap included) is
+    left out. Pieces are sorted and disjoint up to shared ends."""
+    lo = h_lo[0]
+    hi = h_hi[n - 1]
+    if not (thh - thl >= TWO_PI_LO) or n < 2:
+        return lo, hi
+    # the gap across the wrap: from the last piece's end to the first piece's start + 2π
+    best = down(down(h_lo[0] + TWO_PI_LO) - h_hi[n - 1])
+    cut = -1
+    for i in range(n - 1):
+        g = h_lo[i + 1] - h_hi[i]
+        if g > best:
+            best = g
+            cut = i
+    if cut < 0:
+        return lo, hi
+    # start after the gap, wrap once (the arc holds every piece, shifted by 2π or not)
+    return min(h_lo[cut + 1], down(h_lo[0] + TWO_PI_LO)), up(h_hi[cut] + TWO_PI_HI)
+
+
+@njit(cache=True)
+def cap_heading(P, k):
+    """A heading interval wider than a turn says nothing beyond one turn: keep one turn,
+    ``[c − π, c + π]`` around its centre (every angle mod 2π is still in it). Headings are
+    angles everywhere they are used (matched modulo 2π), so this loses nothing; without it a
+    set inversion over heading slices keeps a copy in every turn and never contracts."""
+    tl = P[k, 2, 0]
+    th = P[k, 2, 1]
+    if tl <= th and th - tl > TWO_PI_HI and tl > -INF and th < INF:
+        c = 0.5 * (tl + th)
+        P[k, 2, 0] = down(c - PI_HI)
+        P[k, 2, 1] = up(c + PI_HI)
 
 
 @njit(cache=True)
@@ -277,6 +322,7 @@ def pose_update(P, L, k, node_obs, node_stamp, obs_node_stamp, travel, turn, tur
             m += 1
     if m == 0:
         return True
+    cap_heading(P, k)
     thl = P[k, 2, 0]
     thh = P[k, 2, 1]
     ns = slices
@@ -286,6 +332,10 @@ def pose_update(P, L, k, node_obs, node_stamp, obs_node_stamp, travel, turn, tur
     for d in range(3):
         hull[d, 0] = EMPTY_LO
         hull[d, 1] = EMPTY_HI
+    # heading pieces of the surviving slices, in slice order (for the hull on the circle)
+    h_lo = np.empty(ns)
+    h_hi = np.empty(ns)
+    n_live = 0
     B = P[k].copy()
     width = thh - thl
     for sl in range(ns):
@@ -313,9 +363,12 @@ def pose_update(P, L, k, node_obs, node_stamp, obs_node_stamp, travel, turn, tur
             piece[d, 1] = rh
         if not ok:
             continue
-        for d in range(3):
+        for d in range(2):
             hull[d, 0] = min(hull[d, 0], piece[d, 0])
             hull[d, 1] = max(hull[d, 1], piece[d, 1])
+        h_lo[n_live] = piece[2, 0]
+        h_hi[n_live] = piece[2, 1]
+        n_live += 1
         for s in range(m):
             inside = True
             for d in range(3):
@@ -323,8 +376,9 @@ def pose_update(P, L, k, node_obs, node_stamp, obs_node_stamp, travel, turn, tur
                     inside = False
             if inside:
                 agree[s] = True
-    if not (hull[0, 0] <= hull[0, 1]):
+    if n_live == 0:
         return False
+    hull[2, 0], hull[2, 1] = _circular_hull(h_lo, h_hi, n_live, thl, thh)
     P[k] = hull
     for s in range(m):
         if not agree[s] and node[idx[s]] == k:
