@@ -49,6 +49,41 @@ def test_simulated_logs_keep_the_truth(seed, noise):
     assert len(out.consistency.rejected) == 0  # honest bounds: nothing proven inconsistent
 
 
+def test_one_hundred_simulated_seeds_keep_the_truth():
+    """Issue #6: 100+ simulated logs with honest bounds, containment 1.0 (poses at the truth's
+    stamps, landmarks), nothing rejected, no empty event; and the boxes are not trivial."""
+    widths = []
+    for seed in range(105):
+        log = _sim(seed)
+        out = run_landmarks(log, _cfg(log))
+        _check_sound(log, out)
+        assert len(out.consistency.empty_events) == 0 and len(out.consistency.rejected) == 0
+        widths.append(out.stats["median_landmark_width"])
+    assert np.median(widths) < 0.1 * 10.0  # a tenth of the world's side
+
+
+def test_one_hundred_seeds_with_outliers_are_detected_or_absorbed():
+    """Issue #6: outliers injected (3 %, up to 20 m / any bearing) in 100+ logs, q set to the
+    stated assumption (the most outliers of a landmark, and of a pose): the truth is kept, no
+    honest observation is ever rejected, and some outliers are proven and listed."""
+    proven = injected = 0
+    for seed in range(105):
+        clean = _sim(seed, steps=200)
+        dirty = _sim(seed, steps=200, outlier_rate=0.03, outlier_magnitude=20.0)
+        log = replace(dirty, odometry=clean.odometry)
+        mask = dirty.truth.outliers["observations"]
+        q = int(np.bincount(log.observations.landmark_id[mask]).max()) if mask.any() else 0
+        _, per_pose = np.unique(log.observations.stamp[mask], return_counts=True)
+        out = run_landmarks(log, _cfg(log, **{"robust.q_landmark": q,
+                                              "robust.q_pose": int(per_pose.max()) if per_pose.size else 0}))
+        _check_sound(log, out)
+        rejected = set(out.consistency.rejected.index.tolist())
+        assert rejected <= set(np.flatnonzero(mask).tolist())
+        proven += len(rejected)
+        injected += int(mask.sum())
+    assert injected > 500 and proven > 0.1 * injected
+
+
 def test_contracts_beyond_dead_reckoning():
     log = _sim(3, steps=200)
     cfg = _cfg(log)
