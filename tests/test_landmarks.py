@@ -3,6 +3,7 @@ kinds, the CLI and its errors."""
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 from pathlib import Path
 
@@ -317,6 +318,15 @@ def test_cli_run_report_and_tum(tmp_path: Path, cli_run):
     assert rows.shape[1] == 8 and rows.shape[0] > 10
     r = cli("report", str(out))
     assert r.exit_code == 0 and "pose" in r.output and "SOUNDNESS FAILURE" not in r.output
+    # the rejected measurements are listed, in the text and in full in the JSON
+    assert "rejected" in r.output and "observations[" in r.output
+    r = cli("report", str(out), "--json")
+    rep = json.loads(r.output)
+    assert len(rep["rejected_list"]) == rep["rejected"]["count"] > 0
+    assert all(x["stream"] == "observations" and x["reason"] for x in rep["rejected_list"])
+    png = tmp_path / "lm.png"
+    r = cli("report", str(out), "--plot", str(png))
+    assert r.exit_code == 0 and png.stat().st_size > 1000
     r = cli("run", str(log), "--mode", "landmarks", "-o", str(out), "--tum", str(tum))
     assert r.exit_code != 0 and "--force" in r.output
     r = cli("run", str(log), "--mode", "pairs", "-o", str(tmp_path / "p.h5"), "--tum", str(tmp_path / "p.tum"))

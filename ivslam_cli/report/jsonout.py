@@ -54,6 +54,8 @@ def report_dict(rep: Report) -> dict[str, Any]:
         "empty_event_list": event_dicts(r),
         "intersections": {"total": rep.intersections, "non_empty": rep.non_empty},
         "rejected": {"count": len(c.rejected), "by_reason": rep.rejected_by_reason},
+        "rejected_list": [{"stream": str(st), "index": int(i), "reason": str(why)}
+                          for st, i, why in zip(c.rejected.stream, c.rejected.index, c.rejected.reason)],
         "outliers_injected": rep.outliers_injected,
         "containment": {k: _num(v.fraction) for k, v in rep.containment.items()},
         "containment_detail": {

@@ -37,6 +37,9 @@ def _entity(constraint: str, entity: list[int]) -> str:
     return f"{'pose' if 'motion' in constraint or 'pose' in constraint else 'entity'} {a}"
 
 
+REJECTED_SHOWN = 20  # rejected measurements listed in the text report
+
+
 def render_text(rep: Report, source: str = "") -> str:
     r = rep.result
     p = r.provenance
@@ -69,6 +72,11 @@ def render_text(rep: Report, source: str = "") -> str:
     if len(c.rejected):
         add(f"  rejected {len(c.rejected)} measurement(s): "
             + "; ".join(f"{why} ×{n}" for why, n in sorted(rep.rejected_by_reason.items())))
+        shown = min(len(c.rejected), REJECTED_SHOWN)
+        for i in range(shown):
+            add(f"    {c.rejected.stream[i]}[{int(c.rejected.index[i])}]: {c.rejected.reason[i]}")
+        if len(c.rejected) > shown:
+            add(f"    … {len(c.rejected) - shown} more (all in --json and in the result's consistency/rejected)")
     if c.stopped:
         add(f"  STOPPED EARLY: {c.stopped}")
 
