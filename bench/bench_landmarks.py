@@ -3,7 +3,8 @@
 For each MRCLAM Dataset 6 robot (``configs/mrclam.toml``, read at run time so the bench follows
 the config): our time, pose containment (truth at its own stamps, in the tube between nodes),
 landmark containment, median pose/landmark box width (largest x-y side), box-centre error,
-observations rejected, empty events; and GTSAM (``bench.gtsam_baseline``, dev extra) on the same
+observations rejected, empty events; what q-relaxation changed (the same run with plain
+intersections, q = 0: empty events, containment, pose width); and GTSAM (``bench.gtsam_baseline``, dev extra) on the same
 log with the same bounds: its time, position error (median, RMSE), landmark error, and how often
 its 3σ ellipse holds the truth (poses x-y, landmarks). Then Victoria Park
 (``configs/victoria_park.toml``): time, nodes, landmarks, widths, rejections, empty events.
@@ -147,6 +148,13 @@ def run_case(log, config: str | Path | None, *, gtsam: bool, repeat: int = 1,
     cfg = resolve_config(config, overrides or {}, log_bounds=log.bounds)
     out, wall, cpu = timed(lambda: run_landmarks(log, cfg), repeat)
     row: dict[str, Any] = {"ours_s": wall, "ours_cpu_s": cpu, **our_figures(log, out)}
+    # what q-relaxation changed: the same run with plain intersections (q = 0)
+    if int(cfg["robust.q_landmark"]) or int(cfg["robust.q_pose"]) or float(cfg["robust.q_landmark_frac"]):
+        plain_cfg = resolve_config(config, {**(overrides or {}), "robust.q_landmark": 0, "robust.q_pose": 0,
+                                            "robust.q_landmark_frac": 0.0}, log_bounds=log.bounds)
+        plain = our_figures(log, run_landmarks(log, plain_cfg))
+        row.update({f"plain_{k}": plain[k] for k in ("empty_events", "pose_fraction", "lm_contained",
+                                                     "pose_width_median", "landmark_width_median")})
     if gtsam:
         from bench.gtsam_baseline import run_gtsam
 
@@ -183,6 +191,10 @@ def mrclam_columns(gtsam: bool) -> list[tuple[str, Any]]:
         ("lm centre err m", lambda r: _f(r["lm_centre_err_median"], "{:.3f}")),
         ("rejected", lambda r: str(r["rejected"])),
         ("empty ev", lambda r: str(r["empty_events"])),
+        ("q=0: empty ev", lambda r: str(r["plain_empty_events"]) if "plain_empty_events" in r else "–"),
+        ("q=0: pose in box", lambda r: _f(r.get("plain_pose_fraction"), "{:.4f}")),
+        ("q=0: lm in box", lambda r: _frac(r.get("plain_lm_contained"), r["lm_checked"]) if "plain_lm_contained" in r else "–"),
+        ("q=0: pose w m", lambda r: _f(r.get("plain_pose_width_median"), "{:.2f}")),
     ]
     if gtsam:
         cols += [
