@@ -104,9 +104,21 @@ KEYS: tuple[Key, ...] = (
     Key("landmarks", "max_step", 0.5, "float", "twist odometry: steps longer than this are cut (the step model's error grows with dt²); 0: never cut", "s", 0.0),
     Key("landmarks", "max_iterations", 30, "int", "cap on forward-backward sweeps over the trajectory", "", 1),
     Key("landmarks", "tolerance", 1e-3, "float", "stop when a sweep shrinks the summed widths by less than this fraction", "", 0.0),
+    # --- [lidar]: range/bearing bounds of the beams are [bounds] range_abs, range_rel, bearing
+    Key("lidar", "eps", 0.05, "float", "cell side ε of the map grid", "m", 0.0, True),
+    Key("lidar", "max_range", 0.0, "float", "valid returns longer than this are treated as no return (they prove nothing); 0: the scan's own range_max", "m", 0.0),
+    Key("lidar", "motion", "auto", "str", "dead reckoning from: twist (v, ω with odom_v/odom_w bounds), pose (odometry pose increments with odom_trans/odom_rot bounds), or auto (the stream whose bounds are set; twist if both or neither)"),
+    Key("lidar", "max_step", 0.5, "float", "twist odometry: steps longer than this are cut (the step model's error grows with dt²); 0: never cut", "s", 0.0),
+    Key("lidar", "poses_known", False, "bool", "guaranteed mapping only: the poses are given (known_poses) within pose_margin; no odometry needed"),
+    Key("lidar", "known_poses", "auto", "str", "with poses_known, where the poses come from: truth (the log's ground truth), scan (poses recorded with each scan, e.g. CARMEN FLASER), odometry (odometry poses), or auto (the first of these the log has); interpolated at scan stamps between given poses"),
+    Key("lidar", "pose_margin", (0.05, 0.05, 0.01), "float3", "with poses_known: half-widths of the pose box around each given pose (must cover their error and any interpolation)", "m, m, rad"),
 )
 
 KEYS_BY_NAME: dict[str, Key] = {k.dotted: k for k in KEYS}
+
+#: Bounds a log states under another name (simulated LiDAR logs: the beam angle error is the
+#: bearing bound of a beam).
+LOG_BOUND_ALIASES: dict[str, str] = {"beam_angle": "bearing"}
 
 
 @dataclass
@@ -233,6 +245,7 @@ def resolve_config(
 
     ignored: list[str] = []
     for name, value in (log_bounds or {}).items():
+        name = LOG_BOUND_ALIASES.get(name, name)
         dotted = name if "." in name else f"bounds.{name}"
         key = KEYS_BY_NAME.get(dotted)
         if key is None or key.section != "bounds":

@@ -35,7 +35,8 @@ def _default_output(log: str, mode: str) -> Path:
 @click.option("--bearing", type=float, default=None, help="bounds.bearing [rad].")
 @click.option("--q", "q_pair", type=int, default=None, help="robust.q_pair: inconsistent observations tolerated per pair.")
 @click.option("--strict", is_flag=True, default=None, help="Fail (exit 3) on the first empty intersection.")
-@click.option("--eps", type=float, default=None, help="pairs.eps: subpaving resolution [m].")
+@click.option("--eps", type=float, default=None,
+              help="pairs.eps (subpaving resolution) or, in lidar mode, lidar.eps (map cell side) [m].")
 @click.option("--heading", type=(float, float), default=None, metavar="LO HI",
               help="pairs.heading: known heading interval [rad].")
 @click.option("--heading-source", type=click.Choice(["option", "odometry"]), default=None,
@@ -52,12 +53,18 @@ def _default_output(log: str, mode: str) -> Path:
 @click.option("--q-pose", type=int, default=None, help="robust.q_pose: outliers tolerated per pose window.")
 @click.option("--max-iterations", type=int, default=None, help="landmarks.max_iterations: sweep cap.")
 @click.option("--tolerance", type=float, default=None, help="landmarks.tolerance: stop when widths shrink less.")
+@click.option("--poses-known", is_flag=True, default=None,
+              help="lidar.poses_known: guaranteed mapping from given poses (truth, scan poses or odometry: "
+                   "lidar.known_poses) ± lidar.pose_margin; no odometry model.")
+@click.option("--max-range", type=float, default=None,
+              help="lidar.max_range: returns beyond this prove nothing [m].")
 @click.option("--tum", type=click.Path(dir_okay=False), default=None,
-              help="Also write the pose box centres as a TUM trajectory (landmarks mode).")
+              help="Also write the pose box centres as a TUM trajectory (landmarks and lidar modes).")
 @click.pass_context
 def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, odom_topic, landmark_topic,
             truth_topic, range_abs, range_rel, bearing, q_pair, strict, eps, heading, heading_source, anchor, reference,
-            initial_pose, initial_pose_from_truth, q_landmark, q_pose, max_iterations, tolerance, tum):
+            initial_pose, initial_pose_from_truth, q_landmark, q_pose, max_iterations, tolerance, poses_known,
+            max_range, tum):
     """Run a guaranteed SLAM pipeline over LOG and write the result (HDF5).
 
     \b
@@ -67,6 +74,8 @@ def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, 
       ivslam run sample_logs/landmarks.bag --mode landmarks --initial-pose-from-truth
       ivslam run ../shared/datasets/mrclam/MRCLAM_Dataset6 --robot 1 --mode landmarks \
           --config configs/mrclam.toml --tum robot1.tum -o robot1.h5
+      ivslam run sample_logs/lidar_rooms.h5 --mode lidar --initial-pose-from-truth
+      ivslam run ../shared/datasets/carmen_corrected/aces-corrected.log.gz --mode lidar --poses-known
     """
     from ivslam_cli.config import resolve_config
     from ivslam_cli.errors import InconsistentData, IvslamError
@@ -76,15 +85,17 @@ def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, 
     out = Path(output) if output else _default_output(log, mode)
     if out.exists() and not force:
         raise IvslamError("result exists; use --force to overwrite it", out)
-    if tum is not None and mode != "landmarks":
-        raise IvslamError(f"--tum needs pose enclosures: --mode landmarks (not {mode})")
+    if tum is not None and mode == "pairs":
+        raise IvslamError(f"--tum needs pose enclosures: --mode landmarks or lidar (not {mode})")
     if tum is not None and Path(tum).exists() and not force:
         raise IvslamError("TUM file exists; use --force to overwrite it", tum)
     data = read_log(log, fmt, scan_topic=scan_topic, odom_topic=odom_topic, landmark_topic=landmark_topic,
                     truth_topic=truth_topic, robot=robot)
     overrides = {
         "bounds.range_abs": range_abs, "bounds.range_rel": range_rel, "bounds.bearing": bearing,
-        "robust.q_pair": q_pair, "robust.strict": strict, "pairs.eps": eps,
+        "robust.q_pair": q_pair, "robust.strict": strict,
+        "pairs.eps": eps if mode != "lidar" else None, "lidar.eps": eps if mode == "lidar" else None,
+        "lidar.poses_known": poses_known, "lidar.max_range": max_range,
         "pairs.heading": heading, "pairs.heading_source": heading_source, "pairs.reference_id": reference,
         "pairs.anchor_id": anchor[0] if anchor else None,
         "pairs.anchor_xy": (anchor[1], anchor[2]) if anchor else None,
@@ -108,6 +119,11 @@ def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, 
                    f"({s['observations_rejected']} rejected), {s['sweeps']} sweep(s)"
                    f"{'' if s['converged'] else ' (not converged)'}, {events} empty event(s), "
                    f"{result.runtime_s:.2f} s -> {out}", err=True)
+    elif mode == "lidar":
+        click.echo(f"lidar: {s['scans_used']}/{s['scans']} scans, {s['beams']} beams ({s['valid_beams']} valid: "
+                   f"{s['old_beams']} old, {s['new_beams']} new), {s['motion']}; map {s['area_empty_m2']:.4g} m² "
+                   f"empty, {s['area_obstacle_m2']:.4g} m² obstacle, {s['area_explored_m2']:.4g} m² explored; "
+                   f"{events} empty event(s), {result.runtime_s:.2f} s -> {out}", err=True)
     else:
         click.echo(f"{mode}: {s.get('intersections', 0)} intersections, {s.get('pairs', 0)} pairs, "
                    f"{len(result.landmarks) if result.landmarks is not None else 0} landmarks, "

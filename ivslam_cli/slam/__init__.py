@@ -68,8 +68,24 @@ def run_pipeline(log: LogData, cfg: Config, mode: str, argv: Sequence[str] | Non
         )
         if cfg["robust.strict"] and len(out.consistency.empty_events):
             result.consistency.stopped = "--strict: " + str(out.consistency.empty_events.text[0])
+    elif mode == "lidar":
+        from ivslam_cli.slam.lidar import run_lidar
+
+        out = run_lidar(log, cfg)
+        prov = make_provenance(log.provenance, cfg.as_dict(), argv)
+        prov.dropped = list(prov.dropped) + list(out.dropped)
+        result = Result(
+            mode=mode,
+            provenance=prov,
+            runtime_s=0.0,
+            poses=out.poses,
+            grid=out.grid,
+            consistency=out.consistency,
+            truth=log.truth,
+            stats=out.stats,
+        )
     else:
-        raise IvslamError(f"--mode {mode} is not implemented yet in this version (available: pairs, landmarks)")
+        raise IvslamError(f"unknown --mode {mode} (available: pairs, landmarks, lidar)")
     ev = result.consistency.empty_events
     if cfg["robust.strict"] and len(ev) and not result.consistency.stopped:
         result.consistency.stopped = f"first empty intersection at t={ev.stamp[0]:.3f} s: {ev.text[0]}"

@@ -253,33 +253,50 @@ def chord_steps(V: np.ndarray, W: np.ndarray, dt: np.ndarray) -> tuple[np.ndarra
     return rho, alpha, iv.mul(W, dt)
 
 
-def build_problem(log: LogData, cfg: Config) -> Problem:
-    """Nodes, motion steps, observation intervals and landmark q's from a log and a config."""
-    path = log.provenance.path
-    odo, obs = log.odometry, log.observations
-    if obs is None or len(obs) == 0:
-        raise IvslamError("no landmark observations: --mode landmarks needs range-bearing observations", path)
-    if odo is None or len(odo) < 2:
-        raise IvslamError("no odometry (at least two samples): --mode landmarks needs a motion model", path)
-    dropped: list[Dropped] = []
-    t = np.asarray(odo.stamp, float)
-    s = np.asarray(obs.stamp, float)
-    inside = (s >= t[0]) & (s <= t[-1])
-    if (~inside).any():
-        dropped.append(Dropped("observations", int((~inside).sum()), "outside the odometry's time span (not used)"))
-    used = np.flatnonzero(inside)
-    if used.size == 0:
-        raise IvslamError("no landmark observation falls within the odometry's time span", path)
-    rho_all, alpha_all = observation_boxes(log, cfg)
+@dataclass
+class MotionSteps:
+    """Dead-reckoning steps between nodes, and where each event (observation, scan) sits.
 
-    if odo.twist is not None:
+    ``node_stamp`` (N,); ``kind`` (N-1,) and ``U`` (N-1, 5, 2) as ``landmarks_kernel`` reads
+    them; ``step_travel`` (N-1,) upper bounds of each step's displacement and ``step_dth``
+    (N-1, 2) its heading change; ``lag`` (N, 2): true pose = modelled pose ± (lag_xy, lag_th)
+    at each node (twist odometry; zero for pose increments); ``node`` (M,) the node of each
+    event and ``reach`` (M, 2) the (position, heading) half-widths by which that node's box is
+    widened to hold the pose at the event's own stamp."""
+
+    motion: str
+    node_stamp: np.ndarray
+    kind: np.ndarray
+    U: np.ndarray
+    step_travel: np.ndarray
+    step_dth: np.ndarray
+    lag: np.ndarray
+    node: np.ndarray
+    reach: np.ndarray
+
+
+def motion_steps(odo, cfg: Config, s: np.ndarray, prefer: str = "twist", max_step: float = 0.0,
+                 path: str = "") -> MotionSteps:
+    """The motion model of ``odo`` (see the module docstring) with events at stamps ``s``
+    (sorted, within the odometry's span).
+
+    ``prefer``: ``"twist"`` uses the twist when the odometry has one, else the poses;
+    ``"pose"`` the reverse. Twist steps get a node at every event stamp (exact split of the
+    held twist) and are cut at ``max_step`` seconds; with pose increments an event between two
+    odometry stamps is attached to the nearer node, widened by its step's motion.
+    """
+    if prefer not in ("twist", "pose"):
+        raise ValueError(prefer)
+    t = np.asarray(odo.stamp, float)
+    use_twist = odo.twist is not None and (prefer == "twist" or odo.pose is None)
+    if use_twist:
         motion = "twist"
         # nodes: where the held twist changes (a run of equal twists is one exact step), the
         # observation stamps, and the last odometry stamp
         tw_all = np.asarray(odo.twist, float)
         change = np.concatenate([[True], np.any(tw_all[1:] != tw_all[:-1], axis=1)])
         change[-1] = True
-        node_stamp = subdivide(np.unique(np.concatenate([t[change], s[used]])), float(cfg["landmarks.max_step"]))
+        node_stamp = subdivide(np.unique(np.concatenate([t[change], s])), max_step)
         n = node_stamp.shape[0]
         j = np.clip(np.searchsorted(t, node_stamp[:-1], side="right") - 1, 0, len(t) - 1)
         zlo = zhi = tw_all[j]
@@ -299,7 +316,7 @@ def build_problem(log: LogData, cfg: Config) -> Problem:
         kind = np.full(n - 1, K.INCREMENT, np.int8)
         step_travel = U[:, 0, 1].copy()
         step_dth = iv.mul(W, dt)
-        node = np.searchsorted(node_stamp, s[used])
+        node = np.searchsorted(node_stamp, s)
         # the true pose at an observation is within the lag of the modelled one
         reach = lag[node]
     elif odo.pose is not None:
@@ -332,7 +349,7 @@ def build_problem(log: LogData, cfg: Config) -> Problem:
         step_dth = U[:, 2].copy()
         step_turn = np.maximum(np.abs(U[:, 2, 0]), np.abs(U[:, 2, 1]))
         # attach each observation to the nearer odometry node, widened by its step's motion
-        su = s[used]
+        su = s
         k = np.clip(np.searchsorted(t, su, side="right") - 1, 0, n - 2)
         nearer_next = (t[k + 1] - su) < (su - t[k])
         node = np.where(nearer_next, k + 1, k)
@@ -341,6 +358,35 @@ def build_problem(log: LogData, cfg: Config) -> Problem:
         lag = np.zeros((n, 2))
     else:
         raise IvslamError("the odometry has neither twist nor poses", path)
+
+    return MotionSteps(motion=motion, node_stamp=node_stamp, kind=kind, U=np.ascontiguousarray(U),
+                       step_travel=step_travel, step_dth=step_dth, lag=lag, node=node.astype(np.int64),
+                       reach=np.ascontiguousarray(reach, dtype=np.float64))
+
+
+def build_problem(log: LogData, cfg: Config) -> Problem:
+    """Nodes, motion steps, observation intervals and landmark q's from a log and a config."""
+    path = log.provenance.path
+    odo, obs = log.odometry, log.observations
+    if obs is None or len(obs) == 0:
+        raise IvslamError("no landmark observations: --mode landmarks needs range-bearing observations", path)
+    if odo is None or len(odo) < 2:
+        raise IvslamError("no odometry (at least two samples): --mode landmarks needs a motion model", path)
+    dropped: list[Dropped] = []
+    t = np.asarray(odo.stamp, float)
+    s = np.asarray(obs.stamp, float)
+    inside = (s >= t[0]) & (s <= t[-1])
+    if (~inside).any():
+        dropped.append(Dropped("observations", int((~inside).sum()), "outside the odometry's time span (not used)"))
+    used = np.flatnonzero(inside)
+    if used.size == 0:
+        raise IvslamError("no landmark observation falls within the odometry's time span", path)
+    rho_all, alpha_all = observation_boxes(log, cfg)
+
+    m = motion_steps(odo, cfg, s[used], prefer="twist", max_step=float(cfg["landmarks.max_step"]), path=path)
+    motion, node_stamp, kind, U, lag = m.motion, m.node_stamp, m.kind, m.U, m.lag
+    step_travel, step_dth, node, reach = m.step_travel, m.step_dth, m.node, m.reach
+    n = node_stamp.shape[0]
 
     lm_ids, lm_index = np.unique(obs.landmark_id[used], return_inverse=True)
     counts = np.bincount(lm_index, minlength=lm_ids.size)
