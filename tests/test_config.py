@@ -68,7 +68,7 @@ def test_types_are_normalised_and_json_safe(tmp_path):
         ("[pairs]\neps = 0\n", r"eps must be > 0"),
         ("[pairs]\nheading = [0.2, 0.1]\n", "lo <= hi"),
         ("[pairs]\nanchor_xy = [1]\n", "two numbers"),
-        ("[lidar]\nresolution = 0.05\n", r"unknown key 'resolution' in \[lidar\] \(known: none yet\)"),
+        ("[lidar]\nresolution = 0.05\n", r"unknown key 'resolution' in \[lidar\] \(known: eps, max_range"),
         ("[bounds\n", "invalid TOML"),
     ],
 )

@@ -1,0 +1,405 @@
+"""The feature-less LiDAR pipeline (seed 001), end to end: pose enclosures at every scan, then
+the map P_EMPTY (inner) / P_OBSTACLE (outer) with the seed's old/new test.
+
+Stages of :func:`run_lidar` (one pass over the log, in this order):
+
+1. **pose prediction** (:func:`predict_poses`): a box holding the robot pose at every scan
+   stamp.
+
+   - Dead reckoning from the log's odometry with the landmark CSP's motion model
+     (:func:`ivslam_cli.slam.landmarks.motion_steps`, forward pass of
+     :func:`ivslam_cli.slam.landmarks_kernel.step_contract`): twist ``(v, ω)`` with
+     ``bounds.odom_v``/``odom_w`` (a node at every scan stamp, the held twist split there
+     exactly; lags ``odom_lag_*``) or odometry pose increments with
+     ``bounds.odom_trans_*``/``odom_rot_*`` (a scan between two odometry stamps is attached to
+     the nearer one, widened by that step's largest displacement and turn). The first pose is
+     ``landmarks.initial_pose`` (or the truth, or the origin) ± ``landmarks.initial_margin``.
+   - ``lidar.poses_known``: the poses are given (ground truth, the poses recorded with each
+     scan, or odometry poses: ``lidar.known_poses``) within ``lidar.pose_margin``; a scan
+     between two given poses gets the hull of the two, widened by the margin.
+
+2. **pose contraction against the map** — not done yet: the boxes of stage 1 are used as
+   they are. (The contractor will take the boxes of a chunk of scans and the map built from
+   the scans before it, so stages 1-3 then run chunk by chunk; :func:`map_scans` already
+   accepts any subset of scans in any order.)
+
+3. **map update** (:func:`ivslam_cli.slam.lidar_map.update_map`, numba over the tiles): the
+   laser mount (``Scans.mount``, from tf or the reader) is applied soundly to each box; beams
+   are bounded by ``bounds.range_abs``/``range_rel``/``bearing`` (the bearing bound is the
+   beam angle error); returns longer than ``lidar.max_range`` and every invalid beam (no
+   return, error codes, beyond range_max) prove nothing.
+
+Range bound convention: ``[bounds]`` states ``|ρ − z| ≤ range_abs + range_rel·z`` (measured
+range) and simulated logs ``… + range_rel·ρ`` (true range); the map kernels take the second
+form, with ``range_abs / (1 − range_rel)`` and ``range_rel / (1 − range_rel)``, which holds in
+both conventions (rounded up).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from ivslam_cli import interval as iv
+from ivslam_cli.config import Config
+from ivslam_cli.errors import ConfigError, IvslamError
+from ivslam_cli.interval.rounding import down, up
+from ivslam_cli.logs.model import Dropped, LogData, Scans
+from ivslam_cli.results.model import (
+    CELL_EMPTY,
+    CELL_OBSTACLE,
+    CELL_UNKNOWN,
+    Consistency,
+    EmptyEvents,
+    MapGrid,
+    Poses,
+    WidthHistory,
+)
+from ivslam_cli.slam.landmarks_kernel import cap_heading, init_headings, step_contract
+from ivslam_cli.slam.landmarks import _bound, _col, _sym, initial_box, motion_steps
+
+MOTIONS = ("auto", "twist", "pose")
+KNOWN_SOURCES = ("auto", "truth", "scan", "odometry")
+TWIST_BOUNDS = ("odom_v", "odom_v_rel", "odom_w", "odom_w_rel", "odom_lag_xy", "odom_lag_th", "odom_lag_time")
+POSE_BOUNDS = ("odom_trans_abs", "odom_trans_rel", "odom_rot_abs", "odom_rot_rel")
+
+
+# ---------------------------------------------------------------- kernels
+@njit(cache=True)
+def dead_reckon(P, kind, U, step_events):
+    """Forward pass of the motion steps from ``P[0]`` (the other boxes unbounded): in place.
+
+    Headings wider than a turn are cut to one turn around their centre (headings are angles:
+    nothing is lost). ``step_events[k]`` counts steps that found no solution (skipped).
+    """
+    init_headings(P, kind, U)
+    for k in range(P.shape[0] - 1):
+        if not step_contract(P, k, kind, U):
+            step_events[k] += 1
+        cap_heading(P, k + 1)
+
+
+@njit(cache=True)
+def widen_boxes(P, node, reach, out):
+    """``out[j]`` = ``P[node[j]]`` widened by ``reach[j]`` = (position, heading), as the flat
+    ``(x_lo, x_hi, y_lo, y_hi, θ_lo, θ_hi)`` rows ``update_map`` takes; rounded outward."""
+    for j in range(node.shape[0]):
+        b = P[node[j]]
+        rp = reach[j, 0]
+        rt = reach[j, 1]
+        out[j, 0] = down(b[0, 0] - rp)
+        out[j, 1] = up(b[0, 1] + rp)
+        out[j, 2] = down(b[1, 0] - rp)
+        out[j, 3] = up(b[1, 1] + rp)
+        out[j, 4] = down(b[2, 0] - rt)
+        out[j, 5] = up(b[2, 1] + rt)
+
+
+# ---------------------------------------------------------------- configuration
+def lidar_bounds(cfg: Config):
+    """The beam bounds of ``[bounds]`` in the map kernels' convention (see the module docstring)."""
+    from ivslam_cli.slam.lidar_map import LidarBounds
+
+    a = _bound(cfg["bounds.range_abs"])
+    r = _bound(cfg["bounds.range_rel"])
+    if not r < 1.0 / 3.0:
+        raise ConfigError(f"[bounds] range_rel = {cfg['bounds.range_rel']} must be < 1/3 in lidar mode")
+    den = float(np.nextafter(1.0 - r, -np.inf)) if r else 1.0
+    a2 = float(np.nextafter(a / den, np.inf)) if r else a
+    r2 = float(np.nextafter(r / den, np.inf)) if r else 0.0
+    b = LidarBounds(a2, r2, _bound(cfg["bounds.bearing"]))
+    b.check()
+    return b
+
+
+def _choose_motion(log: LogData, cfg: Config) -> str:
+    odo = log.odometry
+    want = cfg["lidar.motion"]
+    if want not in MOTIONS:
+        raise ConfigError(f"[lidar] motion must be one of {', '.join(MOTIONS)}, got {want!r}")
+    has_t, has_p = odo.twist is not None, odo.pose is not None
+    if want == "twist" and not has_t:
+        raise IvslamError("lidar.motion = twist, but the odometry has no twist", log.provenance.path)
+    if want == "pose" and not has_p:
+        raise IvslamError("lidar.motion = pose, but the odometry has no poses", log.provenance.path)
+    if want != "auto":
+        return want
+    if has_t and has_p:
+        t_set = any(cfg[f"bounds.{k}"] for k in TWIST_BOUNDS)
+        p_set = any(cfg[f"bounds.{k}"] for k in POSE_BOUNDS)
+        return "pose" if p_set and not t_set else "twist"
+    return "twist" if has_t else "pose"
+
+
+# ---------------------------------------------------------------- stage 1: pose prediction
+@dataclass
+class PosePrediction:
+    """Robot pose boxes at the used scans, and how they were obtained."""
+
+    used: np.ndarray  # (S',) indices of the scans that get a box
+    boxes: np.ndarray  # (S', 6) x_lo, x_hi, y_lo, y_hi, θ_lo, θ_hi
+    source: str  # how (for the assumption)
+    motion: str  # twist / pose increments / known poses
+    step_events: np.ndarray  # (N-1,) skipped motion steps (dead reckoning)
+    node_stamp: np.ndarray  # (N,)
+    dropped: list[Dropped]
+    interpolated: int = 0  # known poses: scans between two given poses
+
+
+def _given_poses(log: LogData, scans: Scans, source: str) -> tuple[np.ndarray, np.ndarray, str]:
+    """(stamps, poses (G, 3), what) of the given poses."""
+    path = log.provenance.path
+    tr = log.truth
+    has_truth = tr is not None and tr.pose is not None and tr.pose_stamp is not None and len(tr.pose_stamp) > 0
+    rows = log.meta.get("scan_odometry_pose") if isinstance(log.meta, dict) else None
+    has_scan = rows is not None and len(rows) == len(scans) and len(rows) > 0
+    odo = log.odometry
+    has_odo = odo is not None and odo.pose is not None and len(odo) > 0
+    if source not in KNOWN_SOURCES:
+        raise ConfigError(f"[lidar] known_poses must be one of {', '.join(KNOWN_SOURCES)}, got {source!r}")
+    if source == "auto":
+        source = "truth" if has_truth else "scan" if has_scan else "odometry" if has_odo else ""
+        if not source:
+            raise IvslamError("--poses-known: the log has no ground truth, no poses with its scans and no "
+                              "odometry poses", path)
+    if source == "truth":
+        if not has_truth:
+            raise IvslamError("lidar.known_poses = truth, but the log has no ground-truth poses", path)
+        return np.asarray(tr.pose_stamp, float), np.asarray(tr.pose, float), "the log's ground-truth poses"
+    if source == "scan":
+        if not has_scan:
+            raise IvslamError("lidar.known_poses = scan, but the log records no pose with its scans", path)
+        a = np.asarray(rows, float)
+        a = a[np.argsort(a[:, 0], kind="stable")]  # the scans were sorted the same way
+        return a[:, 0], a[:, 1:4], "the poses recorded with the scans"
+    if not has_odo:
+        raise IvslamError("lidar.known_poses = odometry, but the log has no odometry poses", path)
+    return np.asarray(odo.stamp, float), np.asarray(odo.pose, float), "the odometry poses"
+
+
+def known_pose_boxes(log: LogData, cfg: Config, scans: Scans) -> PosePrediction:
+    """Boxes from given poses ± ``lidar.pose_margin`` (hull of the two neighbours between them)."""
+    t, p, what = _given_poses(log, scans, cfg["lidar.known_poses"])
+    order = np.argsort(t, kind="stable")
+    t, p = t[order], p[order]
+    s = np.asarray(scans.stamp, float)
+    inside = (s >= t[0]) & (s <= t[-1])
+    dropped = []
+    if (~inside).any():
+        dropped.append(Dropped("scans", int((~inside).sum()), "outside the span of the given poses (not used)"))
+    used = np.flatnonzero(inside)
+    if used.size == 0:
+        raise IvslamError("--poses-known: no scan falls within the span of the given poses", log.provenance.path)
+    su = s[used]
+    hi = np.clip(np.searchsorted(t, su, side="left"), 0, len(t) - 1)
+    lo = np.where(t[hi] == su, hi, np.maximum(hi - 1, 0))
+    exact = t[lo] == su
+    a, b = p[lo], p[hi]
+    # heading of b on the branch nearest to a's
+    dth = b[:, 2] - a[:, 2]
+    bth = a[:, 2] + (dth - np.round(dth / (2 * math.pi)) * 2 * math.pi)
+    bth = np.where(exact, a[:, 2], np.nextafter(bth, np.where(bth > a[:, 2], np.inf, -np.inf)))
+    box = np.empty((used.size, 3, 2))
+    for d, (x, y) in enumerate(((a[:, 0], b[:, 0]), (a[:, 1], b[:, 1]), (a[:, 2], bth))):
+        box[:, d, 0] = np.minimum(x, y)
+        box[:, d, 1] = np.maximum(x, y)
+    margin = np.array([_bound(m) for m in cfg["lidar.pose_margin"]])
+    flat = iv.add(box.reshape(-1, 2), _sym(np.tile(margin, used.size))).reshape(-1, 3, 2)
+    return PosePrediction(used=used, boxes=flat.reshape(-1, 6), source=what, motion="known poses",
+                          step_events=np.zeros(0, np.int64), node_stamp=t, dropped=dropped,
+                          interpolated=int((~exact).sum()))
+
+
+def dead_reckoning_boxes(log: LogData, cfg: Config, scans: Scans) -> PosePrediction:
+    """Boxes by dead reckoning from the odometry with its bounds (see the module docstring)."""
+    path = log.provenance.path
+    odo = log.odometry
+    if odo is None or len(odo) < 2:
+        raise IvslamError("no odometry (at least two samples): --mode lidar needs a motion model, "
+                          "or --poses-known with given poses", path)
+    prefer = _choose_motion(log, cfg)
+    t = np.asarray(odo.stamp, float)
+    s = np.asarray(scans.stamp, float)
+    inside = (s >= t[0]) & (s <= t[-1])
+    dropped = []
+    if (~inside).any():
+        dropped.append(Dropped("scans", int((~inside).sum()), "outside the odometry's time span (not used)"))
+    used = np.flatnonzero(inside)
+    if used.size == 0:
+        raise IvslamError("no scan falls within the odometry's time span", path)
+    m = motion_steps(odo, cfg, s[used], prefer=prefer, max_step=float(cfg["lidar.max_step"]), path=path)
+    n = m.node_stamp.shape[0]
+    P = np.empty((n, 3, 2))
+    P[:, :, 0] = -np.inf
+    P[:, :, 1] = np.inf
+    initial, source = initial_box(log, cfg, float(m.node_stamp[0]))
+    P[0] = iv.add(initial, _sym(m.lag[0, [0, 0, 1]]))
+    events = np.zeros(max(n - 1, 0), np.int64)
+    dead_reckon(P, m.kind, m.U, events)
+    boxes = np.empty((used.size, 6))
+    widen_boxes(P, m.node, m.reach, boxes)
+    return PosePrediction(used=used, boxes=boxes, source=source, motion=m.motion, step_events=events,
+                          node_stamp=m.node_stamp, dropped=dropped)
+
+
+def predict_poses(log: LogData, cfg: Config, scans: Scans) -> PosePrediction:
+    if cfg["lidar.poses_known"]:
+        return known_pose_boxes(log, cfg, scans)
+    return dead_reckoning_boxes(log, cfg, scans)
+
+
+# ---------------------------------------------------------------- stage 3: the map
+def usable_scans(scans: Scans, cfg: Config) -> tuple[Scans, int]:
+    """``scans`` with returns beyond ``lidar.max_range`` marked invalid; how many were."""
+    cap = float(cfg["lidar.max_range"])
+    if cap <= 0.0:
+        return scans, 0
+    far = scans.valid & (scans.ranges.astype(np.float64) > cap)
+    k = int(far.sum())
+    if k == 0:
+        return scans, 0
+    from dataclasses import replace
+
+    return replace(scans, valid=scans.valid & ~far), k
+
+
+def map_scans(tmap, scans: Scans, used: np.ndarray, boxes: np.ndarray, bounds):
+    """Old/new test and map update for scans ``used`` (in that order) with robot boxes
+    ``boxes`` (one row per used scan)."""
+    from ivslam_cli.slam.lidar_map import update_map
+
+    all_boxes = np.zeros((len(scans), 6))
+    all_boxes[used] = boxes
+    return update_map(tmap, scans, all_boxes, bounds, order=used)
+
+
+def grid_of(tmap) -> MapGrid:
+    """The map as a :class:`MapGrid` (row = y index) over the bounding box of its tiles."""
+    from ivslam_cli.paving import tiles as T
+
+    d = tmap.dense()
+    state = np.zeros(d.data.shape[::-1], np.uint8)
+    data = d.data.T
+    state[data == T.EMPTY_STATE] = CELL_EMPTY
+    state[data == T.OBSTACLE] = CELL_OBSTACLE
+    state[data == T.UNKNOWN] = CELL_UNKNOWN
+    return MapGrid(origin=np.array([d.i0 * d.eps, d.j0 * d.eps], float), resolution=float(d.eps),
+                   state=np.ascontiguousarray(state))
+
+
+# ---------------------------------------------------------------- the pipeline
+@dataclass
+class LidarOutput:
+    poses: Poses
+    grid: MapGrid
+    consistency: Consistency
+    stats: dict
+    dropped: list[Dropped]
+    is_old: np.ndarray  # (B,) per beam of the log
+    tmap: object  # the TileMap (flags per cell: EMPTY, OBST_NEW, OBST_OLD)
+
+
+def _box_width(b: np.ndarray) -> np.ndarray:
+    w = np.maximum(b[:, 1] - b[:, 0], b[:, 3] - b[:, 2])
+    return np.where(np.all(b[:, 0::2] <= b[:, 1::2], axis=1), w, np.nan)
+
+
+def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
+    """The LiDAR pipeline over a log (see the module docstring)."""
+    from ivslam_cli.paving.tiles import TileMap
+
+    path = log.provenance.path
+    scans = log.scans
+    if scans is None or len(scans) == 0:
+        raise IvslamError("no LiDAR scans: --mode lidar needs laser scans (sensor_msgs/LaserScan, FLASER, ...)", path)
+    t0 = time.perf_counter()
+    bounds = lidar_bounds(cfg)
+    scans, far = usable_scans(scans, cfg)
+    pred = predict_poses(log, cfg, scans)
+    t1 = time.perf_counter()
+    # stage 2 (pose contraction against the map) goes here; not implemented yet
+    tmap = TileMap(float(cfg["lidar.eps"]))
+    res = map_scans(tmap, scans, pred.used, pred.boxes, bounds)
+    t2 = time.perf_counter()
+    grid = grid_of(tmap)
+    counts = tmap.counts()
+    eps = tmap.eps
+
+    used = pred.used
+    stamp = np.asarray(scans.stamp, float)[used]
+    box3 = pred.boxes.reshape(-1, 3, 2)
+    n_beams = int(np.sum(np.diff(scans.offsets)[used]))
+    beam_scan = np.repeat(np.arange(len(scans)), np.diff(scans.offsets))
+    in_used = np.zeros(len(scans), bool)
+    in_used[used] = True
+    valid_used = int(np.count_nonzero(scans.valid & in_used[beam_scan]))
+    st = res.stats[used]
+    new_beams, old_beams = int(st[:, 3].sum()), int(st[:, 4].sum())
+    # areas: inner (empty) rounded down, outer (obstacle, unknown-or-worse) rounded up
+    area_empty = tmap.area("empty", upward=False)
+    area_obst = tmap.area("obstacle", upward=True)
+    measured_cells = int(np.count_nonzero(tmap.cells[: tmap.n]))
+    explored = float(np.nextafter(measured_cells * eps * eps, np.inf))
+
+    widths = _box_width(pred.boxes)
+    pose_hist = WidthHistory(
+        entity=np.column_stack([used, np.full(used.size, -1)]).astype(np.int64),
+        step=np.arange(used.size, dtype=np.int64), stamp=stamp, width=widths,
+        definition="largest side (x, y) of the robot pose box at each scan, metres",
+    )
+    rows = [(pred.node_stamp[k], int(k), "motion", (int(k), -1), -1,
+             f"motion step {k} -> {k + 1} (t={pred.node_stamp[k]:.3f} s) has no solution from the previous "
+             "box; skipped") for k in np.flatnonzero(pred.step_events)]
+    events = EmptyEvents(
+        stamp=np.array([r[0] for r in rows], float), step=np.array([r[1] for r in rows], np.int64),
+        constraint=np.array([r[2] for r in rows], dtype=str).reshape(-1),
+        entity=np.array([r[3] for r in rows], np.int64).reshape(-1, 2),
+        measurement=np.array([r[4] for r in rows], np.int64),
+        text=np.array([r[5] for r in rows], dtype=str).reshape(-1),
+    )
+    if pred.motion == "known poses":
+        pose_text = (f"every robot pose within ±{list(cfg['lidar.pose_margin'])} (x, y, θ) of {pred.source}"
+                     + (f"; at the {pred.interpolated} scan(s) between two given poses, within that margin of "
+                        "the hull of the two" if pred.interpolated else ""))
+    elif pred.motion == "twist":
+        pose_text = (f"the initial pose in its box ({pred.source}); the twist odometry within "
+                     "|z_v − v| ≤ odom_v + odom_v_rel·|v|, |z_ω − ω| ≤ odom_w + odom_w_rel·|v| at every instant, "
+                     "the true pose within the odom_lag_* bounds of such a path")
+    else:
+        pose_text = (f"the initial pose in its box ({pred.source}); each odometry increment within "
+                     "±(odom_trans_abs + odom_trans_rel·|Δ|) per axis and ±(odom_rot_abs + odom_rot_rel·|Δθ|), "
+                     "the robot staying within its step's bound between two odometry poses")
+    assumption = (
+        f"{pose_text}; the laser at mount {tuple(round(float(v), 6) for v in scans.mount)} (x, y, yaw) on the robot; "
+        f"every valid return within ±(range_abs + range_rel·range) of the true distance along its beam, whose "
+        f"direction is within ±bearing of its nominal angle (bounds used: range_abs {bounds.range_abs:.6g}, "
+        f"range_rel {bounds.range_rel:.6g}, bearing {bounds.bearing:.6g}); invalid beams prove nothing; "
+        "no pose contraction (the boxes are the prediction)"
+    )
+    if len(events):
+        assumption += f"; {len(events)} motion step(s) had no solution and were skipped (empty events)"
+    consistency = Consistency(empty_events=events, q={}, widths={"pose": pose_hist}, assumption=assumption)
+    duration = float(stamp[-1] - stamp[0]) if stamp.size > 1 else 0.0
+    total = t2 - t0
+    stats = {
+        "motion": pred.motion, "scans": int(len(scans)), "scans_used": int(used.size),
+        "beams": n_beams, "valid_beams": valid_used, "beyond_max_range": int(far),
+        "new_beams": new_beams, "old_beams": old_beams,
+        "eps": float(eps), "tiles": int(tmap.n_tiles), "map_bytes": int(tmap.nbytes),
+        "empty_cells": int(counts["empty"]), "obstacle_cells": int(counts["obstacle"]),
+        "measured_cells": measured_cells,
+        "area_empty_m2": float(area_empty), "area_obstacle_m2": float(area_obst), "area_explored_m2": explored,
+        "median_pose_width": float(np.nanmedian(widths)) if np.isfinite(widths).any() else float("nan"),
+        "max_pose_width": float(np.nanmax(widths)) if np.isfinite(widths).any() else float("nan"),
+        "log_duration_s": duration, "predict_s": float(t1 - t0), "map_update_s": float(t2 - t1),
+        "beams_per_s": float(n_beams / total) if total > 0 else float("nan"),
+        "interpolated_poses": int(pred.interpolated),
+    }
+    return LidarOutput(
+        poses=Poses(stamp=stamp, box=np.ascontiguousarray(box3)), grid=grid, consistency=consistency,
+        stats=stats, dropped=pred.dropped, is_old=res.is_old, tmap=tmap,
+    )
