@@ -108,6 +108,7 @@ KEYS: tuple[Key, ...] = (
     Key("lidar", "eps", 0.05, "float", "cell side ε of the map grid", "m", 0.0, True),
     Key("lidar", "max_range", 0.0, "float", "valid returns longer than this are treated as no return (they prove nothing); 0: the scan's own range_max", "m", 0.0),
     Key("lidar", "motion", "auto", "str", "dead reckoning from: twist (v, ω with odom_v/odom_w bounds), pose (odometry pose increments with odom_trans/odom_rot bounds), or auto (the stream whose bounds are set; twist if both or neither)"),
+    Key("lidar", "max_pose_width", 2.0, "float", "scans whose robot pose box is wider than this in x or y are not mapped (they would prove no free space and mark obstacle rings metres wide); 0: map every scan", "m", 0.0),
     Key("lidar", "max_step", 0.5, "float", "twist odometry: steps longer than this are cut (the step model's error grows with dt²); 0: never cut", "s", 0.0),
     Key("lidar", "poses_known", False, "bool", "guaranteed mapping only: the poses are given (known_poses) within pose_margin; no odometry needed"),
     Key("lidar", "known_poses", "auto", "str", "with poses_known, where the poses come from: truth (the log's ground truth), scan (poses recorded with each scan, e.g. CARMEN FLASER), odometry (odometry poses), or auto (the first of these the log has); interpolated at scan stamps between given poses"),

@@ -120,7 +120,8 @@ def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, 
                    f"{'' if s['converged'] else ' (not converged)'}, {events} empty event(s), "
                    f"{result.runtime_s:.2f} s -> {out}", err=True)
     elif mode == "lidar":
-        click.echo(f"lidar: {s['scans_used']}/{s['scans']} scans, {s['beams']} beams ({s['valid_beams']} valid: "
+        click.echo(f"lidar: {s['scans_used']}/{s['scans']} scans ({s['scans_mapped']} mapped), {s['beams']} beams "
+                   f"({s['valid_beams_mapped']} valid mapped: "
                    f"{s['old_beams']} old, {s['new_beams']} new), {s['motion']}; map {s['area_empty_m2']:.4g} m² "
                    f"empty, {s['area_obstacle_m2']:.4g} m² obstacle, {s['area_explored_m2']:.4g} m² explored; "
                    f"{events} empty event(s), {result.runtime_s:.2f} s -> {out}", err=True)

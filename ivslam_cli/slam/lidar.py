@@ -23,7 +23,7 @@ Stages of :func:`run_lidar` (one pass over the log, in this order):
    the scans before it, so stages 1-3 then run chunk by chunk; :func:`map_scans` already
    accepts any subset of scans in any order.)
 
-3. **map update** (:func:`ivslam_cli.slam.lidar_map.update_map`, numba over the tiles): the
+3. **map update** (:func:`ivslam_cli.slam.lidar_map.update_map`, compiled kernels over the tiles): the
    laser mount (``Scans.mount``, from tf or the reader) is applied soundly to each box; beams
    are bounded by ``bounds.range_abs``/``range_rel``/``bearing`` (the bearing bound is the
    beam angle error); returns longer than ``lidar.max_range`` and every invalid beam (no
@@ -42,12 +42,10 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from ivslam_cli import interval as iv
 from ivslam_cli.config import Config
 from ivslam_cli.errors import ConfigError, IvslamError
-from ivslam_cli.interval.rounding import down, up
 from ivslam_cli.logs.model import Dropped, LogData, Scans
 from ivslam_cli.results.model import (
     CELL_EMPTY,
@@ -59,44 +57,13 @@ from ivslam_cli.results.model import (
     Poses,
     WidthHistory,
 )
-from ivslam_cli.slam.landmarks_kernel import cap_heading, init_headings, step_contract
+from ivslam_cli.slam.lidar_poses import dead_reckon, widen_boxes
 from ivslam_cli.slam.landmarks import _bound, _col, _sym, initial_box, motion_steps
 
 MOTIONS = ("auto", "twist", "pose")
 KNOWN_SOURCES = ("auto", "truth", "scan", "odometry")
 TWIST_BOUNDS = ("odom_v", "odom_v_rel", "odom_w", "odom_w_rel", "odom_lag_xy", "odom_lag_th", "odom_lag_time")
 POSE_BOUNDS = ("odom_trans_abs", "odom_trans_rel", "odom_rot_abs", "odom_rot_rel")
-
-
-# ---------------------------------------------------------------- kernels
-@njit(cache=True)
-def dead_reckon(P, kind, U, step_events):
-    """Forward pass of the motion steps from ``P[0]`` (the other boxes unbounded): in place.
-
-    Headings wider than a turn are cut to one turn around their centre (headings are angles:
-    nothing is lost). ``step_events[k]`` counts steps that found no solution (skipped).
-    """
-    init_headings(P, kind, U)
-    for k in range(P.shape[0] - 1):
-        if not step_contract(P, k, kind, U):
-            step_events[k] += 1
-        cap_heading(P, k + 1)
-
-
-@njit(cache=True)
-def widen_boxes(P, node, reach, out):
-    """``out[j]`` = ``P[node[j]]`` widened by ``reach[j]`` = (position, heading), as the flat
-    ``(x_lo, x_hi, y_lo, y_hi, θ_lo, θ_hi)`` rows ``update_map`` takes; rounded outward."""
-    for j in range(node.shape[0]):
-        b = P[node[j]]
-        rp = reach[j, 0]
-        rt = reach[j, 1]
-        out[j, 0] = down(b[0, 0] - rp)
-        out[j, 1] = up(b[0, 1] + rp)
-        out[j, 2] = down(b[1, 0] - rp)
-        out[j, 3] = up(b[1, 1] + rp)
-        out[j, 4] = down(b[2, 0] - rt)
-        out[j, 5] = up(b[2, 1] + rt)
 
 
 # ---------------------------------------------------------------- configuration
@@ -322,8 +289,15 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
     pred = predict_poses(log, cfg, scans)
     t1 = time.perf_counter()
     # stage 2 (pose contraction against the map) goes here; not implemented yet
+    widths = _box_width(pred.boxes)
+    max_w = float(cfg["lidar.max_pose_width"])
+    narrow = widths <= max_w if max_w > 0 else np.ones(widths.shape, bool)
+    dropped = list(pred.dropped)
+    if (~narrow).any():
+        dropped.append(Dropped("scans", int((~narrow).sum()),
+                               f"robot pose box wider than lidar.max_pose_width = {max_w:g} m (not mapped)"))
     tmap = TileMap(float(cfg["lidar.eps"]))
-    res = map_scans(tmap, scans, pred.used, pred.boxes, bounds)
+    res = map_scans(tmap, scans, pred.used[narrow], pred.boxes[narrow], bounds)
     t2 = time.perf_counter()
     grid = grid_of(tmap)
     counts = tmap.counts()
@@ -337,7 +311,9 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
     in_used = np.zeros(len(scans), bool)
     in_used[used] = True
     valid_used = int(np.count_nonzero(scans.valid & in_used[beam_scan]))
-    st = res.stats[used]
+    mapped = used[narrow]
+    valid_mapped = int(np.count_nonzero(scans.valid & np.isin(beam_scan, mapped)))
+    st = res.stats[mapped]
     new_beams, old_beams = int(st[:, 3].sum()), int(st[:, 4].sum())
     # areas: inner (empty) rounded down, outer (obstacle, unknown-or-worse) rounded up
     area_empty = tmap.area("empty", upward=False)
@@ -345,7 +321,6 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
     measured_cells = int(np.count_nonzero(tmap.cells[: tmap.n]))
     explored = float(np.nextafter(measured_cells * eps * eps, np.inf))
 
-    widths = _box_width(pred.boxes)
     pose_hist = WidthHistory(
         entity=np.column_stack([used, np.full(used.size, -1)]).astype(np.int64),
         step=np.arange(used.size, dtype=np.int64), stamp=stamp, width=widths,
@@ -379,6 +354,7 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
         f"direction is within ±bearing of its nominal angle (bounds used: range_abs {bounds.range_abs:.6g}, "
         f"range_rel {bounds.range_rel:.6g}, bearing {bounds.bearing:.6g}); invalid beams prove nothing; "
         "no pose contraction (the boxes are the prediction)"
+        + (f"; {int((~narrow).sum())} scan(s) with pose boxes wider than {max_w:g} m not mapped" if (~narrow).any() else "")
     )
     if len(events):
         assumption += f"; {len(events)} motion step(s) had no solution and were skipped (empty events)"
@@ -387,7 +363,8 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
     total = t2 - t0
     stats = {
         "motion": pred.motion, "scans": int(len(scans)), "scans_used": int(used.size),
-        "beams": n_beams, "valid_beams": valid_used, "beyond_max_range": int(far),
+        "scans_mapped": int(mapped.size), "beams": n_beams, "valid_beams": valid_used,
+        "beams_mapped": int(np.sum(np.diff(scans.offsets)[mapped])), "valid_beams_mapped": valid_mapped, "beyond_max_range": int(far),
         "new_beams": new_beams, "old_beams": old_beams,
         "eps": float(eps), "tiles": int(tmap.n_tiles), "map_bytes": int(tmap.nbytes),
         "empty_cells": int(counts["empty"]), "obstacle_cells": int(counts["obstacle"]),
@@ -401,5 +378,5 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
     }
     return LidarOutput(
         poses=Poses(stamp=stamp, box=np.ascontiguousarray(box3)), grid=grid, consistency=consistency,
-        stats=stats, dropped=pred.dropped, is_old=res.is_old, tmap=tmap,
+        stats=stats, dropped=dropped, is_old=res.is_old, tmap=tmap,
     )
