@@ -286,6 +286,7 @@ class Report:
     rejected_by_reason: dict[str, int]
     map_cells: dict[str, int]
     map_area_m2: dict[str, float]
+    map_beams: dict[str, int] = field(default_factory=dict)  # lidar: scans/beams mapped, old/new
 
     @property
     def empty_events(self) -> int:
@@ -339,6 +340,12 @@ def compute_report(r: Result) -> Report:
         for name, code in (("unknown", CELL_UNKNOWN), ("empty", CELL_EMPTY), ("obstacle", CELL_OBSTACLE)):
             cells[name] = int(np.count_nonzero(r.grid.state == code))
             area[name] = cells[name] * r.grid.resolution**2
+        if "measured_cells" in r.stats:  # cells with any flag (proven free, or in some P_OBSTACLE^k / P_OLD^k)
+            cells["explored"] = int(r.stats["measured_cells"])
+            area["explored"] = cells["explored"] * r.grid.resolution**2
+    beams = {name: int(r.stats[key]) for key, name in (
+        ("scans", "scans"), ("scans_mapped", "scans_mapped"), ("beams", "beams"),
+        ("valid_beams_mapped", "valid_mapped"), ("old_beams", "old"), ("new_beams", "new")) if key in r.stats}
     return Report(
         result=r,
         containment=cont,
@@ -352,6 +359,7 @@ def compute_report(r: Result) -> Report:
         rejected_by_reason=dict(Counter(str(x) for x in r.consistency.rejected.reason)),
         map_cells=cells,
         map_area_m2=area,
+        map_beams=beams,
     )
 
 

@@ -93,6 +93,7 @@ def report_dict(rep: Report) -> dict[str, Any]:
             "shape": list(r.grid.shape),
             "cells": rep.map_cells,
             "area_m2": rep.map_area_m2,
+            "beams": rep.map_beams,
         }
     return out
 

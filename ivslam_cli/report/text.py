@@ -126,4 +126,12 @@ def render_text(rep: Report, source: str = "") -> str:
         add(f"map grid:   {g.shape[1]}×{g.shape[0]} cells of {g.resolution:g} m at origin "
             f"({g.origin[0]:g}, {g.origin[1]:g})")
         add("            " + ", ".join(f"{k} {rep.map_cells[k]} cells = {rep.map_area_m2[k]:.4g} m²" for k in rep.map_cells))
+        if "explored" in rep.map_cells:
+            add("            (explored: cells proven free or in some beam's P_OBSTACLE^k / P_OLD^k; the map's obstacle "
+                "state is their seed intersection)")
+        b = rep.map_beams
+        if b:
+            add(f"beams:      {b.get('scans_mapped', 0)} of {b.get('scans', 0)} scans mapped, {b.get('beams', 0)} beams, "
+                f"{b.get('valid_mapped', 0)} valid in mapped scans: {b.get('old', 0)} old, {b.get('new', 0)} new "
+                "(old: its P_OBSTACLE^{i,k} meets no unmeasured cell of the map before its scan)")
     return "\n".join(out) + "\n"

@@ -140,9 +140,11 @@ def _given_poses(log: LogData, scans: Scans, source: str) -> tuple[np.ndarray, n
     if source == "scan":
         if not has_scan:
             raise IvslamError("lidar.known_poses = scan, but the log records no pose with its scans", path)
-        a = np.asarray(rows, float)
-        a = a[np.argsort(a[:, 0], kind="stable")]  # the scans were sorted the same way
-        return a[:, 0], a[:, 1:4], "the poses recorded with the scans"
+        # (x, y, θ) per scan in file order: the scans' order unless the reader sorted them
+        if any(d.stream == "scans" and "out-of-order" in d.reason for d in log.provenance.dropped):
+            raise IvslamError("lidar.known_poses = scan: the reader reordered the scans, so the poses recorded "
+                              "with them cannot be matched; use truth or odometry", path)
+        return np.asarray(scans.stamp, float), np.asarray(rows, float)[:, :3], "the poses recorded with the scans"
     if not has_odo:
         raise IvslamError("lidar.known_poses = odometry, but the log has no odometry poses", path)
     return np.asarray(odo.stamp, float), np.asarray(odo.pose, float), "the odometry poses"
@@ -268,6 +270,7 @@ class LidarOutput:
     dropped: list[Dropped]
     is_old: np.ndarray  # (B,) per beam of the log
     tmap: object  # the TileMap (flags per cell: EMPTY, OBST_NEW, OBST_OLD)
+    mapped: np.ndarray  # indices of the scans that went into the map
 
 
 def _box_width(b: np.ndarray) -> np.ndarray:
@@ -378,5 +381,5 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
     }
     return LidarOutput(
         poses=Poses(stamp=stamp, box=np.ascontiguousarray(box3)), grid=grid, consistency=consistency,
-        stats=stats, dropped=dropped, is_old=res.is_old, tmap=tmap,
+        stats=stats, dropped=dropped, is_old=res.is_old, tmap=tmap, mapped=mapped,
     )
