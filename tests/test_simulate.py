@@ -28,7 +28,8 @@ def obs_residuals(log):
     dx, dy = lm[:, 0] - tr.pose[k, 0], lm[:, 1] - tr.pose[k, 1]
     rho = np.array([math.hypot(a, b) for a, b in zip(dx, dy)])
     alpha = np.array([math.atan2(b, a) for a, b in zip(dx, dy)]) - tr.pose[k, 2]
-    b_rho = log.bounds["range_abs"] + log.bounds["range_rel"] * rho
+    # the pipelines' convention: the relative part of the bound is of the measured range
+    b_rho = log.bounds["range_abs"] + log.bounds["range_rel"] * ob.range
     return np.abs(ob.range - rho), b_rho, np.abs(wrap(ob.bearing - alpha)), rho, alpha
 
 

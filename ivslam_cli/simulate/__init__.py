@@ -18,8 +18,11 @@ the error ``e = z - g(truth)`` of an in-bound measurement satisfies ``|e| <= bou
 
 ==============  =====================================================================
 ``range_abs``   range error, absolute part [m]
-``range_rel``   range error, part proportional to the true range [m/m]:
-                ``|z_range - rho| <= range_abs + range_rel * rho``
+``range_rel``   range error, part proportional to the range [m/m]: for landmark
+                observations the measured one, as the pipelines read it
+                (``|z_range - rho| <= range_abs + range_rel * z_range``); for LiDAR
+                beams the true one (``... + range_rel * rho``; the lidar pipeline
+                converts, covering both)
 ``bearing``     bearing error [rad], on the circle: ``|wrap(z - alpha)| <= bearing``
 ``heading``     (pairs) the known heading interval half-width around 0 [rad]
 ``odom_v``      twist linear speed error, absolute part [m/s]

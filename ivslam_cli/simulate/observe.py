@@ -42,7 +42,10 @@ def observe(rng: np.random.Generator, stamp: np.ndarray, pose: np.ndarray, landm
     m = rho.shape[0]
     b_rho = bounds["range_abs"] + bounds["range_rel"] * rho
     b_alpha = bounds["bearing"]
-    e_rho = noise.bounded(rng, b_rho, kind, m)
+    # the pipelines' convention: |z - rho| <= range_abs + range_rel * z (the measured range).
+    # With u = e / b_rho in [-1, 1], z = (rho + u a) / (1 - u r) gives z - rho = u (a + r z).
+    u = noise.bounded(rng, b_rho, kind, m) / np.where(b_rho > 0, b_rho, 1.0)
+    e_rho = (rho + u * bounds["range_abs"]) / (1.0 - u * bounds["range_rel"]) - rho
     e_alpha = noise.bounded(rng, b_alpha, kind, m)
 
     # gross outliers: range, bearing or both
@@ -63,7 +66,7 @@ def observe(rng: np.random.Generator, stamp: np.ndarray, pose: np.ndarray, landm
     for i in np.flatnonzero(wrong):
         r_all, a_all = predict(pose[t_idx[i]][None, :], landmark_xy)
         r_all, a_all = r_all[0], a_all[0]
-        far = (np.abs(z_rho[i] - r_all) > bounds["range_abs"] + bounds["range_rel"] * r_all) | (
+        far = (np.abs(z_rho[i] - r_all) > bounds["range_abs"] + bounds["range_rel"] * z_rho[i]) | (
             np.abs(wrap(z_alpha[i] - a_all)) > b_alpha)
         far[l_idx[i]] = False
         cand = np.flatnonzero(far)
@@ -73,7 +76,8 @@ def observe(rng: np.random.Generator, stamp: np.ndarray, pose: np.ndarray, landm
         ids[i] = landmark_id[rng.choice(cand)]
 
     inb = ~(out | wrong)
-    ok = (np.abs(z_rho - rho) <= b_rho) & (np.abs(wrap(z_alpha - alpha)) <= b_alpha)
+    ok = (np.abs(z_rho - rho) <= bounds["range_abs"] + bounds["range_rel"] * z_rho) & (
+        np.abs(wrap(z_alpha - alpha)) <= b_alpha)
     if not np.all(ok[inb]):  # pragma: no cover - guaranteed by noise.INSIDE
         raise AssertionError("in-bound observation generated out of bounds")
     obs = Observations(stamp=stamp[t_idx].copy(), landmark_id=ids, range=z_rho, bearing=z_alpha)
