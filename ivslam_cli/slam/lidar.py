@@ -215,6 +215,97 @@ def dead_reckoning_boxes(log: LogData, cfg: Config, scans: Scans) -> PosePredict
                           node_stamp=m.node_stamp, dropped=dropped)
 
 
+@dataclass
+class Tracking:
+    """What the track-and-map pass did: per used scan, whether it was contracted against the
+    map, its box before contraction, and the scans that contradicted the map beyond q."""
+
+    contracted: np.ndarray  # (S',) bool
+    before: np.ndarray  # (S', 6) predicted boxes
+    contradicted: np.ndarray  # (S',) bool: no pose of the box agrees with the map (box kept)
+    tested: int  # sub-boxes tested in all
+
+
+def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
+    """Stages 1-3 scan by scan: predict the pose box from the previous (contracted) one,
+    contract it against the map built so far (:func:`ivslam_cli.slam.lidar_contract.contract_pose`),
+    write it back into the trajectory, then add the scan to the map when its box is narrow
+    enough. Returns ``(PosePrediction, UpdateResult, narrow (S',), Tracking)``."""
+    from ivslam_cli.slam.lidar_contract import contract_pose
+    from ivslam_cli.slam.lidar_map import UpdateResult, update_map
+    from ivslam_cli.slam.lidar_poses import meet_node, propagate
+
+    path = log.provenance.path
+    odo = log.odometry
+    if odo is None or len(odo) < 2:
+        raise IvslamError("no odometry (at least two samples): --mode lidar needs a motion model, "
+                          "or --poses-known with given poses", path)
+    t = np.asarray(odo.stamp, float)
+    s = np.asarray(scans.stamp, float)
+    inside = (s >= t[0]) & (s <= t[-1])
+    dropped = []
+    if (~inside).any():
+        dropped.append(Dropped("scans", int((~inside).sum()), "outside the odometry's time span (not used)"))
+    used = np.flatnonzero(inside)
+    if used.size == 0:
+        raise IvslamError("no scan falls within the odometry's time span", path)
+    m = motion_steps(odo, cfg, s[used], prefer=_choose_motion(log, cfg), max_step=float(cfg["lidar.max_step"]),
+                     path=path)
+    n = m.node_stamp.shape[0]
+    P = np.empty((n, 3, 2))
+    P[:, :, 0] = -np.inf
+    P[:, :, 1] = np.inf
+    initial, source = initial_box(log, cfg, float(m.node_stamp[0]))
+    P[0] = iv.add(initial, _sym(m.lag[0, [0, 0, 1]]))
+    events = np.zeros(max(n - 1, 0), np.int64)
+    max_w = float(cfg["lidar.max_pose_width"])
+    q = int(cfg["lidar.q_beams"])
+    budget = int(cfg["lidar.contract_boxes"])
+    stride = int(cfg["lidar.contract_stride"])
+    boxes = np.empty((used.size, 6))
+    before = np.empty((used.size, 6))
+    contracted = np.zeros(used.size, bool)
+    contradicted = np.zeros(used.size, bool)
+    narrow = np.zeros(used.size, bool)
+    all_boxes = np.zeros((len(scans), 6))
+    is_old = np.zeros(scans.ranges.shape[0], bool)
+    stats = np.zeros((len(scans), 6), np.int64)
+    tested = 0
+    one = np.zeros(1, np.int64)
+    k_prev = 0
+    for j in range(used.size):
+        k = int(m.node[j])
+        propagate(P, m.kind, m.U, events, k_prev, k)
+        k_prev = k
+        rp, rt = float(m.reach[j, 0]), float(m.reach[j, 1])
+        box = np.empty((1, 6))
+        widen_boxes(P, m.node[j:j + 1], m.reach[j:j + 1], box)
+        box = box[0]
+        before[j] = box
+        if tmap.n_tiles > 0 and np.all(np.isfinite(box)):
+            out, kept, nt = contract_pose(tmap, scans, int(used[j]), box, bounds, q=q, stride=stride,
+                                          max_boxes=budget)
+            tested += nt
+            if kept == 0:
+                contradicted[j] = True
+            else:
+                contracted[j] = True
+                box = out
+                meet_node(P, k, box, rp, rt)
+        boxes[j] = box
+        w = max(box[1] - box[0], box[3] - box[2])
+        narrow[j] = (w <= max_w) if max_w > 0 else True
+        if narrow[j]:
+            all_boxes[used[j]] = box
+            one[0] = used[j]
+            r = update_map(tmap, scans, all_boxes, bounds, order=one)
+            is_old |= r.is_old
+            stats[used[j]] = r.stats[used[j]]
+    pred = PosePrediction(used=used, boxes=boxes, source=source, motion=m.motion, step_events=events,
+                          node_stamp=m.node_stamp, dropped=dropped)
+    return pred, UpdateResult(is_old, stats), narrow, Tracking(contracted, before, contradicted, tested)
+
+
 def predict_poses(log: LogData, cfg: Config, scans: Scans) -> PosePrediction:
     if cfg["lidar.poses_known"]:
         return known_pose_boxes(log, cfg, scans)
@@ -289,18 +380,23 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
     t0 = time.perf_counter()
     bounds = lidar_bounds(cfg)
     scans, far = usable_scans(scans, cfg)
-    pred = predict_poses(log, cfg, scans)
-    t1 = time.perf_counter()
-    # stage 2 (pose contraction against the map) goes here; not implemented yet
-    widths = _box_width(pred.boxes)
+    tmap = TileMap(float(cfg["lidar.eps"]))
     max_w = float(cfg["lidar.max_pose_width"])
-    narrow = widths <= max_w if max_w > 0 else np.ones(widths.shape, bool)
+    tracking = None
+    if not cfg["lidar.poses_known"] and cfg["lidar.contract"]:
+        pred, res, narrow, tracking = track_and_map(log, cfg, scans, bounds, tmap)
+        t1 = time.perf_counter()
+        widths = _box_width(pred.boxes)
+    else:
+        pred = predict_poses(log, cfg, scans)
+        t1 = time.perf_counter()
+        widths = _box_width(pred.boxes)
+        narrow = widths <= max_w if max_w > 0 else np.ones(widths.shape, bool)
+        res = map_scans(tmap, scans, pred.used[narrow], pred.boxes[narrow], bounds)
     dropped = list(pred.dropped)
     if (~narrow).any():
         dropped.append(Dropped("scans", int((~narrow).sum()),
                                f"robot pose box wider than lidar.max_pose_width = {max_w:g} m (not mapped)"))
-    tmap = TileMap(float(cfg["lidar.eps"]))
-    res = map_scans(tmap, scans, pred.used[narrow], pred.boxes[narrow], bounds)
     t2 = time.perf_counter()
     grid = grid_of(tmap)
     counts = tmap.counts()
@@ -332,6 +428,12 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
     rows = [(pred.node_stamp[k], int(k), "motion", (int(k), -1), -1,
              f"motion step {k} -> {k + 1} (t={pred.node_stamp[k]:.3f} s) has no solution from the previous "
              "box; skipped") for k in np.flatnonzero(pred.step_events)]
+    if tracking is not None:
+        rows += [(float(stamp[j]), int(used[j]), "scan_qinter", (int(used[j]), -1), -1,
+                  f"scan {int(used[j])} (t={float(stamp[j]):.3f} s): every pose of its box puts more than "
+                  f"q = {cfg['lidar.q_beams']} beam ends in proven-free cells; its box kept uncontracted")
+                 for j in np.flatnonzero(tracking.contradicted)]
+        rows.sort(key=lambda r: r[0])
     events = EmptyEvents(
         stamp=np.array([r[0] for r in rows], float), step=np.array([r[1] for r in rows], np.int64),
         constraint=np.array([r[2] for r in rows], dtype=str).reshape(-1),
@@ -356,7 +458,9 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
         f"every valid return within ±(range_abs + range_rel·range) of the true distance along its beam, whose "
         f"direction is within ±bearing of its nominal angle (bounds used: range_abs {bounds.range_abs:.6g}, "
         f"range_rel {bounds.range_rel:.6g}, bearing {bounds.bearing:.6g}); invalid beams prove nothing; "
-        "no pose contraction (the boxes are the prediction)"
+        + ("no pose contraction (the boxes are the prediction)" if tracking is None else
+           f"the world static but for at most q = {cfg['lidar.q_beams']} beams per scan (pose boxes contracted "
+           "against the map: a pose is excluded when more than q beam ends of its scan fall in proven-free cells)")
         + (f"; {int((~narrow).sum())} scan(s) with pose boxes wider than {max_w:g} m not mapped" if (~narrow).any() else "")
     )
     if len(events):
@@ -379,6 +483,14 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
         "beams_per_s": float(n_beams / total) if total > 0 else float("nan"),
         "interpolated_poses": int(pred.interpolated),
     }
+    if tracking is not None:
+        bw = _box_width(tracking.before)
+        stats.update({
+            "scans_contracted": int(tracking.contracted.sum()),
+            "scans_contradicting_map": int(tracking.contradicted.sum()),
+            "contraction_boxes_tested": int(tracking.tested),
+            "median_predicted_width": float(np.nanmedian(bw)) if np.isfinite(bw).any() else float("nan"),
+        })
     return LidarOutput(
         poses=Poses(stamp=stamp, box=np.ascontiguousarray(box3)), grid=grid, consistency=consistency,
         stats=stats, dropped=dropped, is_old=res.is_old, tmap=tmap, mapped=mapped,

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from numba import njit
 
+from ivslam_cli.interval.angles import angle_meet_narrow
 from ivslam_cli.interval.rounding import down, up
 from ivslam_cli.slam.landmarks_kernel import cap_heading, init_headings, step_contract
 
@@ -39,3 +40,28 @@ def widen_boxes(P, node, reach, out):
         out[j, 5] = up(b[2, 1] + rt)
 
 
+
+
+@njit(cache=True)
+def propagate(P, kind, U, step_events, k0, k1):
+    """Forward pass of steps ``k0 .. k1 - 1`` (``P[k0]`` known): in place, as :func:`dead_reckon`."""
+    for k in range(k0, k1):
+        if not step_contract(P, k, kind, U):
+            step_events[k] += 1
+        cap_heading(P, k + 1)
+
+
+@njit(cache=True)
+def meet_node(P, k, box, rp, rt):
+    """``P[k]`` ∩= the robot box (6,) of an event at node ``k`` widened back by its reach
+    ``(rp, rt)`` (the node's box holds the modelled pose, within the reach of the event's).
+    Returns False if they do not meet (nothing written)."""
+    xl = max(P[k, 0, 0], down(box[0] - rp))
+    xh = min(P[k, 0, 1], up(box[1] + rp))
+    yl = max(P[k, 1, 0], down(box[2] - rp))
+    yh = min(P[k, 1, 1], up(box[3] + rp))
+    tl, th = angle_meet_narrow(P[k, 2, 0], P[k, 2, 1], down(box[4] - rt), up(box[5] + rt))
+    if not (xl <= xh and yl <= yh and tl <= th):
+        return False
+    P[k, 0, 0], P[k, 0, 1], P[k, 1, 0], P[k, 1, 1], P[k, 2, 0], P[k, 2, 1] = xl, xh, yl, yh, tl, th
+    return True
