@@ -445,3 +445,231 @@ def test_old_new_full_and_cheap_forms():
     # P_OBSTACLE^{i,k} was unmeasured; beams far from the explored end are old in both
     _, obst = scan_sets(scans, k, boxes[k], bounds, eps)
     assert (m.get(obst[:, 0], obst[:, 1]) == 0).any() == bool((v & ~cheap_old).any())
+
+
+# ---------------------------------------------------------------- fast path vs the reference
+# lidar_kernel keeps the cell-by-cell quadtree as *_reference: the fast path (certified blocks,
+# fast bearings with an error filter, O(1) window tests) must give the same cells, beams, map
+# flags, tile order and counts, bit for bit.
+from ivslam_cli.slam import lidar_kernel as K  # noqa: E402
+from ivslam_cli.slam.lidar_geometry import ATAN_ERR, atan2_fast, atan_poly  # noqa: E402
+from ivslam_cli.slam.lidar_map import sensor_boxes  # noqa: E402
+
+GEOMETRIES = {  # name: (beams, angle_min, increment)
+    "urg": (BEAMS, A0, INC),
+    "360": (360, -math.pi, 2 * math.pi / 360),
+    "full-overlap": (400, -math.pi, 2 * math.pi / 380),  # more than one turn
+    "narrow": (181, -0.5 * math.pi, math.pi / 180),
+}
+
+
+def ray_scans(rng, segs, poses, mount, geometry, r_abs, r_rel, invalid=0.0, phantom=0.0):
+    """Nominal-ray scans of ``segs`` from robot poses (T, 3) for a scan ``geometry``: bounded
+    noise, some beams made invalid, some phantom returns (short ranges); no truth needed."""
+    nb, a0, inc = GEOMETRIES[geometry]
+    T = poses.shape[0]
+    a, d = segs[:, :2], segs[:, 2:] - segs[:, :2]
+    out_r, out_v = [], []
+    for k in range(T):
+        x, y, th = poses[k]
+        o = np.array([x + math.cos(th) * mount[0] - math.sin(th) * mount[1],
+                      y + math.sin(th) * mount[0] + math.cos(th) * mount[1]])
+        beta = th + mount[2] + a0 + inc * np.arange(nb)
+        u = np.stack([np.cos(beta), np.sin(beta)], 1)[:, None, :]  # (B, 1, 2)
+        w = a[None] - o  # (1, K, 2)
+        den = u[..., 0] * d[None, :, 1] - u[..., 1] * d[None, :, 0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (w[..., 0] * d[None, :, 1] - w[..., 1] * d[None, :, 0]) / den
+            s = (w[..., 0] * u[..., 1] - w[..., 1] * u[..., 0]) / den
+        t = np.where((den != 0) & (s >= 0) & (s <= 1) & (t > 0), t, np.inf).min(1)
+        t = np.where(rng.random(nb) < phantom, rng.uniform(0.1, 1.0, nb) * np.minimum(t, RANGE_MAX), t)
+        b = r_abs + r_rel * np.where(np.isfinite(t), t, 0.0)
+        z = np.where(np.isfinite(t), t + 0.999 * rng.uniform(-1, 1, nb) * b, 0.0).astype(np.float32)
+        ok = np.isfinite(t) & (z >= np.float32(RANGE_MIN)) & (z <= np.float32(RANGE_MAX))
+        ok &= rng.random(nb) >= invalid
+        out_r.append(np.where(ok, z, np.float32(0.0)))
+        out_v.append(ok)
+    ones = np.ones(T)
+    return Scans(stamp=np.arange(T) * 0.1, angle_min=ones * a0, angle_increment=ones * inc,
+                 range_min=ones * RANGE_MIN, range_max=ones * RANGE_MAX,
+                 offsets=np.arange(T + 1, dtype=np.int64) * nb,
+                 ranges=np.concatenate(out_r), valid=np.concatenate(out_v), mount=tuple(mount))
+
+
+def _cellset(ix, iy):
+    cells = list(zip(ix.tolist(), iy.tolist()))
+    assert len(set(cells)) == len(cells)  # blocks and cells never overlap
+    return set(cells)
+
+
+def _random_scan_case(seed):
+    rng = np.random.default_rng(seed)
+    segs, room = random_world(rng)
+    pose = random_pose(rng, segs, room)
+    pose[2] = rng.uniform(-8.0, 8.0)  # headings beyond +-pi: every branch of the windows
+    geometry = str(rng.choice(list(GEOMETRIES)))
+    mount = (float(rng.uniform(-0.15, 0.15)), float(rng.uniform(-0.05, 0.05)),
+             float(rng.choice([0.0, math.pi / 2, math.pi, rng.uniform(-4, 4)])))
+    inc = GEOMETRIES[geometry][2]
+    bounds = LidarBounds(0.03, 0.01, float(rng.choice([0.0, 0.5, 0.75, 2.0])) * inc)
+    scans = ray_scans(rng, segs, pose[None], mount, geometry, 0.03, 0.01,
+                      invalid=float(rng.choice([0.0, 0.1, 0.6])), phantom=float(rng.choice([0.0, 0.05])))
+    wxy = float(rng.choice([0.0, 0.02, 0.2, 0.3]))
+    wth = float(rng.choice([0.0, math.radians(0.5), math.radians(3), math.radians(5)]))
+    box = random_box(rng, pose, wxy, wth, full=bool(rng.random() < 0.5))
+    eps = float(rng.choice([0.05, 0.1, 0.031]))
+    return scans, box, bounds, eps
+
+
+@given(st.integers(0, 2**32 - 1))
+@settings(max_examples=60, **SETTINGS)
+def test_fast_scan_cells_equal_reference(seed):
+    """P_EMPTY^k and P_OBSTACLE^k (beam-by-beam and hull modes) of the fast path are the
+    reference's, over scan geometries (240°, 360°, more than a turn, 180°), headings in
+    [-8, 8] rad, rotated mounts, pose boxes from a point to ±0.3 m / ±5°, ray-like and wide
+    beams, invalid beams and phantom returns."""
+    scans, box, bounds, eps = _random_scan_case(seed)
+    sb = sensor_boxes(box, scans.mount)[0]
+    args = (scans.ranges, scans.valid, float(scans.angle_min[0]), float(scans.angle_increment[0]), sb,
+            bounds.range_abs, bounds.range_rel, bounds.bearing, eps)
+    for exact in (True, False):
+        new = K.scan_cells(*args, exact)
+        ref = K.scan_cells_reference(*args, exact)
+        assert _cellset(new[0], new[1]) == _cellset(ref[0], ref[1])
+        assert _cellset(new[2], new[3]) == _cellset(ref[2], ref[3])
+
+
+def _run_log(fn, tmap, scans, boxes, bounds, order, exact, write):
+    is_old = np.zeros(scans.ranges.shape[0], dtype=np.bool_)
+    stats = np.zeros((len(scans), 6), dtype=np.int64)
+    arrays = fn(*tmap.arrays(), scans.ranges, scans.valid, scans.offsets, scans.angle_min, scans.angle_increment,
+                sensor_boxes(boxes, scans.mount), np.asarray(order, np.int64), bounds.range_abs,
+                bounds.range_rel, bounds.bearing, tmap.eps, exact, write, is_old, stats)
+    tmap.set_arrays(*arrays)
+    return is_old, stats
+
+
+def _same_maps(a: TileMap, b: TileMap) -> None:
+    assert a.n == b.n
+    assert np.array_equal(a.coords[: a.n], b.coords[: b.n])  # same tiles, allocated in the same order
+    assert np.array_equal(a.cells[: a.n], b.cells[: b.n])
+
+
+@given(st.integers(0, 2**32 - 1))
+@settings(max_examples=8, **SETTINGS)
+def test_fast_update_log_equal_reference(seed):
+    """The map update over a log (new ground, then the same ground again, in another order and
+    without writing) gives the reference's map (flags, tiles and their order), old/new beams
+    and counts of empty cells, obstacle cells, new and old beams."""
+    rng = np.random.default_rng(seed)
+    segs, room = random_world(rng)
+    poses = np.array([random_pose(rng, segs, room) for _ in range(6)])
+    poses[:, 2] += rng.choice([0.0, 2 * math.pi, -4 * math.pi])
+    geometry = str(rng.choice(["urg", "360"]))
+    mount = (0.1, 0.0, float(rng.choice([0.0, math.pi])))
+    inc = GEOMETRIES[geometry][2]
+    bounds = LidarBounds(0.03, 0.01, float(rng.choice([0.0, 1.0])) * inc)
+    invalid = float(rng.choice([0.0, 0.1]))
+    scans = ray_scans(rng, segs, poses, mount, geometry, 0.03, 0.01, invalid=invalid, phantom=0.02)
+    boxes = np.array([random_box(rng, p, 0.2, math.radians(3)) for p in poses])
+    eps = float(rng.choice([0.05, 0.1]))
+    for exact in (True, False):
+        new, ref = TileMap(eps), TileMap(eps)
+        runs = [(np.arange(len(scans)), True), (rng.permutation(len(scans)), True),
+                (rng.permutation(len(scans))[:3], False)]
+        for order, write in runs:
+            a = _run_log(K.update_log, new, scans, boxes, bounds, order, exact, write)
+            b = _run_log(K.update_log_reference, ref, scans, boxes, bounds, order, exact, write)
+            _same_maps(new, ref)
+            assert np.array_equal(a[0], b[0])  # old beams
+            assert np.array_equal(a[1][:, 1:5], b[1][:, 1:5])  # empty, obstacle, new, old counts
+        assert new.counts()["obstacle"] > 0
+        assert new.counts()["empty"] > 0 or invalid > 0  # invalid beams prove no free space
+
+
+def test_fast_path_grows_its_buffers():
+    """Buffers too small for a scan are reported (and the scan redone with larger ones): on a
+    fine grid, with thousands of records, the same cells as the reference."""
+    rng = np.random.default_rng(11)
+    segs, room = random_world(rng)
+    pose = random_pose(rng, segs, room)
+    scans = ray_scans(rng, segs, pose[None], (0.0, 0.0, 0.0), "urg", 0.03, 0.01)
+    bounds = LidarBounds(0.03, 0.01, 0.0)
+    sb = sensor_boxes(random_box(rng, pose, 0.05, math.radians(0.5)), scans.mount)[0]
+    args = (scans.ranges, scans.valid, float(scans.angle_min[0]), float(scans.angle_increment[0]), sb,
+            bounds.range_abs, bounds.range_rel, bounds.bearing, 0.011)
+    nb = BEAMS
+    lg, t_free, t_lo, t_hi, t_fmax, t_gap = K._scan_buffers(nb)
+    small = [np.empty((1, 3), np.int64), np.empty((1, 4), np.int64), np.empty((1, 6), np.int64),
+             np.empty((1, 6), np.int64), np.empty((1, 2))]
+    keys, slots, cells = np.full(4, np.iinfo(np.int64).min), np.full(4, -1), np.zeros((1, TILE, TILE), np.uint8)
+    ok = K.traverse(keys, slots, cells, *args[:9], True, lg, t_free, t_lo, t_hi, t_fmax, t_gap,
+                    np.zeros(nb, np.bool_), *small, np.zeros(4, np.int64))[0]
+    assert not ok
+    new, ref = K.scan_cells(*args, True), K.scan_cells_reference(*args, True)
+    assert new[2].shape[0] > 4096 and new[0].shape[0] > 1024
+    assert _cellset(new[0], new[1]) == _cellset(ref[0], ref[1])
+    assert _cellset(new[2], new[3]) == _cellset(ref[2], ref[3])
+
+
+def test_atan2_fast_error_bound():
+    """ATAN_ERR bounds |atan2_fast - atan2|: the polynomial's error at 2^22 + 1 points of [0, 1]
+    plus its largest possible change between two of them (|d/dt (P - atan)| <= sum |(2k+1) c_k|
+    + 1), then the argument reduction on random and special inputs."""
+    from numba import njit
+
+    @njit
+    def poly(t):
+        out = np.empty(t.shape[0])
+        for i in range(t.shape[0]):
+            out[i] = atan_poly(t[i])
+        return out
+
+    @njit
+    def fast(y, x):
+        out = np.empty(y.shape[0])
+        for i in range(y.shape[0]):
+            out[i] = atan2_fast(y[i], x[i])
+        return out
+
+    from ivslam_cli.slam import lidar_geometry as G
+
+    n = 2**22
+    t = np.linspace(0.0, 1.0, n + 1)
+    sampled = float(np.max(np.abs(poly(t) - np.arctan(t))))
+    coeffs = [G._AT0, G._AT1, G._AT2, G._AT3, G._AT4, G._AT5, G._AT6]
+    lip = sum(abs((2 * k + 1) * c) for k, c in enumerate(coeffs)) + 1.0
+    assert sampled + lip * 0.5 / n + 1e-15 < ATAN_ERR / 2  # half of the bound for the reduction
+    rng = np.random.default_rng(1)
+    ang = np.concatenate([rng.uniform(-math.pi, math.pi, 200_000), np.arange(-8, 9) * math.pi / 8])
+    r = 10.0 ** rng.uniform(-8, 6, ang.shape[0])
+    y, x = r * np.sin(ang), r * np.cos(ang)
+    err = np.abs(fast(y, x) - np.arctan2(y, x))
+    err = np.minimum(err, 2 * math.pi - err)  # +-pi
+    assert err.max() < ATAN_ERR
+    assert fast(np.zeros(1), np.zeros(1))[0] == 0.0
+
+
+@given(st.integers(0, 2**32 - 1))
+@settings(max_examples=40, **SETTINGS)
+def test_window_meets_test_is_exact(seed):
+    """``_meets`` (hull, then the largest gap between consecutive valid beams, then a scan)
+    answers "does a valid beam of [l, r] have lo <= a and hi >= b" exactly."""
+    rng = np.random.default_rng(seed)
+    nb = int(rng.integers(1, 300))
+    z = np.cumsum(rng.normal(0, rng.choice([0.01, 0.1, 1.0]), nb)) + 3.0
+    z = np.where(rng.random(nb) < 0.05, rng.uniform(0.1, 6.0, nb), np.abs(z) + 0.05)  # jumps
+    valid = rng.random(nb) >= rng.choice([0.0, 0.3, 0.9])
+    lg, t_free, t_lo, t_hi, t_fmax, t_gap = K._scan_buffers(nb)
+    K.beam_tables(z.astype(np.float32), valid, 0.03, 0.01, 1.0, t_free, t_lo, t_hi, t_fmax)
+    K._gap_table(valid, t_lo, t_hi, t_gap, nb)
+    st_ = np.zeros(4, dtype=np.int64)
+    lo, hi = t_lo[0], t_hi[0]
+    for _ in range(300):
+        l = int(rng.integers(0, nb))
+        r = int(rng.integers(l, min(nb, l + int(rng.choice([1, 5, 50, 300])))))
+        c = rng.uniform(0.0, 7.0)
+        w = rng.choice([0.0, 0.05, 0.3, 1.0])
+        a, b = c + w, c
+        expect = bool(np.any(valid[l : r + 1] & (lo[l : r + 1] <= a) & (hi[l : r + 1] >= b)))
+        assert K._meets(lg, t_lo, t_hi, t_gap, l, r, a, b, st_) == expect

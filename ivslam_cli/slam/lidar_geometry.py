@@ -55,7 +55,7 @@ def sensor_box(xl, xh, yl, yh, tl, th, mx, my, myaw):
     return sxl, sxh, syl, syh, stl, sth
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def box_ranges(dxl, dxh, dyl, dyh):
     """``[min, max]`` of ``|v|`` over the box ``[dx] x [dy]``, rounded outward."""
     if dxl > 0.0:
@@ -116,6 +116,70 @@ def box_bearings(xl, xh, yl, yh):
     return -PI_HI, PI_HI, True
 
 
+# ---------------------------------------------------------------- fast bearings (with an error bound)
+# atan(t) on [0, 1] by the odd polynomial t P(t^2) (a minimax fit, max error 2.5e-7 at t in
+# [0, 1]). ATAN_ERR bounds |atan2_fast(y, x) - atan2(y, x)| for every finite (y, x) != (0, 0),
+# roundings included; tests/test_lidar_map.py checks it by dense sampling plus a bound of the
+# error's derivative. Callers that need the exact libm-based bearings use these only where an
+# ATAN_ERR margin decides, and widen/shrink by it elsewhere.
+_AT0 = 0.9999961116918535
+_AT1 = -0.3331736826050975
+_AT2 = 0.19807816452404597
+_AT3 = -0.13233343542662843
+_AT4 = 0.07962367824301231
+_AT5 = -0.03360421454913061
+_AT6 = 0.006811788903102939
+ATAN_ERR = 4e-6
+
+
+@njit(cache=True, inline="always")
+def atan_poly(t):
+    """``atan(t)`` for ``t`` in ``[0, 1]`` within 2.5e-7 (plus roundings)."""
+    t2 = t * t
+    p = _AT6
+    p = p * t2 + _AT5
+    p = p * t2 + _AT4
+    p = p * t2 + _AT3
+    p = p * t2 + _AT2
+    p = p * t2 + _AT1
+    p = p * t2 + _AT0
+    return p * t
+
+
+@njit(cache=True, inline="always")
+def atan2_fast(y, x):
+    """``atan2(y, x)`` in ``[-pi, pi]`` within :data:`ATAN_ERR` (``(0, 0)`` gives 0)."""
+    ax = abs(x)
+    ay = abs(y)
+    if ax >= ay:
+        if ax == 0.0:
+            return 0.0
+        a = atan_poly(ay / ax)
+    else:
+        a = 0.5 * math.pi - atan_poly(ax / ay)
+    if x < 0.0:
+        a = math.pi - a
+    return -a if y < 0.0 else a
+
+
+@njit(cache=True, inline="always")
+def box_bearings_fast(xl, xh, yl, yh):
+    """:func:`box_bearings` with :func:`atan2_fast` at the same corners and in the same
+    branches: ``(lo, hi, full)`` with ``lo, hi`` within ``ATAN_ERR`` (+ an ulp) of the real
+    bearings of those corners (no outward rounding: callers add their margins)."""
+    if xl > 0.0:
+        return atan2_fast(yl, xl if yl < 0.0 else xh), atan2_fast(yh, xl if yh > 0.0 else xh), False
+    if xh < 0.0:
+        lo = atan2_fast(-yh, -xh if -yh < 0.0 else -xl)
+        hi = atan2_fast(-yl, -xh if -yl > 0.0 else -xl)
+        return lo + math.pi, hi + math.pi, False
+    if yl > 0.0:
+        return atan2_fast(yl if xh > 0.0 else yh, xh), atan2_fast(yh if xl > 0.0 else yl, xl), False
+    if yh < 0.0:
+        return atan2_fast(yl if xl > 0.0 else yh, xl), atan2_fast(yh if xh > 0.0 else yl, xh), False
+    return -PI_HI, PI_HI, True
+
+
 @njit(cache=True)
 def beam_window(pl, ph, a0, inc, h, nb):
     """Beams whose cone ``a_i + [-h, h]`` may meet bearings ``[pl, ph] + 2πZ`` (sensor frame).
@@ -158,4 +222,5 @@ def range_bounds(z, r_abs, r_rel):
     return max(lo, 0.0), hi
 
 
-__all__ = ["INF", "beam_window", "box_bearings", "box_ranges", "range_bounds", "sensor_box"]
+__all__ = ["ATAN_ERR", "INF", "atan2_fast", "beam_window", "box_bearings", "box_bearings_fast", "box_ranges",
+           "range_bounds", "sensor_box"]

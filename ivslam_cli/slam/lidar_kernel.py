@@ -30,7 +30,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ivslam_cli.interval.rounding import INF, down, up
+from ivslam_cli.interval.rounding import INF, TWO_PI_HI, TWO_PI_LO, down, up
 from ivslam_cli.paving.tiles import (
     EMPTY,
     OBST_NEW,
@@ -41,7 +41,15 @@ from ivslam_cli.paving.tiles import (
     add_tile,
     find,
 )
-from ivslam_cli.slam.lidar_geometry import beam_window, box_bearings, box_ranges, range_bounds
+from ivslam_cli.slam.lidar_geometry import (
+    ATAN_ERR,
+    atan2_fast,
+    beam_window,
+    box_bearings,
+    box_bearings_fast,
+    box_ranges,
+    range_bounds,
+)
 
 _LEVELS = TILE_SHIFT  # quadtree levels per tile (64 = 2^6 cells)
 
@@ -123,14 +131,14 @@ def _grow_i(a, need):
     return b
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _unmeasured(cells, t, lx, ly):
     return t < 0 or cells[t, lx, ly] == 0
 
 
 # ---------------------------------------------------------------- one scan, pass 1
 @njit(cache=True)
-def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps,
+def traverse_reference(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps,
              exact, lg, t_free, t_lo, t_hi, t_fmax, new, blk, cand, cand_f, stats):
     """P_EMPTY^k blocks, P_OBSTACLE^k cells and new beams of one scan from a sensor box.
 
@@ -236,7 +244,7 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
 
 # ---------------------------------------------------------------- one scan, pass 2
 @njit(cache=True)
-def apply(keys, slots, cells, coords, n, n_blk, blk, n_cand, cand, cand_f, new, valid, t_lo, t_hi):
+def apply_reference(keys, slots, cells, coords, n, n_blk, blk, n_cand, cand, cand_f, new, valid, t_lo, t_hi):
     """Write one scan into the map: EMPTY on the blocks, OBST_NEW / OBST_OLD on the cells whose
     range interval meets a new / old valid beam of their window. Returns the map arrays."""
     for k in range(n_blk):
@@ -266,7 +274,7 @@ def apply(keys, slots, cells, coords, n, n_blk, blk, n_cand, cand, cand_f, new, 
 
 # ---------------------------------------------------------------- a whole log
 @njit(cache=True)
-def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min, angle_inc,
+def update_log_reference(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min, angle_inc,
                boxes, order, r_abs, r_rel, r_alpha, eps, exact, write, is_old, scan_stats):
     """Process scans ``order`` (in that order) from sensor boxes ``boxes`` (S, 6).
 
@@ -295,7 +303,7 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
             continue
         new[:nb] = False
         st[:] = 0
-        n_blk, n_cand, blk, cand, cand_f = traverse(
+        n_blk, n_cand, blk, cand, cand_f = traverse_reference(
             keys, slots, cells, ranges[b0:b1], valid[b0:b1], angle_min[s], angle_inc[s],
             boxes[s], r_abs, r_rel, r_alpha, eps, exact, lg, t_free, t_lo, t_hi, t_fmax,
             new, blk, cand, cand_f, st)
@@ -309,7 +317,7 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
                     is_old[b0 + i] = True
                     n_old += 1
         if write:
-            keys, slots, cells, coords, n = apply(keys, slots, cells, coords, n, n_blk, blk,
+            keys, slots, cells, coords, n = apply_reference(keys, slots, cells, coords, n, n_blk, blk,
                                                   n_cand, cand, cand_f, new, valid[b0:b1],
                                                   t_lo, t_hi)
         scan_stats[s, 0] = st[0]
@@ -322,7 +330,7 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
 
 
 @njit(cache=True)
-def scan_cells(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact):
+def scan_cells_reference(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact):
     """P_EMPTY^k and P_OBSTACLE^k of one scan as cell index arrays (for tests and plots):
     ``(empty_ix, empty_iy, obst_ix, obst_iy)``."""
     nb = ranges.shape[0]
@@ -340,7 +348,7 @@ def scan_cells(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact):
     cand = np.empty((4096, 4), dtype=np.int64)
     cand_f = np.empty((4096, 2))
     st = np.zeros(3, dtype=np.int64)
-    n_blk, n_cand, blk, cand, cand_f = traverse(keys, slots, cells, ranges, valid, a0, inc, box,
+    n_blk, n_cand, blk, cand, cand_f = traverse_reference(keys, slots, cells, ranges, valid, a0, inc, box,
                                                 r_abs, r_rel, r_alpha, eps, exact, lg, t_free,
                                                 t_lo, t_hi, t_fmax, new, blk, cand, cand_f, st)
     ne = st[1]
@@ -403,3 +411,743 @@ def inclusion_new(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel,
                 if r_lo < lo[i]:
                     new[i] = True
     return new
+
+
+# ================================================================ the fast path
+# Same per-cell results as the reference traversal above, fewer and cheaper tests:
+#   - per scan, a sparse table of the gaps between consecutive valid beams makes "does a beam of
+#     this window meet this range interval" O(1) in the common case (see _meets);
+#   - blocks far enough from the sensor box ("simple": not full, bearing span < 3 rad, one branch
+#     of the scan) are decided with an *outer* beam window widened by a margin, which holds the
+#     window of every cell of the block whatever the roundings: pruned when no beam of it meets
+#     the block's range interval (exact, not only the hull) and no cell can be proven free,
+#     proven empty as the reference does, and proven *all P_OBSTACLE* at once by a certificate
+#     (_certify) instead of being refined to single cells;
+#   - a cell is tested exactly as the reference's leaf (same float expressions), with the beam
+#     window computed without the branch search when the bearings are near the scan's middle.
+# Blocks that are not simple (around the sensor box) are processed exactly as the reference.
+_REF = 0
+_SIMPLE = 1
+
+
+@njit(cache=True)
+def _gap_table(valid, t_lo, t_hi, t_gap, nb):
+    """``t_gap[0, i]``: for a valid beam, an upper bound of the distance from its range interval
+    to the next valid beam's (``+inf`` if none); ``-inf`` for invalid beams. Sparse max table."""
+    nxt = -1
+    for i in range(nb - 1, -1, -1):
+        if valid[i]:
+            if nxt < 0:
+                t_gap[0, i] = INF
+            else:
+                g1 = up(t_lo[0, nxt] - t_hi[0, i])
+                g2 = up(t_lo[0, i] - t_hi[0, nxt])
+                t_gap[0, i] = g1 if g1 > g2 else g2
+            nxt = i
+        else:
+            t_gap[0, i] = -INF
+    _build(t_gap, nb, False)
+
+
+@njit(cache=True, _nrt=False)
+def _meets(lg, t_lo, t_hi, t_gap, l, r, a, b, st):
+    """Whether a valid beam ``i`` in ``[l, r]`` has ``lo_i <= a`` and ``hi_i >= b`` (exact).
+
+    O(1) unless the window holds a jump: if the hull test passes, some valid beam ends below
+    ``b``... or meets; walking from a beam with ``lo <= a`` to one with ``hi >= b`` through
+    consecutive valid beams, a pair with none meeting must jump over ``[b, a]`` (gap > a - b).
+    So when no gap of the window exceeds ``a - b`` a beam meets; else the window is scanned.
+    """
+    if l > r:
+        return False
+    if _qmin(t_lo, lg, l, r) > a or _qmax(t_hi, lg, l, r) < b:
+        return False
+    if l == r:
+        return True
+    if _qmax(t_gap, lg, l, r - 1) <= down(a - b):
+        return True
+    for i in range(l, r + 1):
+        st[2] += 1
+        if t_lo[0, i] <= a and t_hi[0, i] >= b:
+            return True
+    return False
+
+
+@njit(cache=True, _nrt=False)
+def _window_fast(pl, ph, a0, inc, h, nb, mid, lo_edge, hi_edge):
+    """:func:`beam_window` (same results): the branch search is skipped when the bearings'
+    middle is within 3 rad of the scan's (then ``round(c / 2π) = 0``)."""
+    if not (ph - pl < 6.0):
+        return 0, nb - 1, 0, -1, False
+    c = 0.5 * (pl + ph) - mid
+    if not (-3.0 < c < 3.0):
+        return beam_window(pl, ph, a0, inc, h, nb)
+    ul = down(down(down(pl - h) - a0) / inc)
+    uh = up(up(up(ph + h) - a0) / inc)
+    if not (-1e9 < ul and uh < 1e9):
+        return 0, nb - 1, 0, -1, False
+    e_lo = int(math.floor(ul))
+    e_hi = int(math.ceil(uh))
+    cover = e_lo >= 0 and e_hi <= nb - 1
+    o_lo = max(e_lo, 0)
+    o_hi = min(e_hi, nb - 1)
+    if down(pl + TWO_PI_LO) <= hi_edge or up(ph - TWO_PI_LO) >= lo_edge:
+        o_lo, o_hi = 0, nb - 1
+    return o_lo, o_hi, e_lo, e_hi, cover
+
+
+@njit(cache=True, _nrt=False)
+def _cell(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, lg, t_free, t_lo, t_hi):
+    """The reference's leaf test of cell ``(ix, iy)`` (same float expressions).
+
+    Returns ``(code, o_lo, o_hi, r_lo, r_hi)``: code 0 = nothing (beyond every beam, no
+    window, or the window's hull misses), 1 = proven empty, 2 = the hull test passes (the cell
+    is in P_OBSTACLE^k iff a beam of ``[o_lo, o_hi]`` meets ``[r_lo, r_hi]``)."""
+    pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
+    x0 = down(ix * eps)
+    x1 = up((ix + 1) * eps)
+    y0 = down(iy * eps)
+    y1 = up((iy + 1) * eps)
+    dxl, dxh = down(x0 - pxh), up(x1 - pxl)
+    dyl, dyh = down(y0 - pyh), up(y1 - pyl)
+    r_lo, r_hi = box_ranges(dxl, dxh, dyl, dyh)
+    if r_lo > rmax:
+        return 0, 0, -1, r_lo, r_hi
+    bl, bh, full = box_bearings(dxl, dxh, dyl, dyh)
+    if full:
+        o_lo, o_hi, e_lo, e_hi, cover = 0, nb - 1, 0, -1, False
+    else:
+        o_lo, o_hi, e_lo, e_hi, cover = _window_fast(down(bl - thh), up(bh - thl), a0, inc, h, nb,
+                                                     mid, lo_edge, hi_edge)
+    if o_lo > o_hi:
+        return 0, o_lo, o_hi, r_lo, r_hi
+    if cover and r_hi < _qmin(t_free, lg, e_lo, e_hi):
+        return 1, o_lo, o_hi, r_lo, r_hi
+    if r_hi >= _qmin(t_lo, lg, o_lo, o_hi) and r_lo <= _qmax(t_hi, lg, o_lo, o_hi):
+        return 2, o_lo, o_hi, r_lo, r_hi
+    return 0, o_lo, o_hi, r_lo, r_hi
+
+
+@njit(cache=True, _nrt=False)
+def _cell_fast(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, lg, t_free, t_lo,
+               t_hi):
+    """:func:`_cell` with the bearings of :func:`box_bearings_fast`: the same results, or code
+    -1 when the bearing error ``err`` (``ATAN_ERR`` plus every rounding of the reference's
+    chain) leaves an index of the window, or its branch, undecided (then call :func:`_cell`).
+
+    The reference's window is ``floor / ceil`` of ``(bearing -/+ theta -/+ h - a0) / inc``
+    after a shift by ``2 pi m``: when the approximate value is farther than ``err / inc`` from
+    an integer, the floor / ceil are those of the exact value.
+    """
+    pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
+    x0 = down(ix * eps)
+    x1 = up((ix + 1) * eps)
+    y0 = down(iy * eps)
+    y1 = up((iy + 1) * eps)
+    dxl, dxh = down(x0 - pxh), up(x1 - pxl)
+    dyl, dyh = down(y0 - pyh), up(y1 - pyl)
+    r_lo, r_hi = box_ranges(dxl, dxh, dyl, dyh)
+    if r_lo > rmax:
+        return 0, 0, -1, r_lo, r_hi
+    bl, bh, full = box_bearings_fast(dxl, dxh, dyl, dyh)
+    if full:
+        o_lo, o_hi, e_lo, e_hi, cover = 0, nb - 1, 0, -1, False
+    else:
+        pl = bl - thh
+        ph = bh - thl
+        if not (ph - pl < 5.9):
+            return -1, 0, -1, r_lo, r_hi
+        c = 0.5 * (pl + ph) - mid
+        if not (-3.0 < c < 3.0):  # the reference's branch m = round(c / 2 pi) = +-1
+            if 3.3 < c < 9.2:
+                pl -= 2.0 * math.pi
+                ph -= 2.0 * math.pi
+            elif -9.2 < c < -3.3:
+                pl += 2.0 * math.pi
+                ph += 2.0 * math.pi
+            else:
+                return -1, 0, -1, r_lo, r_hi
+        u_lo = (pl - h - a0) / inc
+        u_hi = (ph + h - a0) / inc
+        if not (-1e8 < u_lo and u_hi < 1e8):
+            return -1, 0, -1, r_lo, r_hi
+        d = err / inc + 1e-9
+        f_lo = math.floor(u_lo - d)
+        f_hi = math.ceil(u_hi + d)
+        if f_lo != math.floor(u_lo + d) or f_hi != math.ceil(u_hi - d):
+            return -1, 0, -1, r_lo, r_hi
+        e_lo = int(f_lo)
+        e_hi = int(f_hi)
+        cover = e_lo >= 0 and e_hi <= nb - 1
+        o_lo = max(e_lo, 0)
+        o_hi = min(e_hi, nb - 1)
+        g1 = pl + 2.0 * math.pi - hi_edge  # the reference widens to the whole scan when <= 0
+        g2 = ph - 2.0 * math.pi - lo_edge  # ... or when >= 0
+        if g1 <= -err or g2 >= err:
+            o_lo, o_hi = 0, nb - 1
+        elif g1 <= err or g2 >= -err:
+            return -1, 0, -1, r_lo, r_hi
+    if o_lo > o_hi:
+        return 0, o_lo, o_hi, r_lo, r_hi
+    if cover and r_hi < _qmin(t_free, lg, e_lo, e_hi):
+        return 1, o_lo, o_hi, r_lo, r_hi
+    if r_hi >= _qmin(t_lo, lg, o_lo, o_hi) and r_lo <= _qmax(t_hi, lg, o_lo, o_hi):
+        return 2, o_lo, o_hi, r_lo, r_hi
+    return 0, o_lo, o_hi, r_lo, r_hi
+
+
+@njit(cache=True, _nrt=False)
+def _window_block(bl, bh, thl, thh, a0, inc, h, nb, mid, lo_edge, hi_edge, err):
+    """Outer window of a block from its approximate bearings ``[bl, bh]`` (within ``err``):
+    ``(o_lo, o_hi, e_lo, e_hi, cover, simple)``. ``simple``: the bearings minus ``[theta]``
+    lie within 3 rad of the scan's middle in one branch and no other branch meets the scan's
+    cones; then every cell of the block gets, in the reference, its window from that branch,
+    inside ``[e_lo, e_hi]`` (and ``cover``: inside the scan)."""
+    pl = bl - thh - err
+    ph = bh - thl + err
+    if not (ph - pl < 5.9):
+        return 0, nb - 1, 0, -1, False, False
+    c = 0.5 * (pl + ph) - mid
+    k = float(round(c / (2.0 * math.pi)))
+    if k != 0.0:
+        pl -= k * 2.0 * math.pi
+        ph -= k * 2.0 * math.pi
+    simple = (pl - mid > -3.0 and ph - mid < 3.0 and pl + 2.0 * math.pi - hi_edge > err
+              and ph - 2.0 * math.pi - lo_edge < -err)
+    u_lo = (pl - h - a0) / inc - 1e-9
+    u_hi = (ph + h - a0) / inc + 1e-9
+    if not (-1e8 < u_lo and u_hi < 1e8):
+        return 0, nb - 1, 0, -1, False, False
+    e_lo = int(math.floor(u_lo))
+    e_hi = int(math.ceil(u_hi))
+    cover = e_lo >= 0 and e_hi <= nb - 1
+    return max(e_lo, 0), min(e_hi, nb - 1), e_lo, e_hi, cover, simple
+
+
+@njit(cache=True)
+def _inner_consts(box, inc):
+    """Per-scan constants of :func:`_inner`: the centre ``(cx, cy)`` of the sensor box, the
+    half-widths ``(wx, wy)`` of a sub-box centred on it and their diagonal (rounded up), the
+    angular margin (fast atan2 error and roundings), ``1 / inc``."""
+    pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
+    cx = 0.5 * (pxl + pxh)
+    cy = 0.5 * (pyl + pyh)
+    wx = down(min(down(cx - pxl), down(pxh - cx)))
+    wy = down(min(down(cy - pyl), down(pyh - cy)))
+    rc = up(math.sqrt(up(up(wx * wx) + up(wy * wy))))
+    amg = ATAN_ERR + 1e-10 * (1.0 + abs(thl) + abs(thh))
+    return cx, cy, wx, wy, rc, amg, 1.0 / inc
+
+
+@njit(cache=True, _nrt=False)
+def _inner(x0, x1, y0, y1, box, a0, h, mid, cx, cy, wx, wy, rc, amg, inv_inc):
+    """What holds for *every* cell inside ``[x0, x1] x [y0, y1]`` (real geometry, margins far
+    above every rounding): ``(i_lo, i_hi, k_lo, k_hi)``.
+
+    - ``[i_lo, i_hi]`` (empty when ``i_lo > i_hi``; not clipped to the scan): beams in every
+      cell's window (an index outside the scan: no cell's cones cover it). With the centre
+      ``c`` and half-widths ``w`` of a sub-box of the sensor box (:func:`_inner_consts`), the
+      block's centre ``b`` and half-widths ``wb`` (``v = b - c``, ``L = |v|``), every
+      direction ``psi`` with ``|psi - angle(v)| <= rho = (dx |v_y| + dy |v_x|) / (L (L + dx +
+      dy))`` (``dx = w_x - wb_x``, ``dy = w_y - wb_y``) projects the block inside the box's
+      shadow (``L |sin(psi - angle(v))| <= dx |sin psi| + dy |cos psi|``, the right side
+      varying by at most ``(dx + dy) |psi - angle(v)|``), the block being ahead (``L cos(rho)
+      > |wb| + |w|``): it is the bearing of a sensor-to-point vector for every point of the
+      block. A beam whose cone meets ``[angle(v) - rho, angle(v) + rho] - [theta]`` is in the
+      real window of every cell, hence in the reference's (outer) one.
+    - ``[k_lo, k_hi]`` (empty when ``k_lo > k_hi``): ``[dist(b, box) + |wb|, maxdist(b, box) -
+      |wb|]``, in the range interval of every point of the block; ``k_hi`` is also a lower
+      bound of every cell's largest range.
+    """
+    pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
+    bx = 0.5 * (x0 + x1)
+    by = 0.5 * (y0 + y1)
+    wbx = up(max(up(bx - x0), up(x1 - bx)))  # a super-box of the block, centred on b
+    wby = up(max(up(by - y0), up(y1 - by)))
+    rb = up(math.sqrt(up(up(wbx * wbx) + up(wby * wby))))
+    # the range interval common to the block
+    ex = max(max(up(pxl - bx), up(bx - pxh)), 0.0)
+    ey = max(max(up(pyl - by), up(by - pyh)), 0.0)
+    d_up = up(math.sqrt(up(up(ex * ex) + up(ey * ey))))
+    mx = max(max(down(bx - pxl), down(pxh - bx)), 0.0)
+    my = max(max(down(by - pyl), down(pyh - by)), 0.0)
+    dm = down(math.sqrt(down(down(mx * mx) + down(my * my))))
+    k_lo = up(d_up + rb)
+    k_hi = down(dm - rb)
+    # beams common to the block's cells
+    ddx = down(wx - wbx)
+    ddy = down(wy - wby)
+    if not (ddx > 0.0 and ddy > 0.0):
+        return 0, -1, k_lo, k_hi
+    vx = bx - cx
+    vy = by - cy
+    L = math.sqrt(vx * vx + vy * vy)
+    if not (L > 1e-3):
+        return 0, -1, k_lo, k_hi
+    rho = (ddx * abs(vy) + ddy * abs(vx)) / (L * (L + ddx + ddy))
+    # every rounding here is relative ~1e-16 of the coordinates: margins far larger than that
+    rho = rho * (1.0 - 1e-9) - 1e-10 * (1.0 + abs(bx) + abs(by) + abs(cx) + abs(cy)) / L - amg
+    if not (rho > 0.0) or rho > 0.5:
+        return 0, -1, k_lo, k_hi
+    if not (L * (1.0 - 0.5 * rho * rho) > (rb + rc) * (1.0 + 1e-9) + 1e-9):
+        return 0, -1, k_lo, k_hi
+    alpha = atan2_fast(vy, vx)  # within ATAN_ERR (in amg, taken off rho)
+    lo_ang = alpha - rho - thh - h
+    hi_ang = alpha + rho - thl + h
+    if not (lo_ang < hi_ang):
+        return 0, -1, k_lo, k_hi
+    c = 0.5 * (lo_ang + hi_ang) - mid
+    if not (-3.0 < c < 3.0):
+        k = float(round(c / (2.0 * math.pi)))
+        lo_ang -= k * 2.0 * math.pi
+        hi_ang -= k * 2.0 * math.pi
+    u_lo = (lo_ang - a0) * inv_inc
+    u_hi = (hi_ang - a0) * inv_inc
+    if not (-1e6 < u_lo and u_hi < 1e6):
+        return 0, -1, k_lo, k_hi
+    return int(math.ceil(u_lo + 1e-6)), int(math.floor(u_hi - 1e-6)), k_lo, k_hi
+
+
+@njit(cache=True, _nrt=False)
+def _scan_new(lg, t_lo, t_hi, o_lo, o_hi, r_lo, r_hi, new, st):
+    """Mark every beam of ``[o_lo, o_hi]`` meeting ``[r_lo, r_hi]`` as new."""
+    for i in range(o_lo, o_hi + 1):
+        st[2] += 1
+        if t_lo[0, i] <= r_hi and t_hi[0, i] >= r_lo:
+            new[i] = True
+
+
+@njit(cache=True, _nrt=False)
+def _tile_slot(tl, n_tl, slot, tx, ty, what):
+    """The index of the current tile in the scan's tile list (added on its first record);
+    ``what`` (1 empty, 2 obstacle) is or-ed into its flags. -1 when the list is full."""
+    if slot < 0:
+        if n_tl >= tl.shape[0]:
+            return -1
+        slot = n_tl
+        tl[slot, 0] = tx
+        tl[slot, 1] = ty
+        tl[slot, 2] = 0
+    tl[slot, 2] |= what
+    return slot
+
+
+@njit(cache=True)
+def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps,
+             exact, lg, t_free, t_lo, t_hi, t_fmax, t_gap, new, tl, blk, mblk, cand, cand_f, stats):
+    """P_EMPTY^k, P_OBSTACLE^k and the new beams of one scan (fast path; the same cells and
+    beams as :func:`traverse_reference`).
+
+    The map (``keys, slots, cells``) is only read. Outputs, in buffers of fixed size:
+    ``tl[j] = (tx, ty, flags)`` the tiles holding records, in traversal order (flags: 1 =
+    empty blocks, 2 = cells of P_OBSTACLE^k); ``blk[k] = (ix, iy, level, j)`` proven-empty
+    blocks of tile ``tl[j]``; ``mblk[k] = (ix, iy, level, w_lo, w_hi, j)`` blocks whose every
+    cell is in P_OBSTACLE^k, ``[w_lo, w_hi]`` holding the window of each; ``cand[k] = (ix, iy,
+    o_lo, o_hi, marked, j)``, ``cand_f[k] = (r_lo, r_hi)`` single cells with their window and
+    range interval (``marked`` = in P_OBSTACLE^k; unmarked ones only in hull mode, where the
+    hull test alone puts a cell in the output). ``new[i]`` is set for the beams whose P_OBSTACLE^{i,k} meets P_UNKNOWN.
+    ``stats`` += [nodes, empty cells, beam tests, obstacle cells].
+
+    Returns ``(ok, n_tl, n_blk, n_mblk, n_cand)``; ``ok`` False: a buffer was too small
+    (``new`` and ``stats`` are then partial: grow the buffers, reset them, run again).
+    """
+    nb = ranges.shape[0]
+    h = max(r_alpha, 0.5 * inc)
+    cos_gap = 1.0 if r_alpha >= 0.5 * inc else max(0.0, down(down(math.cos(0.5 * inc)) - 1e-16))
+    rmax = beam_tables(ranges, valid, r_abs, r_rel, cos_gap, t_free, t_lo, t_hi, t_fmax)
+    n_tl = 0
+    n_blk = 0
+    n_mblk = 0
+    n_cand = 0
+    if rmax == -INF:
+        return True, n_tl, n_blk, n_mblk, n_cand
+    _gap_table(valid, t_lo, t_hi, t_gap, nb)
+    a_end = a0 + (nb - 1) * inc
+    mid = 0.5 * (a0 + a_end)
+    lo_edge = down(a0 - h)
+    hi_edge = up(up(a_end + h))
+    pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
+    # error of a fast bearing minus theta against the reference's: ATAN_ERR + roundings
+    err = ATAN_ERR + 1e-12 * (8.0 + abs(thl) + abs(thh))
+    icx, icy, iwx, iwy, irc, amg, inv_inc = _inner_consts(box, inc)
+    side = TILE * eps
+    tx0 = int(math.floor(down(down(pxl - rmax) / side))) - 1
+    tx1 = int(math.floor(up(up(pxh + rmax) / side))) + 1
+    ty0 = int(math.floor(down(down(pyl - rmax) / side))) - 1
+    ty1 = int(math.floor(up(up(pyh + rmax) / side))) + 1
+    sl = np.empty(4 * _LEVELS + 4, dtype=np.int64)
+    sx = np.empty(4 * _LEVELS + 4, dtype=np.int64)
+    sy = np.empty(4 * _LEVELS + 4, dtype=np.int64)
+    sm = np.empty(4 * _LEVELS + 4, dtype=np.int64)
+    cap_blk = blk.shape[0]
+    cap_mblk = mblk.shape[0]
+    cap_cand = cand.shape[0]
+    nodes = 0
+    n_empty = 0
+    n_obst = 0
+    for tx in range(tx0, tx1 + 1):
+        for ty in range(ty0, ty1 + 1):
+            t = find(keys, slots, tx, ty)
+            slot = -1
+            sl[0], sx[0], sy[0], sm[0] = _LEVELS, 0, 0, _REF
+            sp = 1
+            while sp > 0:
+                sp -= 1
+                lev, lx, ly, mode = sl[sp], sx[sp], sy[sp], sm[sp]
+                nodes += 1
+                ix = tx * TILE + lx
+                iy = ty * TILE + ly
+                if lev == 0:
+                    code, o_lo, o_hi, r_lo, r_hi = _cell_fast(ix, iy, eps, box, a0, inc, h, nb, rmax, mid,
+                                                              lo_edge, hi_edge, err, lg, t_free, t_lo, t_hi)
+                    if code < 0:
+                        code, o_lo, o_hi, r_lo, r_hi = _cell(ix, iy, eps, box, a0, inc, h, nb, rmax, mid,
+                                                             lo_edge, hi_edge, lg, t_free, t_lo, t_hi)
+                    if code == 0:
+                        continue
+                    if code == 1:
+                        slot = _tile_slot(tl, n_tl, slot, tx, ty, 1)
+                        if slot < 0 or n_blk >= cap_blk:
+                            return False, n_tl, n_blk, n_mblk, n_cand
+                        n_tl = max(n_tl, slot + 1)
+                        blk[n_blk, 0], blk[n_blk, 1], blk[n_blk, 2], blk[n_blk, 3] = ix, iy, 0, slot
+                        n_blk += 1
+                        n_empty += 1
+                        continue
+                    marked = _meets(lg, t_lo, t_hi, t_gap, o_lo, o_hi, r_hi, r_lo, stats)
+                    if marked and _unmeasured(cells, t, lx, ly):
+                        _scan_new(lg, t_lo, t_hi, o_lo, o_hi, r_lo, r_hi, new, stats)
+                    if marked or not exact:
+                        slot = _tile_slot(tl, n_tl, slot, tx, ty, 2 if marked else 0)
+                        if slot < 0 or n_cand >= cap_cand:
+                            return False, n_tl, n_blk, n_mblk, n_cand
+                        n_tl = max(n_tl, slot + 1)
+                        cand[n_cand, 0], cand[n_cand, 1] = ix, iy
+                        cand[n_cand, 2], cand[n_cand, 3] = o_lo, o_hi
+                        cand[n_cand, 4], cand[n_cand, 5] = (1 if marked else 0), slot
+                        cand_f[n_cand, 0], cand_f[n_cand, 1] = r_lo, r_hi
+                        n_cand += 1
+                        n_obst += 1
+                    continue
+                s = 1 << lev
+                x0 = down(ix * eps)
+                x1 = up((ix + s) * eps)
+                y0 = down(iy * eps)
+                y1 = up((iy + s) * eps)
+                dxl, dxh = down(x0 - pxh), up(x1 - pxl)
+                dyl, dyh = down(y0 - pyh), up(y1 - pyl)
+                r_lo, r_hi = box_ranges(dxl, dxh, dyl, dyh)
+                if r_lo > rmax:
+                    continue
+                bl, bh, full = box_bearings_fast(dxl, dxh, dyl, dyh)
+                simple = False
+                if not full and bh - bl < 3.0:
+                    o_lo, o_hi, e_lo, e_hi, cover, simple = _window_block(
+                        bl, bh, thl, thh, a0, inc, h, nb, mid, lo_edge, hi_edge, err)
+                if not simple:
+                    # the reference's block test (around the sensor box, near the scan's back)
+                    bl, bh, full = box_bearings(dxl, dxh, dyl, dyh)
+                    if full:
+                        o_lo, o_hi, e_lo, e_hi, cover = 0, nb - 1, 0, -1, False
+                    else:
+                        o_lo, o_hi, e_lo, e_hi, cover = beam_window(down(bl - thh), up(bh - thl),
+                                                                    a0, inc, h, nb)
+                if o_lo > o_hi:
+                    continue
+                if cover and r_hi < _qmin(t_free, lg, e_lo, e_hi):
+                    slot = _tile_slot(tl, n_tl, slot, tx, ty, 1)
+                    if slot < 0 or n_blk >= cap_blk:
+                        return False, n_tl, n_blk, n_mblk, n_cand
+                    n_tl = max(n_tl, slot + 1)
+                    blk[n_blk, 0], blk[n_blk, 1], blk[n_blk, 2], blk[n_blk, 3] = ix, iy, lev, slot
+                    n_blk += 1
+                    n_empty += s * s
+                    continue
+                freep = r_lo < _qmax(t_fmax, lg, o_lo, o_hi)
+                if not simple:
+                    obs = r_hi >= _qmin(t_lo, lg, o_lo, o_hi) and r_lo <= _qmax(t_hi, lg, o_lo, o_hi)
+                    if obs or freep:
+                        half = s >> 1
+                        for q in range(4):
+                            sl[sp] = lev - 1
+                            sx[sp] = lx + (half if (q & 1) else 0)
+                            sy[sp] = ly + (half if (q & 2) else 0)
+                            sm[sp] = _REF
+                            sp += 1
+                    continue
+                # a simple block: [o_lo, o_hi] holds every cell's window
+                if exact:
+                    obs = _meets(lg, t_lo, t_hi, t_gap, o_lo, o_hi, r_hi, r_lo, stats)
+                else:
+                    obs = r_hi >= _qmin(t_lo, lg, o_lo, o_hi) and r_lo <= _qmax(t_hi, lg, o_lo, o_hi)
+                if not obs and not freep:
+                    continue
+                u_lo, u_hi, k_lo, k_hi = _inner(x0, x1, y0, y1, box, a0, h, mid, icx, icy, iwx, iwy, irc,
+                                                amg, inv_inc)
+                i_lo = max(u_lo, 0)
+                i_hi = min(u_hi, nb - 1)
+                # no cell of the block can be proven empty: its window reaches outside the scan,
+                # or its largest range reaches the free range of a beam in every cell's window
+                if freep and u_lo <= u_hi and (u_lo < 0 or u_hi > nb - 1
+                                               or k_hi >= _qmin(t_free, lg, i_lo, i_hi)):
+                    freep = False
+                if (obs and i_lo <= i_hi and k_lo <= k_hi
+                        and _meets(lg, t_lo, t_hi, t_gap, i_lo, i_hi, k_hi, k_lo, stats)):
+                    # every cell is in P_OBSTACLE^k
+                    slot = _tile_slot(tl, n_tl, slot, tx, ty, 2)
+                    if slot < 0 or n_mblk >= cap_mblk:
+                        return False, n_tl, n_blk, n_mblk, n_cand
+                    n_tl = max(n_tl, slot + 1)
+                    mblk[n_mblk, 0], mblk[n_mblk, 1], mblk[n_mblk, 2] = ix, iy, lev
+                    mblk[n_mblk, 3], mblk[n_mblk, 4], mblk[n_mblk, 5] = o_lo, o_hi, slot
+                    n_mblk += 1
+                    n_obst += s * s
+                    # unmeasured cells: their beams are new (each cell once per log)
+                    for a in range(lx, lx + s):
+                        for b in range(ly, ly + s):
+                            if _unmeasured(cells, t, a, b):
+                                code, c_lo, c_hi, q_lo, q_hi = _cell(
+                                    tx * TILE + a, ty * TILE + b, eps, box, a0, inc, h, nb, rmax,
+                                    mid, lo_edge, hi_edge, lg, t_free, t_lo, t_hi)
+                                _scan_new(lg, t_lo, t_hi, c_lo, c_hi, q_lo, q_hi, new, stats)
+                    continue
+                if not obs and not freep:
+                    continue
+                half = s >> 1
+                for q in range(4):
+                    sl[sp] = lev - 1
+                    sx[sp] = lx + (half if (q & 1) else 0)
+                    sy[sp] = ly + (half if (q & 2) else 0)
+                    sm[sp] = _SIMPLE
+                    sp += 1
+    stats[0] += nodes
+    stats[1] += n_empty
+    stats[3] += n_obst
+    return True, n_tl, n_blk, n_mblk, n_cand
+
+
+@njit(cache=True, _nrt=False)
+def _flags(o_lo, o_hi, r_lo, r_hi, new, valid, t_lo, t_hi, cnt_new, cnt_valid):
+    """OBST_NEW / OBST_OLD of a cell of P_OBSTACLE^k with window ``[o_lo, o_hi]``: from the
+    counts of new and old valid beams in it when they decide, else beam by beam (as the
+    reference)."""
+    nn = cnt_new[o_hi + 1] - cnt_new[o_lo]
+    if nn == 0:
+        return OBST_OLD
+    if nn == cnt_valid[o_hi + 1] - cnt_valid[o_lo]:
+        return OBST_NEW
+    f = np.uint8(0)
+    for i in range(o_lo, o_hi + 1):
+        if valid[i] and t_lo[0, i] <= r_hi and t_hi[0, i] >= r_lo:
+            f |= OBST_NEW if new[i] else OBST_OLD
+            if f == (OBST_NEW | OBST_OLD):
+                break
+    return f
+
+
+@njit(cache=True, _nrt=False)
+def _write(cells, ti, n_blk, blk, n_mblk, mblk, n_cand, cand, cand_f, new, valid, box, a0, inc, h,
+           eps, rmax, lg, t_free, t_lo, t_hi, cnt_new, cnt_valid):
+    """The writes of :func:`apply` (tiles allocated: ``ti[j]`` is tile ``tl[j]``'s index)."""
+    nb = valid.shape[0]
+    a_end = a0 + (nb - 1) * inc
+    mid = 0.5 * (a0 + a_end)
+    lo_edge = down(a0 - h)
+    hi_edge = up(up(a_end + h))
+    for k in range(n_blk):
+        t = ti[blk[k, 3]]
+        s = 1 << blk[k, 2]
+        lx, ly = blk[k, 0] & TILE_MASK, blk[k, 1] & TILE_MASK
+        for a in range(lx, lx + s):
+            for b in range(ly, ly + s):
+                cells[t, a, b] |= EMPTY
+    for k in range(n_mblk):
+        ix, iy, w_lo, w_hi, t = mblk[k, 0], mblk[k, 1], mblk[k, 3], mblk[k, 4], ti[mblk[k, 5]]
+        s = 1 << mblk[k, 2]
+        lx, ly = ix & TILE_MASK, iy & TILE_MASK
+        nn = cnt_new[w_hi + 1] - cnt_new[w_lo]
+        if nn == 0 or nn == cnt_valid[w_hi + 1] - cnt_valid[w_lo]:
+            f = OBST_OLD if nn == 0 else OBST_NEW
+            for a in range(lx, lx + s):
+                for b in range(ly, ly + s):
+                    cells[t, a, b] |= f
+            continue
+        for a in range(lx, lx + s):
+            for b in range(ly, ly + s):
+                code, o_lo, o_hi, r_lo, r_hi = _cell(ix - lx + a, iy - ly + b, eps, box, a0, inc, h, nb,
+                                                     rmax, mid, lo_edge, hi_edge, lg, t_free, t_lo, t_hi)
+                cells[t, a, b] |= _flags(o_lo, o_hi, r_lo, r_hi, new, valid, t_lo, t_hi, cnt_new,
+                                         cnt_valid)
+    for k in range(n_cand):
+        if cand[k, 4] == 0:
+            continue
+        ix, iy = cand[k, 0], cand[k, 1]
+        o_lo, o_hi, r_lo, r_hi = cand[k, 2], cand[k, 3], cand_f[k, 0], cand_f[k, 1]
+        f = _flags(o_lo, o_hi, r_lo, r_hi, new, valid, t_lo, t_hi, cnt_new, cnt_valid)
+        cells[ti[cand[k, 5]], ix & TILE_MASK, iy & TILE_MASK] |= f
+
+
+@njit(cache=True)
+def apply(keys, slots, cells, coords, n, n_tl, tl, n_blk, blk, n_mblk, mblk, n_cand, cand, cand_f,
+          new, valid, box, a0, inc, r_alpha, eps, rmax, lg, t_free, t_lo, t_hi, cnt_new, cnt_valid):
+    """Write one scan into the map (fast path of :func:`apply_reference`, the same cells and
+    tiles in the same order): EMPTY on the empty blocks, OBST_NEW / OBST_OLD on the cells of
+    P_OBSTACLE^k by the new / old valid beams of their window meeting their range. Returns
+    the map arrays."""
+    ti = np.empty(max(n_tl, 1), dtype=np.int64)
+    for j in range(n_tl):  # tiles of empty blocks first, then of obstacle cells (as the reference)
+        if tl[j, 2] & 1:
+            ti[j], keys, slots, cells, coords, n = add_tile(keys, slots, cells, coords, n, tl[j, 0], tl[j, 1])
+    for j in range(n_tl):
+        if tl[j, 2] == 2:
+            ti[j], keys, slots, cells, coords, n = add_tile(keys, slots, cells, coords, n, tl[j, 0], tl[j, 1])
+    _write(cells, ti, n_blk, blk, n_mblk, mblk, n_cand, cand, cand_f, new, valid, box, a0, inc,
+           max(r_alpha, 0.5 * inc), eps, rmax, lg, t_free, t_lo, t_hi, cnt_new, cnt_valid)
+    return keys, slots, cells, coords, n
+
+
+@njit(cache=True)
+def _scan_buffers(nbmax):
+    lg = _log2_table(nbmax)
+    lev = lg[nbmax] + 1
+    return (lg, np.empty((lev, nbmax)), np.empty((lev, nbmax)), np.empty((lev, nbmax)),
+            np.empty((lev, nbmax)), np.empty((lev, nbmax)))
+
+
+@njit(cache=True)
+def _grown(a):
+    b = np.empty((2 * a.shape[0],) + a.shape[1:], dtype=a.dtype)
+    b[: a.shape[0]] = a
+    return b
+
+
+@njit(cache=True)
+def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min, angle_inc,
+               boxes, order, r_abs, r_rel, r_alpha, eps, exact, write, is_old, scan_stats):
+    """Process scans ``order`` (in that order) from sensor boxes ``boxes`` (S, 6): the same map,
+    ``is_old`` and ``scan_stats`` columns 1-4 as :func:`update_log_reference` (columns 0 and 5,
+    nodes visited and beam tests, count this path's own work). Returns the map arrays."""
+    nbmax = 1
+    for s in order:
+        nbmax = max(nbmax, offsets[s + 1] - offsets[s])
+    lg, t_free, t_lo, t_hi, t_fmax, t_gap = _scan_buffers(nbmax)
+    new = np.zeros(nbmax, dtype=np.bool_)
+    cnt_new = np.zeros(nbmax + 1, dtype=np.int64)
+    cnt_valid = np.zeros(nbmax + 1, dtype=np.int64)
+    tl = np.empty((64, 3), dtype=np.int64)
+    blk = np.empty((1024, 4), dtype=np.int64)
+    mblk = np.empty((1024, 6), dtype=np.int64)
+    cand = np.empty((4096, 6), dtype=np.int64)
+    cand_f = np.empty((4096, 2))
+    st = np.zeros(4, dtype=np.int64)
+    for s in order:
+        b0, b1 = offsets[s], offsets[s + 1]
+        nb = b1 - b0
+        if nb == 0:
+            continue
+        while True:
+            new[:nb] = False
+            st[:] = 0
+            ok, n_tl, n_blk, n_mblk, n_cand = traverse(
+                keys, slots, cells, ranges[b0:b1], valid[b0:b1], angle_min[s], angle_inc[s],
+                boxes[s], r_abs, r_rel, r_alpha, eps, exact, lg, t_free, t_lo, t_hi, t_fmax,
+                t_gap, new, tl, blk, mblk, cand, cand_f, st)
+            if ok:
+                break
+            if n_tl >= tl.shape[0]:
+                tl = _grown(tl)
+            if n_blk >= blk.shape[0]:
+                blk = _grown(blk)
+            if n_mblk >= mblk.shape[0]:
+                mblk = _grown(mblk)
+            if n_cand >= cand.shape[0]:
+                cand = _grown(cand)
+                cand_f = _grown(cand_f)
+        n_new = 0
+        n_old = 0
+        rmax = -INF
+        for i in range(nb):
+            cnt_new[i + 1] = cnt_new[i]
+            cnt_valid[i + 1] = cnt_valid[i]
+            if valid[b0 + i]:
+                rmax = max(rmax, t_hi[0, i])
+                cnt_valid[i + 1] += 1
+                if new[i]:
+                    n_new += 1
+                    cnt_new[i + 1] += 1
+                else:
+                    is_old[b0 + i] = True
+                    n_old += 1
+        if write and n_tl > 0:
+            keys, slots, cells, coords, n = apply(
+                keys, slots, cells, coords, n, n_tl, tl, n_blk, blk, n_mblk, mblk, n_cand, cand,
+                cand_f, new, valid[b0:b1], boxes[s], angle_min[s], angle_inc[s], r_alpha, eps, rmax,
+                lg, t_free, t_lo, t_hi, cnt_new, cnt_valid)
+        scan_stats[s, 0] = st[0]
+        scan_stats[s, 1] = st[1]
+        scan_stats[s, 2] = st[3]
+        scan_stats[s, 3] = n_new
+        scan_stats[s, 4] = n_old
+        scan_stats[s, 5] = st[2]
+    return keys, slots, cells, coords, n
+
+
+@njit(cache=True)
+def scan_cells(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact):
+    """P_EMPTY^k and P_OBSTACLE^k of one scan as cell index arrays (for tests and plots):
+    ``(empty_ix, empty_iy, obst_ix, obst_iy)`` (the cells of :func:`scan_cells_reference`,
+    in another order)."""
+    nb = ranges.shape[0]
+    lg, t_free, t_lo, t_hi, t_fmax, t_gap = _scan_buffers(max(nb, 1))
+    new = np.zeros(max(nb, 1), dtype=np.bool_)
+    keys = np.full(4, np.int64(-(2**63)), dtype=np.int64)
+    slots = np.full(4, -1, dtype=np.int64)
+    cells = np.zeros((1, TILE, TILE), dtype=np.uint8)
+    tl = np.empty((64, 3), dtype=np.int64)
+    blk = np.empty((1024, 4), dtype=np.int64)
+    mblk = np.empty((1024, 6), dtype=np.int64)
+    cand = np.empty((4096, 6), dtype=np.int64)
+    cand_f = np.empty((4096, 2))
+    st = np.zeros(4, dtype=np.int64)
+    while True:
+        new[:] = False
+        st[:] = 0
+        ok, n_tl, n_blk, n_mblk, n_cand = traverse(
+            keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, lg,
+            t_free, t_lo, t_hi, t_fmax, t_gap, new, tl, blk, mblk, cand, cand_f, st)
+        if ok:
+            break
+        if n_tl >= tl.shape[0]:
+            tl = _grown(tl)
+        if n_blk >= blk.shape[0]:
+            blk = _grown(blk)
+        if n_mblk >= mblk.shape[0]:
+            mblk = _grown(mblk)
+        if n_cand >= cand.shape[0]:
+            cand = _grown(cand)
+            cand_f = _grown(cand_f)
+    ex = np.empty(st[1], dtype=np.int64)
+    ey = np.empty(st[1], dtype=np.int64)
+    k = 0
+    for j in range(n_blk):
+        s = 1 << blk[j, 2]
+        for a in range(s):
+            for b in range(s):
+                ex[k] = blk[j, 0] + a
+                ey[k] = blk[j, 1] + b
+                k += 1
+    ox = np.empty(st[3], dtype=np.int64)
+    oy = np.empty(st[3], dtype=np.int64)
+    k = 0
+    for j in range(n_mblk):
+        s = 1 << mblk[j, 2]
+        for a in range(s):
+            for b in range(s):
+                ox[k] = mblk[j, 0] + a
+                oy[k] = mblk[j, 1] + b
+                k += 1
+    for j in range(n_cand):
+        ox[k] = cand[j, 0]
+        oy[k] = cand[j, 1]
+        k += 1
+    return ex, ey, ox, oy
