@@ -599,12 +599,12 @@ def test_fast_path_grows_its_buffers():
     args = (scans.ranges, scans.valid, float(scans.angle_min[0]), float(scans.angle_increment[0]), sb,
             bounds.range_abs, bounds.range_rel, bounds.bearing, 0.011)
     nb = BEAMS
-    lg, t_free, t_lo, t_hi, t_fmax, t_gap = K._scan_buffers(nb)
+    lg, T = K._fast_buffers(nb)
     small = [np.empty((1, 3), np.int64), np.empty((1, 4), np.int64), np.empty((1, 6), np.int64),
              np.empty((1, 6), np.int64), np.empty((1, 2))]
     keys, slots, cells = np.full(4, np.iinfo(np.int64).min), np.full(4, -1), np.zeros((1, TILE, TILE), np.uint8)
-    ok = K.traverse(keys, slots, cells, *args[:9], True, lg, t_free, t_lo, t_hi, t_fmax, t_gap,
-                    np.zeros(nb, np.bool_), *small, np.zeros(4, np.int64))[0]
+    ok = K.traverse(keys, slots, cells, *args[:9], True, lg, T, np.zeros(nb, np.bool_), *small,
+                    np.zeros(4, np.int64))[0]
     assert not ok
     new, ref = K.scan_cells(*args, True), K.scan_cells_reference(*args, True)
     assert new[2].shape[0] > 4096 and new[0].shape[0] > 1024
@@ -653,18 +653,18 @@ def test_atan2_fast_error_bound():
 @given(st.integers(0, 2**32 - 1))
 @settings(max_examples=40, **SETTINGS)
 def test_window_meets_test_is_exact(seed):
-    """``_meets`` (hull, then the largest gap between consecutive valid beams, then a scan)
-    answers "does a valid beam of [l, r] have lo <= a and hi >= b" exactly."""
+    """The scan's table gives a window's hull, and ``_meets`` (hull, then the largest gap
+    between consecutive valid beams, then a scan) answers "does a valid beam of [l, r] have
+    lo <= a and hi >= b" exactly."""
     rng = np.random.default_rng(seed)
     nb = int(rng.integers(1, 300))
     z = np.cumsum(rng.normal(0, rng.choice([0.01, 0.1, 1.0]), nb)) + 3.0
     z = np.where(rng.random(nb) < 0.05, rng.uniform(0.1, 6.0, nb), np.abs(z) + 0.05)  # jumps
     valid = rng.random(nb) >= rng.choice([0.0, 0.3, 0.9])
-    lg, t_free, t_lo, t_hi, t_fmax, t_gap = K._scan_buffers(nb)
-    K.beam_tables(z.astype(np.float32), valid, 0.03, 0.01, 1.0, t_free, t_lo, t_hi, t_fmax)
-    K._gap_table(valid, t_lo, t_hi, t_gap, nb)
+    lg, T = K._fast_buffers(nb)
+    K._fast_tables(z.astype(np.float32), valid, 0.03, 0.01, 1.0, T)
     st_ = np.zeros(4, dtype=np.int64)
-    lo, hi = t_lo[0], t_hi[0]
+    lo, hi = T[0, :, 0], T[0, :, 1]
     for _ in range(300):
         l = int(rng.integers(0, nb))
         r = int(rng.integers(l, min(nb, l + int(rng.choice([1, 5, 50, 300])))))
@@ -672,4 +672,6 @@ def test_window_meets_test_is_exact(seed):
         w = rng.choice([0.0, 0.05, 0.3, 1.0])
         a, b = c + w, c
         expect = bool(np.any(valid[l : r + 1] & (lo[l : r + 1] <= a) & (hi[l : r + 1] >= b)))
-        assert K._meets(lg, t_lo, t_hi, t_gap, l, r, a, b, st_) == expect
+        lo_min, hi_max, _, _ = K._win(T, lg, l, r)
+        assert lo_min == lo[l : r + 1].min() and hi_max == hi[l : r + 1].max()
+        assert K._meets(T, lg, l, r, a, b, lo_min, hi_max, st_) == expect

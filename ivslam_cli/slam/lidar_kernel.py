@@ -414,63 +414,112 @@ def inclusion_new(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel,
 
 
 # ================================================================ the fast path
-# Same per-cell results as the reference traversal above, fewer and cheaper tests:
-#   - per scan, a sparse table of the gaps between consecutive valid beams makes "does a beam of
-#     this window meet this range interval" O(1) in the common case (see _meets);
-#   - blocks far enough from the sensor box ("simple": not full, bearing span < 3 rad, one branch
-#     of the scan) are decided with an *outer* beam window widened by a margin, which holds the
-#     window of every cell of the block whatever the roundings: pruned when no beam of it meets
-#     the block's range interval (exact, not only the hull) and no cell can be proven free,
-#     proven empty as the reference does, and proven *all P_OBSTACLE* at once by a certificate
-#     (_certify) instead of being refined to single cells;
-#   - a cell is tested exactly as the reference's leaf (same float expressions), with the beam
-#     window computed without the branch search when the bearings are near the scan's middle.
-# Blocks that are not simple (around the sensor box) are processed exactly as the reference.
-_REF = 0
-_SIMPLE = 1
+# The same per-cell results as the reference traversal above (P_EMPTY^k, P_OBSTACLE^k, the new
+# beams, the map flags, the tiles and their order), with fewer and cheaper tests:
+#   - one interleaved sparse table per scan (range lo, range hi, free range, its max, and the gap
+#     between consecutive valid beams): a window's summary costs two cache lines, and "does a
+#     beam of this window meet this range interval" is O(1) unless the window holds a jump
+#     larger than the interval (_meets);
+#   - blocks away from the sensor box and from the back of the scan ("simple": one branch of
+#     the bearings, see _window_block) are tested with an *outer* window of beam indices that
+#     holds the reference window of each of their cells whatever the roundings (fast bearings,
+#     ATAN_ERR and rounding margins): proven empty, or pruned when no beam of it meets the
+#     block's range interval and no cell can be proven free (_inner's lower bound of every
+#     cell's largest range against the free ranges of beams in every cell's window), or proven
+#     all-P_OBSTACLE^k at once (_inner's certificate) instead of being refined to single cells;
+#   - a cell's reference window is computed from fast bearings when every index is farther from
+#     a rounding boundary than the error allows (_cell_fast), else exactly as the reference.
+# Blocks that are not simple (around the sensor box, the back of the scan) use the reference's
+# own block test. update_log / scan_cells / traverse / apply are the fast path; the *_reference
+# functions are the oracle of tests/test_lidar_map.py.
+_NF = 5  # fields of the interleaved table: lo (min), hi (max), free (min), free (max), gap (max)
 
 
 @njit(cache=True)
-def _gap_table(valid, t_lo, t_hi, t_gap, nb):
-    """``t_gap[0, i]``: for a valid beam, an upper bound of the distance from its range interval
-    to the next valid beam's (``+inf`` if none); ``-inf`` for invalid beams. Sparse max table."""
+def _fast_tables(ranges, valid, r_abs, r_rel, cos_gap, T):
+    """``T[0, i] = (lo_i, hi_i, free_i, free_i, gap_i)`` (the values of :func:`beam_tables`;
+    ``gap_i`` bounds the distance from beam ``i``'s range interval to the next valid beam's:
+    ``+inf`` if none, ``-inf`` for an invalid beam), then ``T[k, i]`` = min / max / min / max /
+    max over beams ``i .. i + 2^k - 1``. Returns the largest ``hi`` (``-inf``: no valid beam)."""
+    nb = ranges.shape[0]
+    rmax = -INF
+    for i in range(nb):
+        if valid[i]:
+            lo, hi = range_bounds(float(ranges[i]), r_abs, r_rel)
+            T[0, i, 0] = lo
+            T[0, i, 1] = hi
+            T[0, i, 2] = down(lo * cos_gap)
+            rmax = max(rmax, hi)
+        else:
+            T[0, i, 0] = INF
+            T[0, i, 1] = -INF
+            T[0, i, 2] = -INF
+        T[0, i, 3] = T[0, i, 2]
     nxt = -1
     for i in range(nb - 1, -1, -1):
         if valid[i]:
             if nxt < 0:
-                t_gap[0, i] = INF
+                T[0, i, 4] = INF
             else:
-                g1 = up(t_lo[0, nxt] - t_hi[0, i])
-                g2 = up(t_lo[0, i] - t_hi[0, nxt])
-                t_gap[0, i] = g1 if g1 > g2 else g2
+                g1 = up(T[0, nxt, 0] - T[0, i, 1])
+                g2 = up(T[0, i, 0] - T[0, nxt, 1])
+                T[0, i, 4] = g1 if g1 > g2 else g2
             nxt = i
         else:
-            t_gap[0, i] = -INF
-    _build(t_gap, nb, False)
+            T[0, i, 4] = -INF
+    k = 1
+    while (1 << k) <= nb:
+        half = 1 << (k - 1)
+        for i in range(nb - (1 << k) + 1):
+            j = i + half
+            T[k, i, 0] = min(T[k - 1, i, 0], T[k - 1, j, 0])
+            T[k, i, 1] = max(T[k - 1, i, 1], T[k - 1, j, 1])
+            T[k, i, 2] = min(T[k - 1, i, 2], T[k - 1, j, 2])
+            T[k, i, 3] = max(T[k - 1, i, 3], T[k - 1, j, 3])
+            T[k, i, 4] = max(T[k - 1, i, 4], T[k - 1, j, 4])
+        k += 1
+    return rmax
 
 
 @njit(cache=True, _nrt=False)
-def _meets(lg, t_lo, t_hi, t_gap, l, r, a, b, st):
-    """Whether a valid beam ``i`` in ``[l, r]`` has ``lo_i <= a`` and ``hi_i >= b`` (exact).
+def _win(T, lg, l, r):
+    """Over beams ``[l, r]`` (``l <= r``): min lo, max hi, min free, max free."""
+    k = lg[r - l + 1]
+    j = r - (1 << k) + 1
+    return (min(T[k, l, 0], T[k, j, 0]), max(T[k, l, 1], T[k, j, 1]), min(T[k, l, 2], T[k, j, 2]),
+            max(T[k, l, 3], T[k, j, 3]))
 
-    O(1) unless the window holds a jump: if the hull test passes, some valid beam ends below
-    ``b``... or meets; walking from a beam with ``lo <= a`` to one with ``hi >= b`` through
-    consecutive valid beams, a pair with none meeting must jump over ``[b, a]`` (gap > a - b).
-    So when no gap of the window exceeds ``a - b`` a beam meets; else the window is scanned.
-    """
-    if l > r:
-        return False
-    if _qmin(t_lo, lg, l, r) > a or _qmax(t_hi, lg, l, r) < b:
+
+@njit(cache=True, _nrt=False)
+def _meets(T, lg, l, r, a, b, lo_min, hi_max, st):
+    """Whether a valid beam ``i`` in ``[l, r]`` has ``lo_i <= a`` and ``hi_i >= b`` (exact);
+    ``lo_min, hi_max``: the window's hull (:func:`_win`).
+
+    O(1) unless the window holds a jump: if the hull test passes, walking from a beam with
+    ``lo <= a`` to one with ``hi >= b`` through consecutive valid beams, if none meets, some
+    pair must jump over ``[b, a]`` (gap > a - b). So when no gap of the window exceeds
+    ``a - b`` a beam meets; else the window is scanned."""
+    if l > r or lo_min > a or hi_max < b:
         return False
     if l == r:
         return True
-    if _qmax(t_gap, lg, l, r - 1) <= down(a - b):
+    k = lg[r - l]
+    if max(T[k, l, 4], T[k, r - (1 << k), 4]) <= down(a - b):
         return True
     for i in range(l, r + 1):
         st[2] += 1
-        if t_lo[0, i] <= a and t_hi[0, i] >= b:
+        if T[0, i, 0] <= a and T[0, i, 1] >= b:
             return True
     return False
+
+
+@njit(cache=True, _nrt=False)
+def _scan_new(T, o_lo, o_hi, r_lo, r_hi, new, st):
+    """Mark every beam of ``[o_lo, o_hi]`` meeting ``[r_lo, r_hi]`` as new."""
+    for i in range(o_lo, o_hi + 1):
+        st[2] += 1
+        if T[0, i, 0] <= r_hi and T[0, i, 1] >= r_lo:
+            new[i] = True
 
 
 @njit(cache=True, _nrt=False)
@@ -497,12 +546,27 @@ def _window_fast(pl, ph, a0, inc, h, nb, mid, lo_edge, hi_edge):
 
 
 @njit(cache=True, _nrt=False)
-def _cell(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, lg, t_free, t_lo, t_hi):
-    """The reference's leaf test of cell ``(ix, iy)`` (same float expressions).
+def _classify(T, lg, o_lo, o_hi, e_lo, e_hi, cover, r_lo, r_hi, st):
+    """The reference's leaf decision for a cell with window ``[o_lo, o_hi]`` (``[e_lo, e_hi]``
+    unclipped) and range interval ``[r_lo, r_hi]``: 0 nothing, 1 proven empty, 2 the hull
+    test passes but no beam meets, 3 in P_OBSTACLE^k."""
+    if o_lo > o_hi:
+        return 0
+    lo_min, hi_max, f_min, f_max = _win(T, lg, o_lo, o_hi)
+    if cover:
+        if e_lo != o_lo or e_hi != o_hi:
+            f_min = _win(T, lg, e_lo, e_hi)[2]
+        if r_hi < f_min:
+            return 1
+    if not (r_hi >= lo_min and r_lo <= hi_max):
+        return 0
+    return 3 if _meets(T, lg, o_lo, o_hi, r_hi, r_lo, lo_min, hi_max, st) else 2
 
-    Returns ``(code, o_lo, o_hi, r_lo, r_hi)``: code 0 = nothing (beyond every beam, no
-    window, or the window's hull misses), 1 = proven empty, 2 = the hull test passes (the cell
-    is in P_OBSTACLE^k iff a beam of ``[o_lo, o_hi]`` meets ``[r_lo, r_hi]``)."""
+
+@njit(cache=True, _nrt=False)
+def _cell(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, T, lg, st):
+    """The reference's leaf test of cell ``(ix, iy)`` (same float expressions): ``(code, o_lo,
+    o_hi, r_lo, r_hi)``, code as :func:`_classify` (0 also beyond every beam)."""
     pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
     x0 = down(ix * eps)
     x1 = up((ix + 1) * eps)
@@ -519,18 +583,12 @@ def _cell(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, lg, t_f
     else:
         o_lo, o_hi, e_lo, e_hi, cover = _window_fast(down(bl - thh), up(bh - thl), a0, inc, h, nb,
                                                      mid, lo_edge, hi_edge)
-    if o_lo > o_hi:
-        return 0, o_lo, o_hi, r_lo, r_hi
-    if cover and r_hi < _qmin(t_free, lg, e_lo, e_hi):
-        return 1, o_lo, o_hi, r_lo, r_hi
-    if r_hi >= _qmin(t_lo, lg, o_lo, o_hi) and r_lo <= _qmax(t_hi, lg, o_lo, o_hi):
-        return 2, o_lo, o_hi, r_lo, r_hi
-    return 0, o_lo, o_hi, r_lo, r_hi
+    return _classify(T, lg, o_lo, o_hi, e_lo, e_hi, cover, r_lo, r_hi, st), o_lo, o_hi, r_lo, r_hi
 
 
 @njit(cache=True, _nrt=False)
-def _cell_fast(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, lg, t_free, t_lo,
-               t_hi):
+def _cell_fast(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, inv_inc, T, lg,
+               st):
     """:func:`_cell` with the bearings of :func:`box_bearings_fast`: the same results, or code
     -1 when the bearing error ``err`` (``ATAN_ERR`` plus every rounding of the reference's
     chain) leaves an index of the window, or its branch, undecided (then call :func:`_cell`).
@@ -567,11 +625,11 @@ def _cell_fast(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, er
                 ph += 2.0 * math.pi
             else:
                 return -1, 0, -1, r_lo, r_hi
-        u_lo = (pl - h - a0) / inc
-        u_hi = (ph + h - a0) / inc
-        if not (-1e8 < u_lo and u_hi < 1e8):
+        u_lo = (pl - h - a0) * inv_inc
+        u_hi = (ph + h - a0) * inv_inc
+        if not (-1e5 < u_lo and u_hi < 1e5):
             return -1, 0, -1, r_lo, r_hi
-        d = err / inc + 1e-9
+        d = err * inv_inc + 1e-9
         f_lo = math.floor(u_lo - d)
         f_hi = math.ceil(u_hi + d)
         if f_lo != math.floor(u_lo + d) or f_hi != math.ceil(u_hi - d):
@@ -587,17 +645,11 @@ def _cell_fast(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, er
             o_lo, o_hi = 0, nb - 1
         elif g1 <= err or g2 >= -err:
             return -1, 0, -1, r_lo, r_hi
-    if o_lo > o_hi:
-        return 0, o_lo, o_hi, r_lo, r_hi
-    if cover and r_hi < _qmin(t_free, lg, e_lo, e_hi):
-        return 1, o_lo, o_hi, r_lo, r_hi
-    if r_hi >= _qmin(t_lo, lg, o_lo, o_hi) and r_lo <= _qmax(t_hi, lg, o_lo, o_hi):
-        return 2, o_lo, o_hi, r_lo, r_hi
-    return 0, o_lo, o_hi, r_lo, r_hi
+    return _classify(T, lg, o_lo, o_hi, e_lo, e_hi, cover, r_lo, r_hi, st), o_lo, o_hi, r_lo, r_hi
 
 
 @njit(cache=True, _nrt=False)
-def _window_block(bl, bh, thl, thh, a0, inc, h, nb, mid, lo_edge, hi_edge, err):
+def _window_block(bl, bh, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err):
     """Outer window of a block from its approximate bearings ``[bl, bh]`` (within ``err``):
     ``(o_lo, o_hi, e_lo, e_hi, cover, simple)``. ``simple``: the bearings minus ``[theta]``
     lie within 3 rad of the scan's middle in one branch and no other branch meets the scan's
@@ -608,15 +660,15 @@ def _window_block(bl, bh, thl, thh, a0, inc, h, nb, mid, lo_edge, hi_edge, err):
     if not (ph - pl < 5.9):
         return 0, nb - 1, 0, -1, False, False
     c = 0.5 * (pl + ph) - mid
-    k = float(round(c / (2.0 * math.pi)))
-    if k != 0.0:
+    if not (-3.0 < c < 3.0):
+        k = float(round(c / (2.0 * math.pi)))
         pl -= k * 2.0 * math.pi
         ph -= k * 2.0 * math.pi
     simple = (pl - mid > -3.0 and ph - mid < 3.0 and pl + 2.0 * math.pi - hi_edge > err
               and ph - 2.0 * math.pi - lo_edge < -err)
-    u_lo = (pl - h - a0) / inc - 1e-9
-    u_hi = (ph + h - a0) / inc + 1e-9
-    if not (-1e8 < u_lo and u_hi < 1e8):
+    u_lo = (pl - h - a0) * inv_inc - 1e-9
+    u_hi = (ph + h - a0) * inv_inc + 1e-9
+    if not (-1e5 < u_lo and u_hi < 1e5):
         return 0, nb - 1, 0, -1, False, False
     e_lo = int(math.floor(u_lo))
     e_hi = int(math.ceil(u_hi))
@@ -709,15 +761,6 @@ def _inner(x0, x1, y0, y1, box, a0, h, mid, cx, cy, wx, wy, rc, amg, inv_inc):
 
 
 @njit(cache=True, _nrt=False)
-def _scan_new(lg, t_lo, t_hi, o_lo, o_hi, r_lo, r_hi, new, st):
-    """Mark every beam of ``[o_lo, o_hi]`` meeting ``[r_lo, r_hi]`` as new."""
-    for i in range(o_lo, o_hi + 1):
-        st[2] += 1
-        if t_lo[0, i] <= r_hi and t_hi[0, i] >= r_lo:
-            new[i] = True
-
-
-@njit(cache=True, _nrt=False)
 def _tile_slot(tl, n_tl, slot, tx, ty, what):
     """The index of the current tile in the scan's tile list (added on its first record);
     ``what`` (1 empty, 2 obstacle) is or-ed into its flags. -1 when the list is full."""
@@ -734,9 +777,9 @@ def _tile_slot(tl, n_tl, slot, tx, ty, what):
 
 @njit(cache=True)
 def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps,
-             exact, lg, t_free, t_lo, t_hi, t_fmax, t_gap, new, tl, blk, mblk, cand, cand_f, stats):
+             exact, lg, T, new, tl, blk, mblk, cand, cand_f, stats):
     """P_EMPTY^k, P_OBSTACLE^k and the new beams of one scan (fast path; the same cells and
-    beams as :func:`traverse_reference`).
+    beams as :func:`traverse_reference`). ``T``: the scan's table (:func:`_fast_tables`).
 
     The map (``keys, slots, cells``) is only read. Outputs, in buffers of fixed size:
     ``tl[j] = (tx, ty, flags)`` the tiles holding records, in traversal order (flags: 1 =
@@ -745,8 +788,9 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     cell is in P_OBSTACLE^k, ``[w_lo, w_hi]`` holding the window of each; ``cand[k] = (ix, iy,
     o_lo, o_hi, marked, j)``, ``cand_f[k] = (r_lo, r_hi)`` single cells with their window and
     range interval (``marked`` = in P_OBSTACLE^k; unmarked ones only in hull mode, where the
-    hull test alone puts a cell in the output). ``new[i]`` is set for the beams whose P_OBSTACLE^{i,k} meets P_UNKNOWN.
-    ``stats`` += [nodes, empty cells, beam tests, obstacle cells].
+    hull test alone puts a cell in the output). ``new[i]`` is set for the beams whose
+    P_OBSTACLE^{i,k} meets P_UNKNOWN. ``stats`` += [nodes, empty cells, beam tests, obstacle
+    cells].
 
     Returns ``(ok, n_tl, n_blk, n_mblk, n_cand)``; ``ok`` False: a buffer was too small
     (``new`` and ``stats`` are then partial: grow the buffers, reset them, run again).
@@ -754,14 +798,13 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     nb = ranges.shape[0]
     h = max(r_alpha, 0.5 * inc)
     cos_gap = 1.0 if r_alpha >= 0.5 * inc else max(0.0, down(down(math.cos(0.5 * inc)) - 1e-16))
-    rmax = beam_tables(ranges, valid, r_abs, r_rel, cos_gap, t_free, t_lo, t_hi, t_fmax)
+    rmax = _fast_tables(ranges, valid, r_abs, r_rel, cos_gap, T)
     n_tl = 0
     n_blk = 0
     n_mblk = 0
     n_cand = 0
     if rmax == -INF:
         return True, n_tl, n_blk, n_mblk, n_cand
-    _gap_table(valid, t_lo, t_hi, t_gap, nb)
     a_end = a0 + (nb - 1) * inc
     mid = 0.5 * (a0 + a_end)
     lo_edge = down(a0 - h)
@@ -778,7 +821,6 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     sl = np.empty(4 * _LEVELS + 4, dtype=np.int64)
     sx = np.empty(4 * _LEVELS + 4, dtype=np.int64)
     sy = np.empty(4 * _LEVELS + 4, dtype=np.int64)
-    sm = np.empty(4 * _LEVELS + 4, dtype=np.int64)
     cap_blk = blk.shape[0]
     cap_mblk = mblk.shape[0]
     cap_cand = cand.shape[0]
@@ -789,21 +831,21 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
         for ty in range(ty0, ty1 + 1):
             t = find(keys, slots, tx, ty)
             slot = -1
-            sl[0], sx[0], sy[0], sm[0] = _LEVELS, 0, 0, _REF
+            sl[0], sx[0], sy[0] = _LEVELS, 0, 0
             sp = 1
             while sp > 0:
                 sp -= 1
-                lev, lx, ly, mode = sl[sp], sx[sp], sy[sp], sm[sp]
+                lev, lx, ly = sl[sp], sx[sp], sy[sp]
                 nodes += 1
                 ix = tx * TILE + lx
                 iy = ty * TILE + ly
                 if lev == 0:
                     code, o_lo, o_hi, r_lo, r_hi = _cell_fast(ix, iy, eps, box, a0, inc, h, nb, rmax, mid,
-                                                              lo_edge, hi_edge, err, lg, t_free, t_lo, t_hi)
+                                                              lo_edge, hi_edge, err, inv_inc, T, lg, stats)
                     if code < 0:
                         code, o_lo, o_hi, r_lo, r_hi = _cell(ix, iy, eps, box, a0, inc, h, nb, rmax, mid,
-                                                             lo_edge, hi_edge, lg, t_free, t_lo, t_hi)
-                    if code == 0:
+                                                             lo_edge, hi_edge, T, lg, stats)
+                    if code == 0 or (code == 2 and exact):
                         continue
                     if code == 1:
                         slot = _tile_slot(tl, n_tl, slot, tx, ty, 1)
@@ -814,20 +856,19 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                         n_blk += 1
                         n_empty += 1
                         continue
-                    marked = _meets(lg, t_lo, t_hi, t_gap, o_lo, o_hi, r_hi, r_lo, stats)
+                    marked = code == 3
                     if marked and _unmeasured(cells, t, lx, ly):
-                        _scan_new(lg, t_lo, t_hi, o_lo, o_hi, r_lo, r_hi, new, stats)
-                    if marked or not exact:
-                        slot = _tile_slot(tl, n_tl, slot, tx, ty, 2 if marked else 0)
-                        if slot < 0 or n_cand >= cap_cand:
-                            return False, n_tl, n_blk, n_mblk, n_cand
-                        n_tl = max(n_tl, slot + 1)
-                        cand[n_cand, 0], cand[n_cand, 1] = ix, iy
-                        cand[n_cand, 2], cand[n_cand, 3] = o_lo, o_hi
-                        cand[n_cand, 4], cand[n_cand, 5] = (1 if marked else 0), slot
-                        cand_f[n_cand, 0], cand_f[n_cand, 1] = r_lo, r_hi
-                        n_cand += 1
-                        n_obst += 1
+                        _scan_new(T, o_lo, o_hi, r_lo, r_hi, new, stats)
+                    slot = _tile_slot(tl, n_tl, slot, tx, ty, 2 if marked else 0)
+                    if slot < 0 or n_cand >= cap_cand:
+                        return False, n_tl, n_blk, n_mblk, n_cand
+                    n_tl = max(n_tl, slot + 1)
+                    cand[n_cand, 0], cand[n_cand, 1] = ix, iy
+                    cand[n_cand, 2], cand[n_cand, 3] = o_lo, o_hi
+                    cand[n_cand, 4], cand[n_cand, 5] = (1 if marked else 0), slot
+                    cand_f[n_cand, 0], cand_f[n_cand, 1] = r_lo, r_hi
+                    n_cand += 1
+                    n_obst += 1
                     continue
                 s = 1 << lev
                 x0 = down(ix * eps)
@@ -843,9 +884,9 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                 simple = False
                 if not full and bh - bl < 3.0:
                     o_lo, o_hi, e_lo, e_hi, cover, simple = _window_block(
-                        bl, bh, thl, thh, a0, inc, h, nb, mid, lo_edge, hi_edge, err)
+                        bl, bh, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err)
                 if not simple:
-                    # the reference's block test (around the sensor box, near the scan's back)
+                    # the reference's block test (around the sensor box, the back of the scan)
                     bl, bh, full = box_bearings(dxl, dxh, dyl, dyh)
                     if full:
                         o_lo, o_hi, e_lo, e_hi, cover = 0, nb - 1, 0, -1, False
@@ -854,7 +895,10 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                                                                     a0, inc, h, nb)
                 if o_lo > o_hi:
                     continue
-                if cover and r_hi < _qmin(t_free, lg, e_lo, e_hi):
+                lo_min, hi_max, f_min, f_max = _win(T, lg, o_lo, o_hi)
+                if cover and (e_lo != o_lo or e_hi != o_hi):
+                    f_min = _win(T, lg, e_lo, e_hi)[2]
+                if cover and r_hi < f_min:
                     slot = _tile_slot(tl, n_tl, slot, tx, ty, 1)
                     if slot < 0 or n_blk >= cap_blk:
                         return False, n_tl, n_blk, n_mblk, n_cand
@@ -863,54 +907,45 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                     n_blk += 1
                     n_empty += s * s
                     continue
-                freep = r_lo < _qmax(t_fmax, lg, o_lo, o_hi)
-                if not simple:
-                    obs = r_hi >= _qmin(t_lo, lg, o_lo, o_hi) and r_lo <= _qmax(t_hi, lg, o_lo, o_hi)
-                    if obs or freep:
-                        half = s >> 1
-                        for q in range(4):
-                            sl[sp] = lev - 1
-                            sx[sp] = lx + (half if (q & 1) else 0)
-                            sy[sp] = ly + (half if (q & 2) else 0)
-                            sm[sp] = _REF
-                            sp += 1
-                    continue
-                # a simple block: [o_lo, o_hi] holds every cell's window
-                if exact:
-                    obs = _meets(lg, t_lo, t_hi, t_gap, o_lo, o_hi, r_hi, r_lo, stats)
-                else:
-                    obs = r_hi >= _qmin(t_lo, lg, o_lo, o_hi) and r_lo <= _qmax(t_hi, lg, o_lo, o_hi)
-                if not obs and not freep:
-                    continue
-                u_lo, u_hi, k_lo, k_hi = _inner(x0, x1, y0, y1, box, a0, h, mid, icx, icy, iwx, iwy, irc,
-                                                amg, inv_inc)
-                i_lo = max(u_lo, 0)
-                i_hi = min(u_hi, nb - 1)
-                # no cell of the block can be proven empty: its window reaches outside the scan,
-                # or its largest range reaches the free range of a beam in every cell's window
-                if freep and u_lo <= u_hi and (u_lo < 0 or u_hi > nb - 1
-                                               or k_hi >= _qmin(t_free, lg, i_lo, i_hi)):
-                    freep = False
-                if (obs and i_lo <= i_hi and k_lo <= k_hi
-                        and _meets(lg, t_lo, t_hi, t_gap, i_lo, i_hi, k_hi, k_lo, stats)):
-                    # every cell is in P_OBSTACLE^k
-                    slot = _tile_slot(tl, n_tl, slot, tx, ty, 2)
-                    if slot < 0 or n_mblk >= cap_mblk:
-                        return False, n_tl, n_blk, n_mblk, n_cand
-                    n_tl = max(n_tl, slot + 1)
-                    mblk[n_mblk, 0], mblk[n_mblk, 1], mblk[n_mblk, 2] = ix, iy, lev
-                    mblk[n_mblk, 3], mblk[n_mblk, 4], mblk[n_mblk, 5] = o_lo, o_hi, slot
-                    n_mblk += 1
-                    n_obst += s * s
-                    # unmeasured cells: their beams are new (each cell once per log)
-                    for a in range(lx, lx + s):
-                        for b in range(ly, ly + s):
-                            if _unmeasured(cells, t, a, b):
-                                code, c_lo, c_hi, q_lo, q_hi = _cell(
-                                    tx * TILE + a, ty * TILE + b, eps, box, a0, inc, h, nb, rmax,
-                                    mid, lo_edge, hi_edge, lg, t_free, t_lo, t_hi)
-                                _scan_new(lg, t_lo, t_hi, c_lo, c_hi, q_lo, q_hi, new, stats)
-                    continue
+                freep = r_lo < f_max
+                obs = r_hi >= lo_min and r_lo <= hi_max
+                if simple:
+                    # [o_lo, o_hi] holds every cell's window
+                    if obs and exact:
+                        obs = _meets(T, lg, o_lo, o_hi, r_hi, r_lo, lo_min, hi_max, stats)
+                    if not obs and not freep:
+                        continue
+                    u_lo, u_hi, k_lo, k_hi = _inner(x0, x1, y0, y1, box, a0, h, mid, icx, icy, iwx, iwy,
+                                                    irc, amg, inv_inc)
+                    if u_lo <= u_hi:
+                        i_lo = max(u_lo, 0)
+                        i_hi = min(u_hi, nb - 1)
+                        if i_lo <= i_hi:
+                            ilo_min, ihi_max, if_min, _ = _win(T, lg, i_lo, i_hi)
+                        # no cell can be proven empty: its window reaches outside the scan, or
+                        # its largest range reaches the free range of a beam in every window
+                        if freep and (u_lo < 0 or u_hi > nb - 1 or k_hi >= if_min):
+                            freep = False
+                        if (obs and i_lo <= i_hi and k_lo <= k_hi
+                                and _meets(T, lg, i_lo, i_hi, k_hi, k_lo, ilo_min, ihi_max, stats)):
+                            # every cell is in P_OBSTACLE^k
+                            slot = _tile_slot(tl, n_tl, slot, tx, ty, 2)
+                            if slot < 0 or n_mblk >= cap_mblk:
+                                return False, n_tl, n_blk, n_mblk, n_cand
+                            n_tl = max(n_tl, slot + 1)
+                            mblk[n_mblk, 0], mblk[n_mblk, 1], mblk[n_mblk, 2] = ix, iy, lev
+                            mblk[n_mblk, 3], mblk[n_mblk, 4], mblk[n_mblk, 5] = o_lo, o_hi, slot
+                            n_mblk += 1
+                            n_obst += s * s
+                            # unmeasured cells: their beams are new (each cell once per log)
+                            for a in range(lx, lx + s):
+                                for b in range(ly, ly + s):
+                                    if _unmeasured(cells, t, a, b):
+                                        code, c_lo, c_hi, q_lo, q_hi = _cell(
+                                            tx * TILE + a, ty * TILE + b, eps, box, a0, inc, h, nb, rmax,
+                                            mid, lo_edge, hi_edge, T, lg, stats)
+                                        _scan_new(T, c_lo, c_hi, q_lo, q_hi, new, stats)
+                            continue
                 if not obs and not freep:
                     continue
                 half = s >> 1
@@ -918,7 +953,6 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                     sl[sp] = lev - 1
                     sx[sp] = lx + (half if (q & 1) else 0)
                     sy[sp] = ly + (half if (q & 2) else 0)
-                    sm[sp] = _SIMPLE
                     sp += 1
     stats[0] += nodes
     stats[1] += n_empty
@@ -927,7 +961,7 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
 
 
 @njit(cache=True, _nrt=False)
-def _flags(o_lo, o_hi, r_lo, r_hi, new, valid, t_lo, t_hi, cnt_new, cnt_valid):
+def _flags(o_lo, o_hi, r_lo, r_hi, new, valid, T, cnt_new, cnt_valid):
     """OBST_NEW / OBST_OLD of a cell of P_OBSTACLE^k with window ``[o_lo, o_hi]``: from the
     counts of new and old valid beams in it when they decide, else beam by beam (as the
     reference)."""
@@ -938,7 +972,7 @@ def _flags(o_lo, o_hi, r_lo, r_hi, new, valid, t_lo, t_hi, cnt_new, cnt_valid):
         return OBST_NEW
     f = np.uint8(0)
     for i in range(o_lo, o_hi + 1):
-        if valid[i] and t_lo[0, i] <= r_hi and t_hi[0, i] >= r_lo:
+        if valid[i] and T[0, i, 0] <= r_hi and T[0, i, 1] >= r_lo:
             f |= OBST_NEW if new[i] else OBST_OLD
             if f == (OBST_NEW | OBST_OLD):
                 break
@@ -947,7 +981,7 @@ def _flags(o_lo, o_hi, r_lo, r_hi, new, valid, t_lo, t_hi, cnt_new, cnt_valid):
 
 @njit(cache=True, _nrt=False)
 def _write(cells, ti, n_blk, blk, n_mblk, mblk, n_cand, cand, cand_f, new, valid, box, a0, inc, h,
-           eps, rmax, lg, t_free, t_lo, t_hi, cnt_new, cnt_valid):
+           eps, rmax, T, lg, cnt_new, cnt_valid, st):
     """The writes of :func:`apply` (tiles allocated: ``ti[j]`` is tile ``tl[j]``'s index)."""
     nb = valid.shape[0]
     a_end = a0 + (nb - 1) * inc
@@ -975,21 +1009,19 @@ def _write(cells, ti, n_blk, blk, n_mblk, mblk, n_cand, cand, cand_f, new, valid
         for a in range(lx, lx + s):
             for b in range(ly, ly + s):
                 code, o_lo, o_hi, r_lo, r_hi = _cell(ix - lx + a, iy - ly + b, eps, box, a0, inc, h, nb,
-                                                     rmax, mid, lo_edge, hi_edge, lg, t_free, t_lo, t_hi)
-                cells[t, a, b] |= _flags(o_lo, o_hi, r_lo, r_hi, new, valid, t_lo, t_hi, cnt_new,
-                                         cnt_valid)
+                                                     rmax, mid, lo_edge, hi_edge, T, lg, st)
+                cells[t, a, b] |= _flags(o_lo, o_hi, r_lo, r_hi, new, valid, T, cnt_new, cnt_valid)
     for k in range(n_cand):
         if cand[k, 4] == 0:
             continue
         ix, iy = cand[k, 0], cand[k, 1]
-        o_lo, o_hi, r_lo, r_hi = cand[k, 2], cand[k, 3], cand_f[k, 0], cand_f[k, 1]
-        f = _flags(o_lo, o_hi, r_lo, r_hi, new, valid, t_lo, t_hi, cnt_new, cnt_valid)
+        f = _flags(cand[k, 2], cand[k, 3], cand_f[k, 0], cand_f[k, 1], new, valid, T, cnt_new, cnt_valid)
         cells[ti[cand[k, 5]], ix & TILE_MASK, iy & TILE_MASK] |= f
 
 
 @njit(cache=True)
 def apply(keys, slots, cells, coords, n, n_tl, tl, n_blk, blk, n_mblk, mblk, n_cand, cand, cand_f,
-          new, valid, box, a0, inc, r_alpha, eps, rmax, lg, t_free, t_lo, t_hi, cnt_new, cnt_valid):
+          new, valid, box, a0, inc, r_alpha, eps, rmax, T, lg, cnt_new, cnt_valid, st):
     """Write one scan into the map (fast path of :func:`apply_reference`, the same cells and
     tiles in the same order): EMPTY on the empty blocks, OBST_NEW / OBST_OLD on the cells of
     P_OBSTACLE^k by the new / old valid beams of their window meeting their range. Returns
@@ -1002,16 +1034,21 @@ def apply(keys, slots, cells, coords, n, n_tl, tl, n_blk, blk, n_mblk, mblk, n_c
         if tl[j, 2] == 2:
             ti[j], keys, slots, cells, coords, n = add_tile(keys, slots, cells, coords, n, tl[j, 0], tl[j, 1])
     _write(cells, ti, n_blk, blk, n_mblk, mblk, n_cand, cand, cand_f, new, valid, box, a0, inc,
-           max(r_alpha, 0.5 * inc), eps, rmax, lg, t_free, t_lo, t_hi, cnt_new, cnt_valid)
+           max(r_alpha, 0.5 * inc), eps, rmax, T, lg, cnt_new, cnt_valid, st)
     return keys, slots, cells, coords, n
 
 
 @njit(cache=True)
-def _scan_buffers(nbmax):
+def _fast_buffers(nbmax):
     lg = _log2_table(nbmax)
-    lev = lg[nbmax] + 1
-    return (lg, np.empty((lev, nbmax)), np.empty((lev, nbmax)), np.empty((lev, nbmax)),
-            np.empty((lev, nbmax)), np.empty((lev, nbmax)))
+    return lg, np.empty((lg[nbmax] + 1, nbmax, _NF))
+
+
+@njit(cache=True)
+def _record_buffers():
+    return (np.empty((64, 3), dtype=np.int64), np.empty((1024, 4), dtype=np.int64),
+            np.empty((1024, 6), dtype=np.int64), np.empty((4096, 6), dtype=np.int64),
+            np.empty((4096, 2)))
 
 
 @njit(cache=True)
@@ -1030,15 +1067,11 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
     nbmax = 1
     for s in order:
         nbmax = max(nbmax, offsets[s + 1] - offsets[s])
-    lg, t_free, t_lo, t_hi, t_fmax, t_gap = _scan_buffers(nbmax)
+    lg, T = _fast_buffers(nbmax)
     new = np.zeros(nbmax, dtype=np.bool_)
     cnt_new = np.zeros(nbmax + 1, dtype=np.int64)
     cnt_valid = np.zeros(nbmax + 1, dtype=np.int64)
-    tl = np.empty((64, 3), dtype=np.int64)
-    blk = np.empty((1024, 4), dtype=np.int64)
-    mblk = np.empty((1024, 6), dtype=np.int64)
-    cand = np.empty((4096, 6), dtype=np.int64)
-    cand_f = np.empty((4096, 2))
+    tl, blk, mblk, cand, cand_f = _record_buffers()
     st = np.zeros(4, dtype=np.int64)
     for s in order:
         b0, b1 = offsets[s], offsets[s + 1]
@@ -1050,8 +1083,7 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
             st[:] = 0
             ok, n_tl, n_blk, n_mblk, n_cand = traverse(
                 keys, slots, cells, ranges[b0:b1], valid[b0:b1], angle_min[s], angle_inc[s],
-                boxes[s], r_abs, r_rel, r_alpha, eps, exact, lg, t_free, t_lo, t_hi, t_fmax,
-                t_gap, new, tl, blk, mblk, cand, cand_f, st)
+                boxes[s], r_abs, r_rel, r_alpha, eps, exact, lg, T, new, tl, blk, mblk, cand, cand_f, st)
             if ok:
                 break
             if n_tl >= tl.shape[0]:
@@ -1070,7 +1102,7 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
             cnt_new[i + 1] = cnt_new[i]
             cnt_valid[i + 1] = cnt_valid[i]
             if valid[b0 + i]:
-                rmax = max(rmax, t_hi[0, i])
+                rmax = max(rmax, T[0, i, 1])
                 cnt_valid[i + 1] += 1
                 if new[i]:
                     n_new += 1
@@ -1082,7 +1114,7 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
             keys, slots, cells, coords, n = apply(
                 keys, slots, cells, coords, n, n_tl, tl, n_blk, blk, n_mblk, mblk, n_cand, cand,
                 cand_f, new, valid[b0:b1], boxes[s], angle_min[s], angle_inc[s], r_alpha, eps, rmax,
-                lg, t_free, t_lo, t_hi, cnt_new, cnt_valid)
+                T, lg, cnt_new, cnt_valid, st)
         scan_stats[s, 0] = st[0]
         scan_stats[s, 1] = st[1]
         scan_stats[s, 2] = st[3]
@@ -1098,23 +1130,19 @@ def scan_cells(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact):
     ``(empty_ix, empty_iy, obst_ix, obst_iy)`` (the cells of :func:`scan_cells_reference`,
     in another order)."""
     nb = ranges.shape[0]
-    lg, t_free, t_lo, t_hi, t_fmax, t_gap = _scan_buffers(max(nb, 1))
+    lg, T = _fast_buffers(max(nb, 1))
     new = np.zeros(max(nb, 1), dtype=np.bool_)
     keys = np.full(4, np.int64(-(2**63)), dtype=np.int64)
     slots = np.full(4, -1, dtype=np.int64)
     cells = np.zeros((1, TILE, TILE), dtype=np.uint8)
-    tl = np.empty((64, 3), dtype=np.int64)
-    blk = np.empty((1024, 4), dtype=np.int64)
-    mblk = np.empty((1024, 6), dtype=np.int64)
-    cand = np.empty((4096, 6), dtype=np.int64)
-    cand_f = np.empty((4096, 2))
+    tl, blk, mblk, cand, cand_f = _record_buffers()
     st = np.zeros(4, dtype=np.int64)
     while True:
         new[:] = False
         st[:] = 0
         ok, n_tl, n_blk, n_mblk, n_cand = traverse(
             keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, lg,
-            t_free, t_lo, t_hi, t_fmax, t_gap, new, tl, blk, mblk, cand, cand_f, st)
+            T, new, tl, blk, mblk, cand, cand_f, st)
         if ok:
             break
         if n_tl >= tl.shape[0]:
