@@ -499,12 +499,18 @@ def _meets(T, lg, l, r, a, b, lo_min, hi_max, st):
     ``lo <= a`` to one with ``hi >= b`` through consecutive valid beams, if none meets, some
     pair must jump over ``[b, a]`` (gap > a - b). So when no gap of the window exceeds
     ``a - b`` a beam meets; else the window is scanned."""
+    return _meets_g(T, lg, l, r, a, b, lo_min, hi_max, down(a - b), st)
+
+
+@njit(cache=True, _nrt=False)
+def _meets_g(T, lg, l, r, a, b, lo_min, hi_max, g, st):
+    """:func:`_meets`, the gaps allowed up to ``g`` (``g <= a - b``, or see the callers)."""
     if l > r or lo_min > a or hi_max < b:
         return False
     if l == r:
         return True
     k = lg[r - l]
-    if max(T[k, l, 4], T[k, r - (1 << k), 4]) <= down(a - b):
+    if max(T[k, l, 4], T[k, r - (1 << k), 4]) <= g:
         return True
     for i in range(l, r + 1):
         st[2] += 1
@@ -649,6 +655,63 @@ def _cell_fast(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, er
 
 
 @njit(cache=True, _nrt=False)
+def _geom4(ix, iy, eps, box, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc, R, W):
+    """:func:`_cell_fast`'s geometry for the four cells ``(ix + (q & 1), iy + (q >> 1))``, as
+    independent computations one after the other (no decision in between, so that the
+    processor overlaps them): ``R[q] = (r_lo, r_hi)``, ``W[q] = (o_lo, o_hi, e_lo, e_hi,
+    cover, state)``, state 0 = window decided, -1 = undecided (use :func:`_cell`)."""
+    pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
+    for q in range(4):
+        cx = ix + (q & 1)
+        cy = iy + (q >> 1)
+        dxl, dxh = down(down(cx * eps) - pxh), up(up((cx + 1) * eps) - pxl)
+        dyl, dyh = down(down(cy * eps) - pyh), up(up((cy + 1) * eps) - pyl)
+        r_lo, r_hi = box_ranges(dxl, dxh, dyl, dyh)
+        R[q, 0] = r_lo
+        R[q, 1] = r_hi
+        bl, bh, full = box_bearings_fast(dxl, dxh, dyl, dyh)
+        state = 0
+        if full:
+            W[q, 0], W[q, 1], W[q, 2], W[q, 3], W[q, 4], W[q, 5] = 0, nb - 1, 0, -1, 0, 0
+            continue
+        pl = bl - thh
+        ph = bh - thl
+        c = 0.5 * (pl + ph) - mid
+        if not (-3.0 < c < 3.0):  # the reference's branch m = round(c / 2 pi) = +-1
+            if 3.3 < c < 9.2:
+                pl -= 2.0 * math.pi
+                ph -= 2.0 * math.pi
+            elif -9.2 < c < -3.3:
+                pl += 2.0 * math.pi
+                ph += 2.0 * math.pi
+            else:
+                state = -1
+        u_lo = (pl - h - a0) * inv_inc
+        u_hi = (ph + h - a0) * inv_inc
+        if not (ph - pl < 5.9 and -1e5 < u_lo and u_hi < 1e5):
+            W[q, 5] = -1
+            continue
+        d = err * inv_inc + 1e-9
+        f_lo = math.floor(u_lo - d)
+        f_hi = math.ceil(u_hi + d)
+        if f_lo != math.floor(u_lo + d) or f_hi != math.ceil(u_hi - d):
+            state = -1
+        e_lo = int(f_lo)
+        e_hi = int(f_hi)
+        o_lo = max(e_lo, 0)
+        o_hi = min(e_hi, nb - 1)
+        g1 = pl + 2.0 * math.pi - hi_edge  # the reference widens to the whole scan when <= 0
+        g2 = ph - 2.0 * math.pi - lo_edge  # ... or when >= 0
+        if g1 <= -err or g2 >= err:
+            o_lo, o_hi = 0, nb - 1
+        elif g1 <= err or g2 >= -err:
+            state = -1
+        W[q, 0], W[q, 1], W[q, 2], W[q, 3] = o_lo, o_hi, e_lo, e_hi
+        W[q, 4] = 1 if (e_lo >= 0 and e_hi <= nb - 1) else 0
+        W[q, 5] = state
+
+
+@njit(cache=True, _nrt=False)
 def _window_block(bl, bh, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err):
     """Outer window of a block from its approximate bearings ``[bl, bh]`` (within ``err``):
     ``(o_lo, o_hi, e_lo, e_hi, cover, simple)``. ``simple``: the bearings minus ``[theta]``
@@ -677,10 +740,29 @@ def _window_block(bl, bh, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, e
 
 
 @njit(cache=True)
+def _level_consts(eps):
+    """Per quadtree level ``lev`` (blocks of ``2^lev`` cells): ``(w, |(w, w)|, c, |(c, c)|)``
+    with ``w`` a bound of a block's half-width and ``c`` of the offset of a cell centre from
+    the block's centre along an axis (margins for the roundings of block corners; _inner
+    checks them and computes the diagonals itself otherwise), diagonals rounded up."""
+    LC = np.empty((_LEVELS + 1, 4))
+    for lev in range(_LEVELS + 1):
+        s = float(1 << lev)
+        w = up(0.5 * s * eps * (1.0 + 1e-12) + 1e-12)
+        c = up(0.5 * (s - 1.0) * eps * (1.0 + 1e-12) + 1e-9)
+        LC[lev, 0] = w
+        LC[lev, 1] = up(math.sqrt(up(2.0 * up(w * w))))
+        LC[lev, 2] = c
+        LC[lev, 3] = up(math.sqrt(up(2.0 * up(c * c))))
+    return LC
+
+
+@njit(cache=True)
 def _inner_consts(box, inc):
     """Per-scan constants of :func:`_inner`: the centre ``(cx, cy)`` of the sensor box, the
     half-widths ``(wx, wy)`` of a sub-box centred on it and their diagonal (rounded up), the
-    angular margin (fast atan2 error and roundings), ``1 / inc``."""
+    angular margin (fast atan2 error and roundings), ``1 / inc``, the box's smaller side
+    (rounded down)."""
     pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
     cx = 0.5 * (pxl + pxh)
     cy = 0.5 * (pyl + pyh)
@@ -688,11 +770,14 @@ def _inner_consts(box, inc):
     wy = down(min(down(cy - pyl), down(pyh - cy)))
     rc = up(math.sqrt(up(up(wx * wx) + up(wy * wy))))
     amg = ATAN_ERR + 1e-10 * (1.0 + abs(thl) + abs(thh))
-    return cx, cy, wx, wy, rc, amg, 1.0 / inc
+    # a point p outside the box: maxdist(p, box) - dist(p, box) >= the box's smaller side (from
+    # the nearest point, the box extends at least that far straight away from p)
+    gmin = down(min(down(pxh - pxl), down(pyh - pyl)))
+    return cx, cy, wx, wy, rc, amg, 1.0 / inc, gmin
 
 
 @njit(cache=True, _nrt=False)
-def _inner(x0, x1, y0, y1, box, a0, h, mid, cx, cy, wx, wy, rc, amg, inv_inc):
+def _inner(x0, x1, y0, y1, eps, box, a0, h, mid, cx, cy, wx, wy, rc, amg, inv_inc, lev, LC):
     """What holds for *every* cell inside ``[x0, x1] x [y0, y1]`` (real geometry, margins far
     above every rounding): ``(i_lo, i_hi, k_lo, k_hi)``.
 
@@ -707,16 +792,20 @@ def _inner(x0, x1, y0, y1, box, a0, h, mid, cx, cy, wx, wy, rc, amg, inv_inc):
       > |wb| + |w|``): it is the bearing of a sensor-to-point vector for every point of the
       block. A beam whose cone meets ``[angle(v) - rho, angle(v) + rho] - [theta]`` is in the
       real window of every cell, hence in the reference's (outer) one.
-    - ``[k_lo, k_hi]`` (empty when ``k_lo > k_hi``): ``[dist(b, box) + |wb|, maxdist(b, box) -
-      |wb|]``, in the range interval of every point of the block; ``k_hi`` is also a lower
-      bound of every cell's largest range.
+    - ``k_lo >= dist(c, box)`` and ``k_hi <= maxdist(c, box)`` for the centre ``c`` of every
+      cell of the block (``[dist(c, box), maxdist(c, box)]``, the range interval of one point
+      of the cell, lies in the cell's; ``k_hi`` bounds every cell's largest range from below).
+      A beam with ``lo <= k_hi`` and ``hi >= k_lo`` meets the range interval of every cell.
     """
     pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
     bx = 0.5 * (x0 + x1)
     by = 0.5 * (y0 + y1)
     wbx = up(max(up(bx - x0), up(x1 - bx)))  # a super-box of the block, centred on b
     wby = up(max(up(by - y0), up(y1 - by)))
-    rb = up(math.sqrt(up(up(wbx * wbx) + up(wby * wby))))
+    if wbx <= LC[lev, 0] and wby <= LC[lev, 0]:  # the level's bounds (see _level_consts)
+        rb = LC[lev, 1]
+    else:
+        rb = up(math.sqrt(up(up(wbx * wbx) + up(wby * wby))))
     # the range interval common to the block
     ex = max(max(up(pxl - bx), up(bx - pxh)), 0.0)
     ey = max(max(up(pyl - by), up(by - pyh)), 0.0)
@@ -724,8 +813,17 @@ def _inner(x0, x1, y0, y1, box, a0, h, mid, cx, cy, wx, wy, rc, amg, inv_inc):
     mx = max(max(down(bx - pxl), down(pxh - bx)), 0.0)
     my = max(max(down(by - pyl), down(pyh - by)), 0.0)
     dm = down(math.sqrt(down(down(mx * mx) + down(my * my))))
-    k_lo = up(d_up + rb)
-    k_hi = down(dm - rb)
+    # cell centres lie within rbc of b: [k_lo, k_hi] meets the range interval of every centre
+    hx = max(up(bx - up(x0 + 0.5 * eps)), up(down(x1 - 0.5 * eps) - bx))
+    hy = max(up(by - up(y0 + 0.5 * eps)), up(down(y1 - 0.5 * eps) - by))
+    hx = up(max(hx, 0.0) + 1e-12 * (1.0 + abs(bx)))
+    hy = up(max(hy, 0.0) + 1e-12 * (1.0 + abs(by)))
+    if hx <= LC[lev, 2] and hy <= LC[lev, 2]:
+        rbc = LC[lev, 3]
+    else:
+        rbc = up(math.sqrt(up(up(hx * hx) + up(hy * hy))))
+    k_lo = up(d_up + rbc)
+    k_hi = down(dm - rbc)
     # beams common to the block's cells
     ddx = down(wx - wbx)
     ddy = down(wy - wby)
@@ -812,7 +910,9 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
     # error of a fast bearing minus theta against the reference's: ATAN_ERR + roundings
     err = ATAN_ERR + 1e-12 * (8.0 + abs(thl) + abs(thh))
-    icx, icy, iwx, iwy, irc, amg, inv_inc = _inner_consts(box, inc)
+    icx, icy, iwx, iwy, irc, amg, inv_inc, gmin = _inner_consts(box, inc)
+    iw_min = min(iwx, iwy)
+    LC = _level_consts(eps)
     side = TILE * eps
     tx0 = int(math.floor(down(down(pxl - rmax) / side))) - 1
     tx1 = int(math.floor(up(up(pxh + rmax) / side))) + 1
@@ -821,6 +921,8 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     sl = np.empty(4 * _LEVELS + 4, dtype=np.int64)
     sx = np.empty(4 * _LEVELS + 4, dtype=np.int64)
     sy = np.empty(4 * _LEVELS + 4, dtype=np.int64)
+    R4 = np.empty((4, 2))
+    W4 = np.empty((4, 6), dtype=np.int64)
     cap_blk = blk.shape[0]
     cap_mblk = mblk.shape[0]
     cap_cand = cand.shape[0]
@@ -839,37 +941,6 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                 nodes += 1
                 ix = tx * TILE + lx
                 iy = ty * TILE + ly
-                if lev == 0:
-                    code, o_lo, o_hi, r_lo, r_hi = _cell_fast(ix, iy, eps, box, a0, inc, h, nb, rmax, mid,
-                                                              lo_edge, hi_edge, err, inv_inc, T, lg, stats)
-                    if code < 0:
-                        code, o_lo, o_hi, r_lo, r_hi = _cell(ix, iy, eps, box, a0, inc, h, nb, rmax, mid,
-                                                             lo_edge, hi_edge, T, lg, stats)
-                    if code == 0 or (code == 2 and exact):
-                        continue
-                    if code == 1:
-                        slot = _tile_slot(tl, n_tl, slot, tx, ty, 1)
-                        if slot < 0 or n_blk >= cap_blk:
-                            return False, n_tl, n_blk, n_mblk, n_cand
-                        n_tl = max(n_tl, slot + 1)
-                        blk[n_blk, 0], blk[n_blk, 1], blk[n_blk, 2], blk[n_blk, 3] = ix, iy, 0, slot
-                        n_blk += 1
-                        n_empty += 1
-                        continue
-                    marked = code == 3
-                    if marked and _unmeasured(cells, t, lx, ly):
-                        _scan_new(T, o_lo, o_hi, r_lo, r_hi, new, stats)
-                    slot = _tile_slot(tl, n_tl, slot, tx, ty, 2 if marked else 0)
-                    if slot < 0 or n_cand >= cap_cand:
-                        return False, n_tl, n_blk, n_mblk, n_cand
-                    n_tl = max(n_tl, slot + 1)
-                    cand[n_cand, 0], cand[n_cand, 1] = ix, iy
-                    cand[n_cand, 2], cand[n_cand, 3] = o_lo, o_hi
-                    cand[n_cand, 4], cand[n_cand, 5] = (1 if marked else 0), slot
-                    cand_f[n_cand, 0], cand_f[n_cand, 1] = r_lo, r_hi
-                    n_cand += 1
-                    n_obst += 1
-                    continue
                 s = 1 << lev
                 x0 = down(ix * eps)
                 x1 = up((ix + s) * eps)
@@ -915,8 +986,11 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                         obs = _meets(T, lg, o_lo, o_hi, r_hi, r_lo, lo_min, hi_max, stats)
                     if not obs and not freep:
                         continue
-                    u_lo, u_hi, k_lo, k_hi = _inner(x0, x1, y0, y1, box, a0, h, mid, icx, icy, iwx, iwy,
-                                                    irc, amg, inv_inc)
+                    if LC[lev, 0] < iw_min:
+                        u_lo, u_hi, k_lo, k_hi = _inner(x0, x1, y0, y1, eps, box, a0, h, mid, icx, icy, iwx,
+                                                        iwy, irc, amg, inv_inc, lev, LC)
+                    else:  # a block not smaller than the box: no bearing common to its cells
+                        u_lo, u_hi = 0, -1
                     if u_lo <= u_hi:
                         i_lo = max(u_lo, 0)
                         i_hi = min(u_hi, nb - 1)
@@ -926,8 +1000,12 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                         # its largest range reaches the free range of a beam in every window
                         if freep and (u_lo < 0 or u_hi > nb - 1 or k_hi >= if_min):
                             freep = False
-                        if (obs and i_lo <= i_hi and k_lo <= k_hi
-                                and _meets(T, lg, i_lo, i_hi, k_hi, k_lo, ilo_min, ihi_max, stats)):
+                        # every cell is in P_OBSTACLE^k when a beam of [i_lo, i_hi] meets the range
+                        # interval of each cell centre: one beam with lo <= k_hi and hi >= k_lo,
+                        # or the hull reaching them all with no jump wider than the narrowest,
+                        # at least the box's smaller side (see _inner_consts)
+                        if obs and i_lo <= i_hi and _meets_g(T, lg, i_lo, i_hi, k_hi, k_lo, ilo_min, ihi_max,
+                                                             max(gmin, down(k_hi - k_lo)), stats):
                             # every cell is in P_OBSTACLE^k
                             slot = _tile_slot(tl, n_tl, slot, tx, ty, 2)
                             if slot < 0 or n_mblk >= cap_mblk:
@@ -948,12 +1026,54 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                             continue
                 if not obs and not freep:
                     continue
-                half = s >> 1
+                if lev > 1:
+                    half = s >> 1
+                    for q in range(4):
+                        sl[sp] = lev - 1
+                        sx[sp] = lx + (half if (q & 1) else 0)
+                        sy[sp] = ly + (half if (q & 2) else 0)
+                        sp += 1
+                    continue
+                # the four cells: geometry of all four, then the reference's leaf decisions
+                _geom4(ix, iy, eps, box, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc, R4, W4)
                 for q in range(4):
-                    sl[sp] = lev - 1
-                    sx[sp] = lx + (half if (q & 1) else 0)
-                    sy[sp] = ly + (half if (q & 2) else 0)
-                    sp += 1
+                    nodes += 1
+                    cx_ = ix + (q & 1)
+                    cy_ = iy + (q >> 1)
+                    r_lo, r_hi = R4[q, 0], R4[q, 1]
+                    if r_lo > rmax:
+                        continue
+                    if W4[q, 5] == 0:
+                        o_lo, o_hi = W4[q, 0], W4[q, 1]
+                        code = _classify(T, lg, o_lo, o_hi, W4[q, 2], W4[q, 3], W4[q, 4] == 1, r_lo, r_hi,
+                                         stats)
+                    else:
+                        code, o_lo, o_hi, r_lo, r_hi = _cell(cx_, cy_, eps, box, a0, inc, h, nb, rmax, mid,
+                                                             lo_edge, hi_edge, T, lg, stats)
+                    if code == 0 or (code == 2 and exact):
+                        continue
+                    if code == 1:
+                        slot = _tile_slot(tl, n_tl, slot, tx, ty, 1)
+                        if slot < 0 or n_blk >= cap_blk:
+                            return False, n_tl, n_blk, n_mblk, n_cand
+                        n_tl = max(n_tl, slot + 1)
+                        blk[n_blk, 0], blk[n_blk, 1], blk[n_blk, 2], blk[n_blk, 3] = cx_, cy_, 0, slot
+                        n_blk += 1
+                        n_empty += 1
+                        continue
+                    marked = code == 3
+                    if marked and _unmeasured(cells, t, lx + (q & 1), ly + (q >> 1)):
+                        _scan_new(T, o_lo, o_hi, r_lo, r_hi, new, stats)
+                    slot = _tile_slot(tl, n_tl, slot, tx, ty, 2 if marked else 0)
+                    if slot < 0 or n_cand >= cap_cand:
+                        return False, n_tl, n_blk, n_mblk, n_cand
+                    n_tl = max(n_tl, slot + 1)
+                    cand[n_cand, 0], cand[n_cand, 1] = cx_, cy_
+                    cand[n_cand, 2], cand[n_cand, 3] = o_lo, o_hi
+                    cand[n_cand, 4], cand[n_cand, 5] = (1 if marked else 0), slot
+                    cand_f[n_cand, 0], cand_f[n_cand, 1] = r_lo, r_hi
+                    n_cand += 1
+                    n_obst += 1
     stats[0] += nodes
     stats[1] += n_empty
     stats[3] += n_obst
@@ -961,33 +1081,42 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
 
 
 @njit(cache=True, _nrt=False)
-def _flags(o_lo, o_hi, r_lo, r_hi, new, valid, T, cnt_new, cnt_valid):
-    """OBST_NEW / OBST_OLD of a cell of P_OBSTACLE^k with window ``[o_lo, o_hi]``: from the
-    counts of new and old valid beams in it when they decide, else beam by beam (as the
-    reference)."""
-    nn = cnt_new[o_hi + 1] - cnt_new[o_lo]
-    if nn == 0:
+def _new_meets(o_lo, o_hi, r_lo, r_hi, T, cnt_new, new_idx):
+    """Whether a new beam of ``[o_lo, o_hi]`` meets ``[r_lo, r_hi]`` (``new_idx``: the new
+    beams in order, ``cnt_new``: their prefix counts)."""
+    for q in range(cnt_new[o_lo], cnt_new[o_hi + 1]):
+        i = new_idx[q]
+        if T[0, i, 0] <= r_hi and T[0, i, 1] >= r_lo:
+            return True
+    return False
+
+
+@njit(cache=True, _nrt=False)
+def _flags(o_lo, o_hi, r_lo, r_hi, new, valid, T, cnt_new, cnt_valid, new_idx):
+    """OBST_NEW / OBST_OLD of a cell of P_OBSTACLE^k with window ``[o_lo, o_hi]`` and range
+    interval ``[r_lo, r_hi]``: the kinds of the valid beams of the window meeting it (as the
+    reference). Some beam meets: when no new one does, they are old; beam by beam only when a
+    new one does and old ones are in the window."""
+    if not _new_meets(o_lo, o_hi, r_lo, r_hi, T, cnt_new, new_idx):
         return OBST_OLD
-    if nn == cnt_valid[o_hi + 1] - cnt_valid[o_lo]:
+    if cnt_new[o_hi + 1] - cnt_new[o_lo] == cnt_valid[o_hi + 1] - cnt_valid[o_lo]:
         return OBST_NEW
-    f = np.uint8(0)
     for i in range(o_lo, o_hi + 1):
-        if valid[i] and T[0, i, 0] <= r_hi and T[0, i, 1] >= r_lo:
-            f |= OBST_NEW if new[i] else OBST_OLD
-            if f == (OBST_NEW | OBST_OLD):
-                break
-    return f
+        if valid[i] and not new[i] and T[0, i, 0] <= r_hi and T[0, i, 1] >= r_lo:
+            return OBST_NEW | OBST_OLD
+    return OBST_NEW
 
 
 @njit(cache=True, _nrt=False)
 def _write(cells, ti, n_blk, blk, n_mblk, mblk, n_cand, cand, cand_f, new, valid, box, a0, inc, h,
-           eps, rmax, T, lg, cnt_new, cnt_valid, st):
+           eps, rmax, T, lg, cnt_new, cnt_valid, new_idx, st):
     """The writes of :func:`apply` (tiles allocated: ``ti[j]`` is tile ``tl[j]``'s index)."""
     nb = valid.shape[0]
     a_end = a0 + (nb - 1) * inc
     mid = 0.5 * (a0 + a_end)
     lo_edge = down(a0 - h)
     hi_edge = up(up(a_end + h))
+    pxl, pxh, pyl, pyh = box[0], box[1], box[2], box[3]
     for k in range(n_blk):
         t = ti[blk[k, 3]]
         s = 1 << blk[k, 2]
@@ -1000,8 +1129,17 @@ def _write(cells, ti, n_blk, blk, n_mblk, mblk, n_cand, cand, cand_f, new, valid
         s = 1 << mblk[k, 2]
         lx, ly = ix & TILE_MASK, iy & TILE_MASK
         nn = cnt_new[w_hi + 1] - cnt_new[w_lo]
-        if nn == 0 or nn == cnt_valid[w_hi + 1] - cnt_valid[w_lo]:
-            f = OBST_OLD if nn == 0 else OBST_NEW
+        f = np.uint8(0)
+        if nn == 0:
+            f = OBST_OLD
+        elif nn == cnt_valid[w_hi + 1] - cnt_valid[w_lo]:
+            f = OBST_NEW
+        else:  # no new beam meets the block's range interval: no cell's either
+            r_lo, r_hi = box_ranges(down(down(ix * eps) - pxh), up(up((ix + s) * eps) - pxl),
+                                    down(down(iy * eps) - pyh), up(up((iy + s) * eps) - pyl))
+            if not _new_meets(w_lo, w_hi, r_lo, r_hi, T, cnt_new, new_idx):
+                f = OBST_OLD
+        if f != 0:
             for a in range(lx, lx + s):
                 for b in range(ly, ly + s):
                     cells[t, a, b] |= f
@@ -1010,18 +1148,20 @@ def _write(cells, ti, n_blk, blk, n_mblk, mblk, n_cand, cand, cand_f, new, valid
             for b in range(ly, ly + s):
                 code, o_lo, o_hi, r_lo, r_hi = _cell(ix - lx + a, iy - ly + b, eps, box, a0, inc, h, nb,
                                                      rmax, mid, lo_edge, hi_edge, T, lg, st)
-                cells[t, a, b] |= _flags(o_lo, o_hi, r_lo, r_hi, new, valid, T, cnt_new, cnt_valid)
+                cells[t, a, b] |= _flags(o_lo, o_hi, r_lo, r_hi, new, valid, T, cnt_new, cnt_valid,
+                                         new_idx)
     for k in range(n_cand):
         if cand[k, 4] == 0:
             continue
         ix, iy = cand[k, 0], cand[k, 1]
-        f = _flags(cand[k, 2], cand[k, 3], cand_f[k, 0], cand_f[k, 1], new, valid, T, cnt_new, cnt_valid)
+        f = _flags(cand[k, 2], cand[k, 3], cand_f[k, 0], cand_f[k, 1], new, valid, T, cnt_new, cnt_valid,
+                   new_idx)
         cells[ti[cand[k, 5]], ix & TILE_MASK, iy & TILE_MASK] |= f
 
 
 @njit(cache=True)
 def apply(keys, slots, cells, coords, n, n_tl, tl, n_blk, blk, n_mblk, mblk, n_cand, cand, cand_f,
-          new, valid, box, a0, inc, r_alpha, eps, rmax, T, lg, cnt_new, cnt_valid, st):
+          new, valid, box, a0, inc, r_alpha, eps, rmax, T, lg, cnt_new, cnt_valid, new_idx, st):
     """Write one scan into the map (fast path of :func:`apply_reference`, the same cells and
     tiles in the same order): EMPTY on the empty blocks, OBST_NEW / OBST_OLD on the cells of
     P_OBSTACLE^k by the new / old valid beams of their window meeting their range. Returns
@@ -1034,7 +1174,7 @@ def apply(keys, slots, cells, coords, n, n_tl, tl, n_blk, blk, n_mblk, mblk, n_c
         if tl[j, 2] == 2:
             ti[j], keys, slots, cells, coords, n = add_tile(keys, slots, cells, coords, n, tl[j, 0], tl[j, 1])
     _write(cells, ti, n_blk, blk, n_mblk, mblk, n_cand, cand, cand_f, new, valid, box, a0, inc,
-           max(r_alpha, 0.5 * inc), eps, rmax, T, lg, cnt_new, cnt_valid, st)
+           max(r_alpha, 0.5 * inc), eps, rmax, T, lg, cnt_new, cnt_valid, new_idx, st)
     return keys, slots, cells, coords, n
 
 
@@ -1071,6 +1211,7 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
     new = np.zeros(nbmax, dtype=np.bool_)
     cnt_new = np.zeros(nbmax + 1, dtype=np.int64)
     cnt_valid = np.zeros(nbmax + 1, dtype=np.int64)
+    new_idx = np.zeros(nbmax, dtype=np.int64)
     tl, blk, mblk, cand, cand_f = _record_buffers()
     st = np.zeros(4, dtype=np.int64)
     for s in order:
@@ -1105,6 +1246,7 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
                 rmax = max(rmax, T[0, i, 1])
                 cnt_valid[i + 1] += 1
                 if new[i]:
+                    new_idx[n_new] = i
                     n_new += 1
                     cnt_new[i + 1] += 1
                 else:
@@ -1114,7 +1256,7 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
             keys, slots, cells, coords, n = apply(
                 keys, slots, cells, coords, n, n_tl, tl, n_blk, blk, n_mblk, mblk, n_cand, cand,
                 cand_f, new, valid[b0:b1], boxes[s], angle_min[s], angle_inc[s], r_alpha, eps, rmax,
-                T, lg, cnt_new, cnt_valid, st)
+                T, lg, cnt_new, cnt_valid, new_idx, st)
         scan_stats[s, 0] = st[0]
         scan_stats[s, 1] = st[1]
         scan_stats[s, 2] = st[3]
