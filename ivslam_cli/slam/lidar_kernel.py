@@ -784,18 +784,23 @@ def _inner(x0, x1, y0, y1, eps, box, a0, h, mid, cx, cy, wx, wy, rc, amg, inv_in
     - ``[i_lo, i_hi]`` (empty when ``i_lo > i_hi``; not clipped to the scan): beams in every
       cell's window (an index outside the scan: no cell's cones cover it). With the centre
       ``c`` and half-widths ``w`` of a sub-box of the sensor box (:func:`_inner_consts`), the
-      block's centre ``b`` and half-widths ``wb`` (``v = b - c``, ``L = |v|``), every
-      direction ``psi`` with ``|psi - angle(v)| <= rho = (dx |v_y| + dy |v_x|) / (L (L + dx +
-      dy))`` (``dx = w_x - wb_x``, ``dy = w_y - wb_y``) projects the block inside the box's
-      shadow (``L |sin(psi - angle(v))| <= dx |sin psi| + dy |cos psi|``, the right side
-      varying by at most ``(dx + dy) |psi - angle(v)|``), the block being ahead (``L cos(rho)
-      > |wb| + |w|``): it is the bearing of a sensor-to-point vector for every point of the
-      block. A beam whose cone meets ``[angle(v) - rho, angle(v) + rho] - [theta]`` is in the
-      real window of every cell, hence in the reference's (outer) one.
-    - ``k_lo >= dist(c, box)`` and ``k_hi <= maxdist(c, box)`` for the centre ``c`` of every
-      cell of the block (``[dist(c, box), maxdist(c, box)]``, the range interval of one point
-      of the cell, lies in the cell's; ``k_hi`` bounds every cell's largest range from below).
-      A beam with ``lo <= k_hi`` and ``hi >= k_lo`` meets the range interval of every cell.
+      block's centre ``b`` (``v = b - c``, ``L = |v|``), and ``(hx, hy)`` bounding the offsets
+      of its cell centres from ``b``: a cell (half-width ``eps / 2``) meets the box's shadow
+      strip in direction ``psi`` (normal ``n``) when their projections on ``n`` overlap, which
+      holds for every cell when ``|n . v| = L |sin(psi - angle(v))| <= dx |sin psi| + dy |cos
+      psi|`` (``dx = w_x + eps / 2 - hx``, ``dy = w_y + eps / 2 - hy``); the right side varies
+      by at most ``(dx + dy) |psi - angle(v)|``, so every ``psi`` with ``|psi - angle(v)| <=
+      rho = (dx |v_y| + dy |v_x|) / (L (L + dx + dy))`` qualifies, the block being ahead
+      (``L cos(rho) > |wb| + |w| + eps``): then ``psi`` is the bearing of a sensor-to-point vector
+      into every cell. A beam whose cone meets ``[angle(v) - rho, angle(v) + rho] - [theta]``
+      is in the real window of every cell, hence in the reference's (outer) one.
+    - ``k_lo >= dist(c, box) - eps / 2`` and ``k_hi <= maxdist(c, box) + eps / 2`` for the
+      centre ``c`` of every cell of the block: ``[dist(c, box) - eps / 2, maxdist(c, box) + eps
+      / 2]`` lies in the cell's range interval (half a cell straight towards the box's nearest
+      point, or away from its farthest, stays in the cell; the lower end is used only when the
+      window is not empty, the block then being more than ``eps`` away from the box), and
+      ``k_hi`` bounds every cell's largest range from below. A beam with ``lo <= k_hi`` and
+      ``hi >= k_lo`` meets the range interval of every cell.
     """
     pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
     bx = 0.5 * (x0 + x1)
@@ -822,11 +827,14 @@ def _inner(x0, x1, y0, y1, eps, box, a0, h, mid, cx, cy, wx, wy, rc, amg, inv_in
         rbc = LC[lev, 3]
     else:
         rbc = up(math.sqrt(up(up(hx * hx) + up(hy * hy))))
-    k_lo = up(d_up + rbc)
-    k_hi = down(dm - rbc)
-    # beams common to the block's cells
-    ddx = down(wx - wbx)
-    ddy = down(wy - wby)
+    # a cell reaches eps / 2 nearer / farther than its centre (straight to the nearest / from the
+    # farthest point of the box; the nearer side used only with the block ahead of the box)
+    k_lo = up(up(d_up + rbc) - 0.5 * eps)
+    k_hi = down(down(dm - rbc) + 0.5 * eps)
+    # beams common to the block's cells: a cell (half-width eps / 2, centre within (hx, hy) of
+    # b) meets the box's shadow strip in direction psi when |n . v| <= dx |sin psi| + dy |cos psi|
+    ddx = down(down(wx + 0.5 * eps) - hx)
+    ddy = down(down(wy + 0.5 * eps) - hy)
     if not (ddx > 0.0 and ddy > 0.0):
         return 0, -1, k_lo, k_hi
     vx = bx - cx
@@ -839,7 +847,7 @@ def _inner(x0, x1, y0, y1, eps, box, a0, h, mid, cx, cy, wx, wy, rc, amg, inv_in
     rho = rho * (1.0 - 1e-9) - 1e-10 * (1.0 + abs(bx) + abs(by) + abs(cx) + abs(cy)) / L - amg
     if not (rho > 0.0) or rho > 0.5:
         return 0, -1, k_lo, k_hi
-    if not (L * (1.0 - 0.5 * rho * rho) > (rb + rc) * (1.0 + 1e-9) + 1e-9):
+    if not (L * (1.0 - 0.5 * rho * rho) > (rb + rc + eps) * (1.0 + 1e-9) + 1e-9):
         return 0, -1, k_lo, k_hi
     alpha = atan2_fast(vy, vx)  # within ATAN_ERR (in amg, taken off rho)
     lo_ang = alpha - rho - thh - h
@@ -912,6 +920,7 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     err = ATAN_ERR + 1e-12 * (8.0 + abs(thl) + abs(thh))
     icx, icy, iwx, iwy, irc, amg, inv_inc, gmin = _inner_consts(box, inc)
     iw_min = min(iwx, iwy)
+    gmin_c = down(gmin + eps)  # narrowest range interval of a cell: see _inner_consts and _inner
     LC = _level_consts(eps)
     side = TILE * eps
     tx0 = int(math.floor(down(down(pxl - rmax) / side))) - 1
@@ -986,10 +995,10 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                         obs = _meets(T, lg, o_lo, o_hi, r_hi, r_lo, lo_min, hi_max, stats)
                     if not obs and not freep:
                         continue
-                    if LC[lev, 0] < iw_min:
+                    if LC[lev, 2] < iw_min + 0.5 * eps:
                         u_lo, u_hi, k_lo, k_hi = _inner(x0, x1, y0, y1, eps, box, a0, h, mid, icx, icy, iwx,
                                                         iwy, irc, amg, inv_inc, lev, LC)
-                    else:  # a block not smaller than the box: no bearing common to its cells
+                    else:  # cells too far apart for a bearing common to all of them
                         u_lo, u_hi = 0, -1
                     if u_lo <= u_hi:
                         i_lo = max(u_lo, 0)
@@ -1005,7 +1014,7 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                         # or the hull reaching them all with no jump wider than the narrowest,
                         # at least the box's smaller side (see _inner_consts)
                         if obs and i_lo <= i_hi and _meets_g(T, lg, i_lo, i_hi, k_hi, k_lo, ilo_min, ihi_max,
-                                                             max(gmin, down(k_hi - k_lo)), stats):
+                                                             max(gmin_c, down(k_hi - k_lo)), stats):
                             # every cell is in P_OBSTACLE^k
                             slot = _tile_slot(tl, n_tl, slot, tx, ty, 2)
                             if slot < 0 or n_mblk >= cap_mblk:
