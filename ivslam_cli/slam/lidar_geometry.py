@@ -79,6 +79,50 @@ def box_ranges(dxl, dxh, dyl, dyh):
     return lo, hi
 
 
+# down / up of ivslam_cli.interval.rounding without their NaN test: the same values for every
+# finite argument whose step does not overflow (|c| < 1e300). For the fast paths, on
+# coordinates and ranges of a map (callers check the magnitudes or fall back).
+_PHI = 2.0**-53 * (1.0 + 2.0**-52)
+_ETA = 2.0**-1074
+FIN_MAX = 1e150  # |values| below this: the squares below stay finite
+
+
+@njit(cache=True, inline="always")
+def dn(c):
+    """:func:`~ivslam_cli.interval.rounding.down` for finite ``c`` (``|c| < 1e300``)."""
+    return c - (_PHI * abs(c) + _ETA)
+
+
+@njit(cache=True, inline="always")
+def upf(c):
+    """:func:`~ivslam_cli.interval.rounding.up` for finite ``c`` (``|c| < 1e300``)."""
+    return c + (_PHI * abs(c) + _ETA)
+
+
+@njit(cache=True, inline="always")
+def box_ranges_fin(dxl, dxh, dyl, dyh):
+    """:func:`box_ranges` (the same values) for a finite box with ``|bounds| < FIN_MAX``."""
+    if dxl > 0.0:
+        mx = dxl
+    elif dxh < 0.0:
+        mx = -dxh
+    else:
+        mx = 0.0
+    if dyl > 0.0:
+        my = dyl
+    elif dyh < 0.0:
+        my = -dyh
+    else:
+        my = 0.0
+    lo = 0.0
+    if mx > 0.0 or my > 0.0:
+        lo = max(0.0, dn(math.sqrt(dn(dn(mx * mx) + dn(my * my)))))
+    Mx = max(-dxl, dxh)
+    My = max(-dyl, dyh)
+    hi = upf(math.sqrt(upf(upf(Mx * Mx) + upf(My * My))))
+    return lo, hi
+
+
 @njit(cache=True)
 def _atan2_lo(y, x):
     return down2(math.atan2(y, x))
@@ -217,5 +261,5 @@ def range_bounds(z, r_abs, r_rel):
     return max(lo, 0.0), hi
 
 
-__all__ = ["ATAN_ERR", "INF", "atan2_fast", "beam_window", "box_bearings", "box_bearings_fast", "box_ranges",
-           "range_bounds", "sensor_box"]
+__all__ = ["ATAN_ERR", "FIN_MAX", "INF", "atan2_fast", "beam_window", "box_bearings", "box_bearings_fast",
+           "box_ranges", "box_ranges_fin", "dn", "range_bounds", "sensor_box", "upf"]

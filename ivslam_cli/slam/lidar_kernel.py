@@ -48,7 +48,11 @@ from ivslam_cli.slam.lidar_geometry import (
     box_bearings,
     box_bearings_fast,
     box_ranges,
+    FIN_MAX,
+    box_ranges_fin,
+    dn,
     range_bounds,
+    upf,
 )
 
 _LEVELS = TILE_SHIFT  # quadtree levels per tile (64 = 2^6 cells)
@@ -428,7 +432,7 @@ def inclusion_new(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel,
 #     cell's largest range against the free ranges of beams in every cell's window), or proven
 #     all-P_OBSTACLE^k at once (_inner's certificate) instead of being refined to single cells;
 #   - a cell's reference window is computed from fast bearings when every index is farther from
-#     a rounding boundary than the error allows (_cell_fast), else exactly as the reference.
+#     a rounding boundary than the error allows (_geom4), else exactly as the reference.
 # Blocks that are not simple (around the sensor box, the back of the scan) use the reference's
 # own block test. update_log / scan_cells / traverse / apply are the fast path; the *_reference
 # functions are the oracle of tests/test_lidar_map.py.
@@ -593,80 +597,25 @@ def _cell(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, T, lg, 
 
 
 @njit(cache=True, _nrt=False)
-def _cell_fast(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, inv_inc, T, lg,
-               st):
-    """:func:`_cell` with the bearings of :func:`box_bearings_fast`: the same results, or code
-    -1 when the bearing error ``err`` (``ATAN_ERR`` plus every rounding of the reference's
-    chain) leaves an index of the window, or its branch, undecided (then call :func:`_cell`).
-
-    The reference's window is ``floor / ceil`` of ``(bearing -/+ theta -/+ h - a0) / inc``
-    after a shift by ``2 pi m``: when the approximate value is farther than ``err / inc`` from
-    an integer, the floor / ceil are those of the exact value.
-    """
-    pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
-    x0 = down(ix * eps)
-    x1 = up((ix + 1) * eps)
-    y0 = down(iy * eps)
-    y1 = up((iy + 1) * eps)
-    dxl, dxh = down(x0 - pxh), up(x1 - pxl)
-    dyl, dyh = down(y0 - pyh), up(y1 - pyl)
-    r_lo, r_hi = box_ranges(dxl, dxh, dyl, dyh)
-    if r_lo > rmax:
-        return 0, 0, -1, r_lo, r_hi
-    bl, bh, full = box_bearings_fast(dxl, dxh, dyl, dyh)
-    if full:
-        o_lo, o_hi, e_lo, e_hi, cover = 0, nb - 1, 0, -1, False
-    else:
-        pl = bl - thh
-        ph = bh - thl
-        if not (ph - pl < 5.9):
-            return -1, 0, -1, r_lo, r_hi
-        c = 0.5 * (pl + ph) - mid
-        if not (-3.0 < c < 3.0):  # the reference's branch m = round(c / 2 pi) = +-1
-            if 3.3 < c < 9.2:
-                pl -= 2.0 * math.pi
-                ph -= 2.0 * math.pi
-            elif -9.2 < c < -3.3:
-                pl += 2.0 * math.pi
-                ph += 2.0 * math.pi
-            else:
-                return -1, 0, -1, r_lo, r_hi
-        u_lo = (pl - h - a0) * inv_inc
-        u_hi = (ph + h - a0) * inv_inc
-        if not (-1e5 < u_lo and u_hi < 1e5):
-            return -1, 0, -1, r_lo, r_hi
-        d = err * inv_inc + 1e-9
-        f_lo = math.floor(u_lo - d)
-        f_hi = math.ceil(u_hi + d)
-        if f_lo != math.floor(u_lo + d) or f_hi != math.ceil(u_hi - d):
-            return -1, 0, -1, r_lo, r_hi
-        e_lo = int(f_lo)
-        e_hi = int(f_hi)
-        cover = e_lo >= 0 and e_hi <= nb - 1
-        o_lo = max(e_lo, 0)
-        o_hi = min(e_hi, nb - 1)
-        g1 = pl + 2.0 * math.pi - hi_edge  # the reference widens to the whole scan when <= 0
-        g2 = ph - 2.0 * math.pi - lo_edge  # ... or when >= 0
-        if g1 <= -err or g2 >= err:
-            o_lo, o_hi = 0, nb - 1
-        elif g1 <= err or g2 >= -err:
-            return -1, 0, -1, r_lo, r_hi
-    return _classify(T, lg, o_lo, o_hi, e_lo, e_hi, cover, r_lo, r_hi, st), o_lo, o_hi, r_lo, r_hi
-
-
-@njit(cache=True, _nrt=False)
 def _geom4(ix, iy, eps, box, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc, R, W):
-    """:func:`_cell_fast`'s geometry for the four cells ``(ix + (q & 1), iy + (q >> 1))``, as
-    independent computations one after the other (no decision in between, so that the
-    processor overlaps them): ``R[q] = (r_lo, r_hi)``, ``W[q] = (o_lo, o_hi, e_lo, e_hi,
-    cover, state)``, state 0 = window decided, -1 = undecided (use :func:`_cell`)."""
+    """The reference's range interval and window of the four cells ``(ix + (q & 1), iy + (q >>
+    1))``, computed one after the other (no decision in between, so that the processor
+    overlaps them): ``R[q] = (r_lo, r_hi)``, ``W[q] = (o_lo, o_hi, e_lo, e_hi, cover, state)``,
+    state 0 = window decided, -1 = undecided (then use :func:`_cell`).
+
+    The bearings come from :func:`box_bearings_fast`; the reference's window is ``floor /
+    ceil`` of ``(bearing -/+ theta -/+ h - a0) / inc`` after a shift by ``2 pi m``: when the
+    approximate value is farther than ``err / inc`` (``err``: ATAN_ERR plus every rounding of
+    the reference's chain) from an integer, the floor / ceil are those of the exact value, and
+    so are the branch and the "other branch" test when farther than ``err`` from their limits.
+    """
     pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
     for q in range(4):
         cx = ix + (q & 1)
         cy = iy + (q >> 1)
-        dxl, dxh = down(down(cx * eps) - pxh), up(up((cx + 1) * eps) - pxl)
-        dyl, dyh = down(down(cy * eps) - pyh), up(up((cy + 1) * eps) - pyl)
-        r_lo, r_hi = box_ranges(dxl, dxh, dyl, dyh)
+        dxl, dxh = dn(dn(cx * eps) - pxh), upf(upf((cx + 1) * eps) - pxl)
+        dyl, dyh = dn(dn(cy * eps) - pyh), upf(upf((cy + 1) * eps) - pyl)
+        r_lo, r_hi = box_ranges_fin(dxl, dxh, dyl, dyh)
         R[q, 0] = r_lo
         R[q, 1] = r_hi
         bl, bh, full = box_bearings_fast(dxl, dxh, dyl, dyh)
@@ -805,36 +754,36 @@ def _inner(x0, x1, y0, y1, eps, box, a0, h, mid, cx, cy, wx, wy, rc, amg, inv_in
     pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
     bx = 0.5 * (x0 + x1)
     by = 0.5 * (y0 + y1)
-    wbx = up(max(up(bx - x0), up(x1 - bx)))  # a super-box of the block, centred on b
-    wby = up(max(up(by - y0), up(y1 - by)))
+    wbx = upf(max(upf(bx - x0), upf(x1 - bx)))  # a super-box of the block, centred on b
+    wby = upf(max(upf(by - y0), upf(y1 - by)))
     if wbx <= LC[lev, 0] and wby <= LC[lev, 0]:  # the level's bounds (see _level_consts)
         rb = LC[lev, 1]
     else:
-        rb = up(math.sqrt(up(up(wbx * wbx) + up(wby * wby))))
+        rb = upf(math.sqrt(upf(upf(wbx * wbx) + upf(wby * wby))))
     # the range interval common to the block
-    ex = max(max(up(pxl - bx), up(bx - pxh)), 0.0)
-    ey = max(max(up(pyl - by), up(by - pyh)), 0.0)
-    d_up = up(math.sqrt(up(up(ex * ex) + up(ey * ey))))
-    mx = max(max(down(bx - pxl), down(pxh - bx)), 0.0)
-    my = max(max(down(by - pyl), down(pyh - by)), 0.0)
-    dm = down(math.sqrt(down(down(mx * mx) + down(my * my))))
+    ex = max(max(upf(pxl - bx), upf(bx - pxh)), 0.0)
+    ey = max(max(upf(pyl - by), upf(by - pyh)), 0.0)
+    d_up = upf(math.sqrt(upf(upf(ex * ex) + upf(ey * ey))))
+    mx = max(max(dn(bx - pxl), dn(pxh - bx)), 0.0)
+    my = max(max(dn(by - pyl), dn(pyh - by)), 0.0)
+    dm = dn(math.sqrt(dn(dn(mx * mx) + dn(my * my))))
     # cell centres lie within rbc of b: [k_lo, k_hi] meets the range interval of every centre
-    hx = max(up(bx - up(x0 + 0.5 * eps)), up(down(x1 - 0.5 * eps) - bx))
-    hy = max(up(by - up(y0 + 0.5 * eps)), up(down(y1 - 0.5 * eps) - by))
-    hx = up(max(hx, 0.0) + 1e-12 * (1.0 + abs(bx)))
-    hy = up(max(hy, 0.0) + 1e-12 * (1.0 + abs(by)))
+    hx = max(upf(bx - upf(x0 + 0.5 * eps)), upf(dn(x1 - 0.5 * eps) - bx))
+    hy = max(upf(by - upf(y0 + 0.5 * eps)), upf(dn(y1 - 0.5 * eps) - by))
+    hx = upf(max(hx, 0.0) + 1e-12 * (1.0 + abs(bx)))
+    hy = upf(max(hy, 0.0) + 1e-12 * (1.0 + abs(by)))
     if hx <= LC[lev, 2] and hy <= LC[lev, 2]:
         rbc = LC[lev, 3]
     else:
-        rbc = up(math.sqrt(up(up(hx * hx) + up(hy * hy))))
+        rbc = upf(math.sqrt(upf(upf(hx * hx) + upf(hy * hy))))
     # a cell reaches eps / 2 nearer / farther than its centre (straight to the nearest / from the
     # farthest point of the box; the nearer side used only with the block ahead of the box)
-    k_lo = up(up(d_up + rbc) - 0.5 * eps)
-    k_hi = down(down(dm - rbc) + 0.5 * eps)
+    k_lo = upf(upf(d_up + rbc) - 0.5 * eps)
+    k_hi = dn(dn(dm - rbc) + 0.5 * eps)
     # beams common to the block's cells: a cell (half-width eps / 2, centre within (hx, hy) of
     # b) meets the box's shadow strip in direction psi when |n . v| <= dx |sin psi| + dy |cos psi|
-    ddx = down(down(wx + 0.5 * eps) - hx)
-    ddy = down(down(wy + 0.5 * eps) - hy)
+    ddx = dn(dn(wx + 0.5 * eps) - hx)
+    ddy = dn(dn(wy + 0.5 * eps) - hy)
     if not (ddx > 0.0 and ddy > 0.0):
         return 0, -1, k_lo, k_hi
     vx = bx - cx
@@ -911,6 +860,9 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     n_cand = 0
     if rmax == -INF:
         return True, n_tl, n_blk, n_mblk, n_cand
+    if not (abs(box[0]) + abs(box[1]) + abs(box[2]) + abs(box[3]) + 2.0 * rmax + 4.0 * TILE * eps < FIN_MAX):
+        # the tile index (int32 tile coordinates) bounds a map far below this
+        raise ValueError("lidar map: coordinates or ranges beyond 1e150")
     a_end = a0 + (nb - 1) * inc
     mid = 0.5 * (a0 + a_end)
     lo_edge = down(a0 - h)
@@ -951,13 +903,13 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                 ix = tx * TILE + lx
                 iy = ty * TILE + ly
                 s = 1 << lev
-                x0 = down(ix * eps)
-                x1 = up((ix + s) * eps)
-                y0 = down(iy * eps)
-                y1 = up((iy + s) * eps)
-                dxl, dxh = down(x0 - pxh), up(x1 - pxl)
-                dyl, dyh = down(y0 - pyh), up(y1 - pyl)
-                r_lo, r_hi = box_ranges(dxl, dxh, dyl, dyh)
+                x0 = dn(ix * eps)
+                x1 = upf((ix + s) * eps)
+                y0 = dn(iy * eps)
+                y1 = upf((iy + s) * eps)
+                dxl, dxh = dn(x0 - pxh), upf(x1 - pxl)
+                dyl, dyh = dn(y0 - pyh), upf(y1 - pyl)
+                r_lo, r_hi = box_ranges_fin(dxl, dxh, dyl, dyh)
                 if r_lo > rmax:
                     continue
                 bl, bh, full = box_bearings_fast(dxl, dxh, dyl, dyh)
@@ -1155,8 +1107,14 @@ def _write(cells, ti, n_blk, blk, n_mblk, mblk, n_cand, cand, cand_f, new, valid
             continue
         for a in range(lx, lx + s):
             for b in range(ly, ly + s):
-                code, o_lo, o_hi, r_lo, r_hi = _cell(ix - lx + a, iy - ly + b, eps, box, a0, inc, h, nb,
-                                                     rmax, mid, lo_edge, hi_edge, T, lg, st)
+                cx, cy = ix - lx + a, iy - ly + b
+                r_lo, r_hi = box_ranges_fin(dn(dn(cx * eps) - pxh), upf(upf((cx + 1) * eps) - pxl),
+                                            dn(dn(cy * eps) - pyh), upf(upf((cy + 1) * eps) - pyl))
+                if not _new_meets(w_lo, w_hi, r_lo, r_hi, T, cnt_new, new_idx):
+                    cells[t, a, b] |= OBST_OLD  # no new beam of a wider window meets the cell
+                    continue
+                code, o_lo, o_hi, r_lo, r_hi = _cell(cx, cy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge,
+                                                     hi_edge, T, lg, st)
                 cells[t, a, b] |= _flags(o_lo, o_hi, r_lo, r_hi, new, valid, T, cnt_new, cnt_valid,
                                          new_idx)
     for k in range(n_cand):
