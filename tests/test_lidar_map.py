@@ -674,3 +674,45 @@ def test_window_meets_test_is_exact(seed):
         lo_min, hi_max, _, _ = K._win(T, lg, l, r)
         assert lo_min == lo[l : r + 1].min() and hi_max == hi[l : r + 1].max()
         assert K._meets(T, lg, l, r, a, b, lo_min, hi_max, st_) == expect
+
+
+def test_update_map_scan_by_scan_equals_one_call():
+    """Scans given one call each (as a pipeline contracting poses does) or all at once: the same
+    map, old beams and counts; only the boxes of the scans processed are converted, every box is
+    still checked."""
+    segs, poses, boxes, bounds, scans, hits, mask = _walk(4, 5, 0.8)
+    a, b = TileMap(0.05), TileMap(0.05)
+    one = update_map(a, scans, boxes, bounds)
+    is_old = np.zeros_like(one.is_old)
+    stats = np.zeros_like(one.stats)
+    for k in range(len(scans)):
+        r = update_map(b, scans, boxes, bounds, order=[k])
+        sl = slice(scans.offsets[k], scans.offsets[k + 1])
+        is_old[sl] = r.is_old[sl]
+        stats[k] = r.stats[k]
+        assert not r.is_old[scans.offsets[k + 1]:].any() and not r.stats[k + 1:].any()
+    _same_maps(a, b)
+    assert np.array_equal(one.is_old, is_old) and np.array_equal(one.stats[:, 1:5], stats[:, 1:5])
+    with pytest.raises(ValueError):
+        update_map(b, scans, boxes, bounds, order=[len(scans)])
+    with pytest.raises(ValueError):
+        update_map(b, scans, boxes, bounds, order=[-1])
+    bad = boxes.copy()
+    bad[-1, 0] = np.nan  # a scan not processed: its box is still checked
+    with pytest.raises(ValueError):
+        update_map(b, scans, bad, bounds, order=[0])
+    with pytest.raises(ValueError):
+        update_map(b, scans, boxes[:-1], bounds, order=[0])
+
+
+def test_bench_lidar_map_runs_and_checks(capsys):
+    """The benchmark on a short log: the fast path against the reference (same map, old beams and
+    counts) and against the truth of the simulated log, both reported OK (the timing verdict is
+    the benchmark's business)."""
+    from bench import bench_lidar_map as B
+
+    B.main(["--scans", "25", "--repeat", "1"])
+    out = capsys.readouterr().out
+    assert out.count("same map, old beams and counts: OK") == 2
+    assert "P_OBSTACLE^k ∪ P_OLD^k: OK" in out
+    assert "load average" in out and "beams/s" in out

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from ivslam_cli.interval.arith import add, cos, mul, sin, sub
@@ -53,6 +54,18 @@ def sensor_box(xl, xh, yl, yh, tl, th, mx, my, myaw):
     syl, syh = add(yl, yh, oy, oyh)
     stl, sth = add(tl, th, myaw, myaw)
     return sxl, sxh, syl, syh, stl, sth
+
+
+@njit(cache=True)
+def sensor_boxes_of(b, rows, mx, my, myaw):
+    """:func:`sensor_box` of the robot boxes ``b[rows]`` (S, 6), into rows ``rows`` of an (S, 6)
+    array (other rows zero)."""
+    out = np.zeros_like(b)
+    for r in rows:
+        o = sensor_box(b[r, 0], b[r, 1], b[r, 2], b[r, 3], b[r, 4], b[r, 5], mx, my, myaw)
+        for j in range(6):
+            out[r, j] = o[j]
+    return out
 
 
 @njit(cache=True, inline="always")
@@ -262,4 +275,4 @@ def range_bounds(z, r_abs, r_rel):
 
 
 __all__ = ["ATAN_ERR", "FIN_MAX", "INF", "atan2_fast", "beam_window", "box_bearings", "box_bearings_fast",
-           "box_ranges", "box_ranges_fin", "dn", "range_bounds", "sensor_box", "upf"]
+           "box_ranges", "box_ranges_fin", "dn", "range_bounds", "sensor_box", "sensor_boxes_of", "upf"]

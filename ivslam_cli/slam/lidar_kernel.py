@@ -21,6 +21,24 @@ taken outer over the pose box) is :func:`inclusion_new`.
 Map update (seed): EMPTY |= P_EMPTY^k; OBST_NEW |= cells of new beams' P_OBSTACLE^{i,k};
 OBST_OLD |= cells of old beams' P_OBSTACLE^{i,k} (= P_OLD^k). The old/new test reads the map
 as it was before the scan.
+
+Two implementations of the same definitions (the leaf tests above, float expression for float
+expression):
+
+- ``traverse_reference`` / ``apply_reference`` / ``update_log_reference`` /
+  ``scan_cells_reference``: the quadtree refined to single cells wherever a cell may be in
+  P_OBSTACLE^k (the oracle of ``tests/test_lidar_map.py``, timed beside the fast path by
+  ``bench/bench_lidar_map.py``);
+- ``traverse`` / ``apply`` / ``update_log`` / ``scan_cells`` (used by
+  :mod:`.lidar_map`): the same cells, beams, flags, tiles (in the same order) and counts, with
+  blocks decided whole where the reference refines them (see "the fast path" below: outer
+  windows with margins, a certificate that every cell of a block is in P_OBSTACLE^k, a test
+  that none can be proven empty, fast bearings whose error is checked before they decide an
+  index, an O(1) "does a beam of this window meet this range" test).
+
+Hot helpers that never allocate are compiled with ``_nrt=False``: numba would otherwise
+increment and decrement the reference count of every array argument on each call (atomic
+operations that cost more than the geometry).
 """
 
 from __future__ import annotations

@@ -20,6 +20,10 @@ so "included in the map" is read as *measured* (any flag: proven free, or in som
 P_OBSTACLE^k / P_OLD^k). The cheap form ``P_OBSTACLE^{i,k} ∩ P_UNKNOWN = ∅`` takes P_UNKNOWN =
 the unmeasured cells (a dilation by one cell would make every beam new forever: the cells just
 behind a wall are never measured).
+
+The work is done by the fast path of :mod:`~ivslam_cli.slam.lidar_kernel` (one compiled call per
+``update_map``, whatever the number of scans), whose cells, beams, flags and counts are those of
+its cell-by-cell reference, bit for bit (``tests/test_lidar_map.py``, ``bench/bench_lidar_map.py``).
 """
 
 from __future__ import annotations
@@ -34,7 +38,7 @@ from ivslam_cli.interval.rounding import ensure_round_to_nearest
 from ivslam_cli.logs.model import Scans
 from ivslam_cli.paving.tiles import TileMap
 from ivslam_cli.slam import lidar_kernel as K
-from ivslam_cli.slam.lidar_geometry import sensor_box
+from ivslam_cli.slam.lidar_geometry import sensor_boxes_of
 
 STAT_FIELDS = ("nodes", "empty_cells", "obstacle_cells", "new_beams", "old_beams", "leaf_beam_tests")
 
@@ -62,23 +66,25 @@ class LidarBounds:
 @dataclass
 class UpdateResult:
     """``is_old`` (B,) per beam of the log (False for invalid or unprocessed beams);
-    ``stats`` (S, 6) per scan, columns :data:`STAT_FIELDS` (zeros for unprocessed scans)."""
+    ``stats`` (S, 6) per scan, columns :data:`STAT_FIELDS` (zeros for unprocessed scans):
+    ``empty_cells`` = |P_EMPTY^k|, ``obstacle_cells`` = |P_OBSTACLE^k| (with ``exact=False``: the
+    cells passing the window-hull test), new and old beams; ``nodes`` (quadtree nodes and cells
+    tested) and ``leaf_beam_tests`` (beams scanned one by one) measure the kernel's work."""
 
     is_old: np.ndarray
     stats: np.ndarray
 
 
-def _boxes(robot_boxes, mount) -> np.ndarray:
+def _boxes(robot_boxes, mount, rows=None) -> np.ndarray:
+    """Sensor boxes of the robot boxes (all rows, or only ``rows``: the others stay zero)."""
     b = np.ascontiguousarray(np.atleast_2d(robot_boxes), dtype=np.float64)
     if b.ndim != 2 or b.shape[1] != 6:
         raise ValueError(f"pose boxes must be (S, 6) = x_lo, x_hi, y_lo, y_hi, th_lo, th_hi; got {b.shape}")
     if not np.all(np.isfinite(b)) or np.any(b[:, 0::2] > b[:, 1::2]):
         raise ValueError("pose boxes must be finite with lo <= hi")
     mx, my, myaw = (float(v) for v in mount)
-    out = np.empty_like(b)
-    for k in range(b.shape[0]):
-        out[k] = sensor_box(*b[k], mx, my, myaw)
-    return out
+    rows = np.arange(b.shape[0], dtype=np.int64) if rows is None else rows
+    return sensor_boxes_of(b, rows, mx, my, myaw)
 
 
 def sensor_boxes(robot_boxes, mount=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -102,10 +108,13 @@ def update_map(tmap: TileMap, scans: Scans, robot_boxes, bounds: LidarBounds, or
     ensure_round_to_nearest()
     bounds.check()
     _check_scans(scans)
-    boxes = _boxes(robot_boxes, scans.mount)
-    if boxes.shape[0] != len(scans):
-        raise ValueError(f"{boxes.shape[0]} pose boxes for {len(scans)} scans")
-    order = np.arange(len(scans), dtype=np.int64) if order is None else np.asarray(order, np.int64)
+    order = np.arange(len(scans), dtype=np.int64) if order is None else np.asarray(order, np.int64).ravel()
+    if order.size and (order.min() < 0 or order.max() >= len(scans)):
+        raise ValueError(f"scan indices must be in [0, {len(scans)}), got {order.min()}..{order.max()}")
+    b = np.atleast_2d(robot_boxes)
+    if b.ndim == 2 and b.shape[0] != len(scans):
+        raise ValueError(f"{b.shape[0]} pose boxes for {len(scans)} scans")
+    boxes = _boxes(b, scans.mount, order)  # only the boxes of the scans processed
     is_old = np.zeros(scans.ranges.shape[0], dtype=np.bool_)
     stats = np.zeros((len(scans), len(STAT_FIELDS)), dtype=np.int64)
     arrays = K.update_log(*tmap.arrays(), scans.ranges, scans.valid, scans.offsets,
