@@ -110,6 +110,7 @@ KEYS: tuple[Key, ...] = (
     Key("lidar", "motion", "auto", "str", "dead reckoning from: twist (v, ω with odom_v/odom_w bounds), pose (odometry pose increments with odom_trans/odom_rot bounds), or auto (the stream whose bounds are set; twist if both or neither)"),
     Key("lidar", "max_pose_width", 2.0, "float", "scans whose robot pose box is wider than this in x or y are not mapped (they would prove no free space and mark obstacle rings metres wide); 0: map every scan", "m", 0.0),
     Key("lidar", "max_step", 0.5, "float", "twist odometry: steps longer than this are cut (the step model's error grows with dt²); 0: never cut", "s", 0.0),
+    Key("lidar", "fill_gaps", False, "bool", "when the bearing bound is below half the beam step (beam cones that do not touch), take the gap between two beams as free up to the nearer free range — an assumption (nothing pokes between two adjacent beams), stated in the result; false: such scans prove no free space"),
     Key("lidar", "contract", True, "bool", "contract each scan's pose box against the map built so far (set inversion in pose space; dead-reckoning runs only)"),
     Key("lidar", "q_beams", 5, "int", "pose contraction: beams of a scan allowed to end in proven-free cells (moving people, glass, beams the static-world model does not explain)"),
     Key("lidar", "contract_boxes", 1024, "int", "pose contraction: sub-boxes tested per scan at most (the set inversion's budget)"),

@@ -78,7 +78,7 @@ def lidar_bounds(cfg: Config):
     den = float(np.nextafter(1.0 - r, -np.inf)) if r else 1.0
     a2 = float(np.nextafter(a / den, np.inf)) if r else a
     r2 = float(np.nextafter(r / den, np.inf)) if r else 0.0
-    b = LidarBounds(a2, r2, _bound(cfg["bounds.bearing"]))
+    b = LidarBounds(a2, r2, _bound(cfg["bounds.bearing"]), fill_gaps=bool(cfg["lidar.fill_gaps"]))
     b.check()
     return b
 
@@ -458,6 +458,10 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
         f"every valid return within ±(range_abs + range_rel·range) of the true distance along its beam, whose "
         f"direction is within ±bearing of its nominal angle (bounds used: range_abs {bounds.range_abs:.6g}, "
         f"range_rel {bounds.range_rel:.6g}, bearing {bounds.bearing:.6g}); invalid beams prove nothing; "
+        + (f"scans whose beam step exceeds twice the bearing bound (gaps between cones): "
+           + ("nothing pokes between two adjacent beams (lidar.fill_gaps); " if bounds.fill_gaps else
+              "no free space proven from them (an obstacle can hide between beams; see lidar.fill_gaps); ")
+           if np.any(np.asarray(scans.angle_increment, float) > 2.0 * bounds.bearing) else "")
         + ("no pose contraction (the boxes are the prediction)" if tracking is None else
            f"the world static but for at most q = {cfg['lidar.q_beams']} beams per scan (pose boxes contracted "
            "against the map: a pose is excluded when more than q beam ends of its scan fall in proven-free cells)")

@@ -9,11 +9,12 @@ Sensor model (the second seed's): beam ``i`` of a scan points at ``a_i = angle_m
 - P_OBSTACLE^{i,k}: the endpoint lies at range ``d`` and bearing ``a_i + [r_α]``.
 - P_EMPTY^{i,k}: nothing lies in the cone ``a_i + [-h, h]`` closer than ``(z - abs) / (1 + rel)``,
   with ``h = max(r_α, Δ/2)``. When ``r_α >= Δ/2`` this is the seed's cone model. When
-  ``r_α < Δ/2`` (ray-like beams) the cones of two adjacent beams do not touch, and the gap is
-  covered by interpolation: the triangle (sensor, the two beams' points at the nearer free
-  range) holds no wall unless a wall lies between two beams without crossing either (a corner
-  or an edge-on thin wall narrower than the gap, which no LiDAR can see); free ranges are then
-  multiplied by ``cos(Δ/2)`` so a cell inside the sector is inside the triangles.
+  ``r_α < Δ/2`` (ray-like beams) the cones of two adjacent beams do not touch and an obstacle
+  can hide in the gap (a thin pole, or a convex corner poking between two beams whose faces
+  both cross the beams further out): such a scan proves no free space, unless the kernels are
+  told ``fill`` (``lidar.fill_gaps``, a stated assumption): the triangle (sensor, the two
+  beams' points at the nearer free range) is then taken as free, free ranges multiplied by
+  ``cos(Δ/2)`` so a cell inside the sector is inside the triangles.
 
 Invalid beams (no return, max range, error codes) prove nothing here: no obstacle and, for now
 and conservatively, no free space.

@@ -161,7 +161,7 @@ def _unmeasured(cells, t, lx, ly):
 # ---------------------------------------------------------------- one scan, pass 1
 @njit(cache=True)
 def traverse_reference(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps,
-             exact, lg, t_free, t_lo, t_hi, t_fmax, new, blk, cand, cand_f, stats):
+             exact, lg, t_free, t_lo, t_hi, t_fmax, new, blk, cand, cand_f, stats, fill=True):
     """P_EMPTY^k blocks, P_OBSTACLE^k cells and new beams of one scan from a sensor box.
 
     ``box`` = (xl, xh, yl, yh, θl, θh) of the sensor. The map (``keys, slots, cells``) is only
@@ -173,7 +173,15 @@ def traverse_reference(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r
     """
     nb = ranges.shape[0]
     h = max(r_alpha, 0.5 * inc)
-    cos_gap = 1.0 if r_alpha >= 0.5 * inc else max(0.0, down(down(math.cos(0.5 * inc)) - 1e-16))
+    # cones that do not touch (r_alpha < inc/2): the gap between two beams is filled (free
+    # range times cos(inc/2)) only under the stated assumption ``fill``; else no free space
+    # (a negative factor proves nothing free)
+    if r_alpha >= 0.5 * inc:
+        cos_gap = 1.0
+    elif fill:
+        cos_gap = max(0.0, down(down(math.cos(0.5 * inc)) - 1e-16))
+    else:
+        cos_gap = -1.0
     rmax = beam_tables(ranges, valid, r_abs, r_rel, cos_gap, t_free, t_lo, t_hi, t_fmax)
     n_blk = 0
     n_cand = 0
@@ -297,7 +305,7 @@ def apply_reference(keys, slots, cells, coords, n, n_blk, blk, n_cand, cand, can
 # ---------------------------------------------------------------- a whole log
 @njit(cache=True)
 def update_log_reference(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min, angle_inc,
-               boxes, order, r_abs, r_rel, r_alpha, eps, exact, write, is_old, scan_stats):
+               boxes, order, r_abs, r_rel, r_alpha, eps, exact, write, is_old, scan_stats, fill=True):
     """Process scans ``order`` (in that order) from sensor boxes ``boxes`` (S, 6).
 
     ``is_old[b]`` is set for every valid beam found old (cheap form) against the map before
@@ -328,7 +336,7 @@ def update_log_reference(keys, slots, cells, coords, n, ranges, valid, offsets, 
         n_blk, n_cand, blk, cand, cand_f = traverse_reference(
             keys, slots, cells, ranges[b0:b1], valid[b0:b1], angle_min[s], angle_inc[s],
             boxes[s], r_abs, r_rel, r_alpha, eps, exact, lg, t_free, t_lo, t_hi, t_fmax,
-            new, blk, cand, cand_f, st)
+            new, blk, cand, cand_f, st, fill)
         n_new = 0
         n_old = 0
         for i in range(nb):
@@ -352,7 +360,7 @@ def update_log_reference(keys, slots, cells, coords, n, ranges, valid, offsets, 
 
 
 @njit(cache=True)
-def scan_cells_reference(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact):
+def scan_cells_reference(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, fill=True):
     """P_EMPTY^k and P_OBSTACLE^k of one scan as cell index arrays (for tests and plots):
     ``(empty_ix, empty_iy, obst_ix, obst_iy)``."""
     nb = ranges.shape[0]
@@ -372,7 +380,7 @@ def scan_cells_reference(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps
     st = np.zeros(3, dtype=np.int64)
     n_blk, n_cand, blk, cand, cand_f = traverse_reference(keys, slots, cells, ranges, valid, a0, inc, box,
                                                 r_abs, r_rel, r_alpha, eps, exact, lg, t_free,
-                                                t_lo, t_hi, t_fmax, new, blk, cand, cand_f, st)
+                                                t_lo, t_hi, t_fmax, new, blk, cand, cand_f, st, fill)
     ne = st[1]
     ex = np.empty(ne, dtype=np.int64)
     ey = np.empty(ne, dtype=np.int64)
@@ -850,7 +858,7 @@ def _tile_slot(tl, n_tl, slot, tx, ty, what):
 
 @njit(cache=True)
 def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps,
-             exact, lg, T, new, tl, blk, mblk, cand, cand_f, stats):
+             exact, lg, T, new, tl, blk, mblk, cand, cand_f, stats, fill=True):
     """P_EMPTY^k, P_OBSTACLE^k and the new beams of one scan (fast path; the same cells and
     beams as :func:`traverse_reference`). ``T``: the scan's table (:func:`_fast_tables`).
 
@@ -870,7 +878,15 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     """
     nb = ranges.shape[0]
     h = max(r_alpha, 0.5 * inc)
-    cos_gap = 1.0 if r_alpha >= 0.5 * inc else max(0.0, down(down(math.cos(0.5 * inc)) - 1e-16))
+    # cones that do not touch (r_alpha < inc/2): the gap between two beams is filled (free
+    # range times cos(inc/2)) only under the stated assumption ``fill``; else no free space
+    # (a negative factor proves nothing free)
+    if r_alpha >= 0.5 * inc:
+        cos_gap = 1.0
+    elif fill:
+        cos_gap = max(0.0, down(down(math.cos(0.5 * inc)) - 1e-16))
+    else:
+        cos_gap = -1.0
     rmax = _fast_tables(ranges, valid, r_abs, r_rel, cos_gap, T)
     n_tl = 0
     n_blk = 0
@@ -1185,7 +1201,7 @@ def _grown(a):
 
 @njit(cache=True)
 def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min, angle_inc,
-               boxes, order, r_abs, r_rel, r_alpha, eps, exact, write, is_old, scan_stats):
+               boxes, order, r_abs, r_rel, r_alpha, eps, exact, write, is_old, scan_stats, fill=True):
     """Process scans ``order`` (in that order) from sensor boxes ``boxes`` (S, 6): the same map,
     ``is_old`` and ``scan_stats`` columns 1-4 as :func:`update_log_reference` (columns 0 and 5,
     nodes visited and beam tests, count this path's own work). Returns the map arrays."""
@@ -1209,7 +1225,7 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
             st[:] = 0
             ok, n_tl, n_blk, n_mblk, n_cand = traverse(
                 keys, slots, cells, ranges[b0:b1], valid[b0:b1], angle_min[s], angle_inc[s],
-                boxes[s], r_abs, r_rel, r_alpha, eps, exact, lg, T, new, tl, blk, mblk, cand, cand_f, st)
+                boxes[s], r_abs, r_rel, r_alpha, eps, exact, lg, T, new, tl, blk, mblk, cand, cand_f, st, fill)
             if ok:
                 break
             if n_tl >= tl.shape[0]:
@@ -1252,7 +1268,7 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
 
 
 @njit(cache=True)
-def scan_cells(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact):
+def scan_cells(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, fill=True):
     """P_EMPTY^k and P_OBSTACLE^k of one scan as cell index arrays (for tests and plots):
     ``(empty_ix, empty_iy, obst_ix, obst_iy)`` (the cells of :func:`scan_cells_reference`,
     in another order)."""
@@ -1269,7 +1285,7 @@ def scan_cells(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact):
         st[:] = 0
         ok, n_tl, n_blk, n_mblk, n_cand = traverse(
             keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, lg,
-            T, new, tl, blk, mblk, cand, cand_f, st)
+            T, new, tl, blk, mblk, cand, cand_f, st, fill)
         if ok:
             break
         if n_tl >= tl.shape[0]:

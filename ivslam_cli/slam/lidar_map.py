@@ -46,11 +46,16 @@ STAT_FIELDS = ("nodes", "empty_cells", "obstacle_cells", "new_beams", "old_beams
 @dataclass(frozen=True)
 class LidarBounds:
     """Measurement bounds: ``|z - d| <= range_abs + range_rel d``; bearing error ``<= bearing``
-    (the beam cone's half-width, rad)."""
+    (the beam cone's half-width, rad); ``fill_gaps`` (see below)."""
 
     range_abs: float
     range_rel: float = 0.0
     bearing: float = 0.0
+    #: cones narrower than the beam step (``bearing`` < step/2) leave gaps between beams where an
+    #: obstacle can hide; with ``fill_gaps`` the gap is taken as free up to the nearer free range
+    #: (an assumption: nothing pokes between two adjacent beams); without it, such scans prove
+    #: no free space
+    fill_gaps: bool = False
 
     def check(self) -> None:
         for name in ("range_abs", "range_rel", "bearing"):
@@ -121,7 +126,7 @@ def update_map(tmap: TileMap, scans: Scans, robot_boxes, bounds: LidarBounds, or
                           np.ascontiguousarray(scans.angle_min, dtype=np.float64),
                           np.ascontiguousarray(scans.angle_increment, dtype=np.float64),
                           boxes, order, float(bounds.range_abs), float(bounds.range_rel),
-                          float(bounds.bearing), tmap.eps, exact, write, is_old, stats)
+                          float(bounds.bearing), tmap.eps, exact, write, is_old, stats, bool(bounds.fill_gaps))
     tmap.set_arrays(*arrays)
     return UpdateResult(is_old, stats)
 
@@ -140,7 +145,8 @@ def scan_sets(scans: Scans, k: int, robot_box, bounds: LidarBounds, eps: float,
     box = _boxes(robot_box, scans.mount)[0]
     r, v, a0, inc = _scan(scans, k)
     ex, ey, ox, oy = K.scan_cells(r, v, a0, inc, box, float(bounds.range_abs),
-                                  float(bounds.range_rel), float(bounds.bearing), float(eps), exact)
+                                  float(bounds.range_rel), float(bounds.bearing), float(eps), exact,
+                                  bool(bounds.fill_gaps))
     return np.column_stack([ex, ey]), np.column_stack([ox, oy])
 
 
