@@ -183,14 +183,14 @@ def known_pose_boxes(log: LogData, cfg: Config, scans: Scans) -> PosePrediction:
                           interpolated=int((~exact).sum()))
 
 
-def dead_reckoning_boxes(log: LogData, cfg: Config, scans: Scans) -> PosePrediction:
-    """Boxes by dead reckoning from the odometry with its bounds (see the module docstring)."""
+def _trajectory(log: LogData, cfg: Config, scans: Scans):
+    """The motion steps over the scans within the odometry's span and the node boxes with only
+    the initial one bounded: ``(used, dropped, MotionSteps, P, initial source, step events)``."""
     path = log.provenance.path
     odo = log.odometry
     if odo is None or len(odo) < 2:
         raise IvslamError("no odometry (at least two samples): --mode lidar needs a motion model, "
                           "or --poses-known with given poses", path)
-    prefer = _choose_motion(log, cfg)
     t = np.asarray(odo.stamp, float)
     s = np.asarray(scans.stamp, float)
     inside = (s >= t[0]) & (s <= t[-1])
@@ -200,14 +200,20 @@ def dead_reckoning_boxes(log: LogData, cfg: Config, scans: Scans) -> PosePredict
     used = np.flatnonzero(inside)
     if used.size == 0:
         raise IvslamError("no scan falls within the odometry's time span", path)
-    m = motion_steps(odo, cfg, s[used], prefer=prefer, max_step=float(cfg["lidar.max_step"]), path=path)
+    m = motion_steps(odo, cfg, s[used], prefer=_choose_motion(log, cfg), max_step=float(cfg["lidar.max_step"]),
+                     path=path)
     n = m.node_stamp.shape[0]
     P = np.empty((n, 3, 2))
     P[:, :, 0] = -np.inf
     P[:, :, 1] = np.inf
     initial, source = initial_box(log, cfg, float(m.node_stamp[0]))
     P[0] = iv.add(initial, _sym(m.lag[0, [0, 0, 1]]))
-    events = np.zeros(max(n - 1, 0), np.int64)
+    return used, dropped, m, P, source, np.zeros(max(n - 1, 0), np.int64)
+
+
+def dead_reckoning_boxes(log: LogData, cfg: Config, scans: Scans) -> PosePrediction:
+    """Boxes by dead reckoning from the odometry with its bounds (see the module docstring)."""
+    used, dropped, m, P, source, events = _trajectory(log, cfg, scans)
     dead_reckon(P, m.kind, m.U, events)
     boxes = np.empty((used.size, 6))
     widen_boxes(P, m.node, m.reach, boxes)
@@ -235,29 +241,7 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
     from ivslam_cli.slam.lidar_map import UpdateResult, update_map
     from ivslam_cli.slam.lidar_poses import meet_node, propagate
 
-    path = log.provenance.path
-    odo = log.odometry
-    if odo is None or len(odo) < 2:
-        raise IvslamError("no odometry (at least two samples): --mode lidar needs a motion model, "
-                          "or --poses-known with given poses", path)
-    t = np.asarray(odo.stamp, float)
-    s = np.asarray(scans.stamp, float)
-    inside = (s >= t[0]) & (s <= t[-1])
-    dropped = []
-    if (~inside).any():
-        dropped.append(Dropped("scans", int((~inside).sum()), "outside the odometry's time span (not used)"))
-    used = np.flatnonzero(inside)
-    if used.size == 0:
-        raise IvslamError("no scan falls within the odometry's time span", path)
-    m = motion_steps(odo, cfg, s[used], prefer=_choose_motion(log, cfg), max_step=float(cfg["lidar.max_step"]),
-                     path=path)
-    n = m.node_stamp.shape[0]
-    P = np.empty((n, 3, 2))
-    P[:, :, 0] = -np.inf
-    P[:, :, 1] = np.inf
-    initial, source = initial_box(log, cfg, float(m.node_stamp[0]))
-    P[0] = iv.add(initial, _sym(m.lag[0, [0, 0, 1]]))
-    events = np.zeros(max(n - 1, 0), np.int64)
+    used, dropped, m, P, source, events = _trajectory(log, cfg, scans)
     max_w = float(cfg["lidar.max_pose_width"])
     q = int(cfg["lidar.q_beams"])
     budget = int(cfg["lidar.contract_boxes"])
