@@ -22,6 +22,14 @@ def observations_until(log: LogData, stamp: float) -> LogData:
     return replace(log, observations=cut)
 
 
+def _result(mode: str, log: LogData, cfg: Config, argv, out, **parts) -> Result:
+    """A Result from a pipeline output with ``consistency``, ``stats`` and ``dropped``."""
+    prov = make_provenance(log.provenance, cfg.as_dict(), argv)
+    prov.dropped = list(prov.dropped) + list(out.dropped)
+    return Result(mode=mode, provenance=prov, runtime_s=0.0, consistency=out.consistency, truth=log.truth,
+                  stats=out.stats, **parts)
+
+
 def run_pipeline(log: LogData, cfg: Config, mode: str, argv: Sequence[str] | None = None) -> Result:
     """Run ``mode`` over ``log``.
 
@@ -54,36 +62,12 @@ def run_pipeline(log: LogData, cfg: Config, mode: str, argv: Sequence[str] | Non
         from ivslam_cli.slam.landmarks import run_landmarks
 
         out = run_landmarks(log, cfg)
-        prov = make_provenance(log.provenance, cfg.as_dict(), argv)
-        prov.dropped = list(prov.dropped) + list(out.dropped)
-        result = Result(
-            mode=mode,
-            provenance=prov,
-            runtime_s=0.0,
-            poses=out.poses,
-            landmarks=out.landmarks,
-            consistency=out.consistency,
-            truth=log.truth,
-            stats=out.stats,
-        )
-        if cfg["robust.strict"] and len(out.consistency.empty_events):
-            result.consistency.stopped = "--strict: " + str(out.consistency.empty_events.text[0])
+        result = _result(mode, log, cfg, argv, out, poses=out.poses, landmarks=out.landmarks)
     elif mode == "lidar":
         from ivslam_cli.slam.lidar import run_lidar
 
         out = run_lidar(log, cfg)
-        prov = make_provenance(log.provenance, cfg.as_dict(), argv)
-        prov.dropped = list(prov.dropped) + list(out.dropped)
-        result = Result(
-            mode=mode,
-            provenance=prov,
-            runtime_s=0.0,
-            poses=out.poses,
-            grid=out.grid,
-            consistency=out.consistency,
-            truth=log.truth,
-            stats=out.stats,
-        )
+        result = _result(mode, log, cfg, argv, out, poses=out.poses, grid=out.grid)
     else:
         raise IvslamError(f"unknown --mode {mode} (available: pairs, landmarks, lidar)")
     ev = result.consistency.empty_events
