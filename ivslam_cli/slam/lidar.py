@@ -346,6 +346,8 @@ class LidarOutput:
     is_old: np.ndarray  # (B,) per beam of the log
     tmap: object  # the TileMap (flags per cell: EMPTY, OBST_NEW, OBST_OLD)
     mapped: np.ndarray  # indices of the scans that went into the map
+    used: np.ndarray  # indices of the scans that got a pose box (rows of ``poses``)
+    scans: Scans  # the scans as used (returns beyond lidar.max_range marked invalid)
 
 
 def _box_width(b: np.ndarray) -> np.ndarray:
@@ -481,5 +483,5 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
         })
     return LidarOutput(
         poses=Poses(stamp=stamp, box=np.ascontiguousarray(box3)), grid=grid, consistency=consistency,
-        stats=stats, dropped=dropped, is_old=res.is_old, tmap=tmap, mapped=mapped,
+        stats=stats, dropped=dropped, is_old=res.is_old, tmap=tmap, mapped=mapped, used=used, scans=scans,
     )
