@@ -13,7 +13,7 @@ Conventions (the same on disk, see ``SCHEMA.md``):
 Every enclosure here is an *outer* approximation of the true quantity (if the stated bounds
 hold, possibly relaxed by q as ``Consistency.assumption`` says), except the ``inner`` boxes
 of a pair subpaving (proven to be inside the set) and ``MapGrid`` cells in state ``EMPTY``
-(proven free). Nothing in this module computes; it only holds and checks shapes.
+(proven free); ``LogOddsGrid`` is no enclosure at all (a probabilistic baseline). Nothing in this module computes; it only holds and checks shapes.
 """
 
 from __future__ import annotations
@@ -147,6 +147,27 @@ class MapGrid:
 
 
 @dataclass
+class LogOddsGrid:
+    """A log-odds occupancy grid on the geometry of ``Result.grid`` (lidar mode): the
+    probabilistic baseline the interval map is compared with. **Not an enclosure and not
+    guaranteed**: scans at the centres of their pose boxes, rays with no width or range error,
+    the inverse sensor model ``l_occ`` (return cell) / ``l_free`` (crossed cells), clamped to
+    ``[l_min, l_max]`` (see ``ivslam_cli.slam.lidar_logodds``).
+
+    ``value[r, c]`` is the log-odds of cell (r, c) of the map grid: > 0 occupied (p > 0.5),
+    < 0 free, 0 unknown. ``scans`` / ``beams``: how many went into it.
+    """
+
+    value: np.ndarray  # (H, W) float32, same shape as grid.state
+    l_occ: float
+    l_free: float
+    l_min: float
+    l_max: float
+    scans: int = 0
+    beams: int = 0
+
+
+@dataclass
 class EmptyEvents:
     """Every empty intersection: a proof that the data contradict the stated model.
 
@@ -227,6 +248,7 @@ class Result:
     landmarks: Landmarks | None = None
     pairs: PairSubpavings | None = None
     grid: MapGrid | None = None
+    logodds: LogOddsGrid | None = None  # lidar: the probabilistic baseline (not guaranteed)
     consistency: Consistency = field(default_factory=Consistency)
     truth: GroundTruth | None = None
     stats: dict[str, float | int | str] = field(default_factory=dict)
@@ -265,6 +287,12 @@ def _validate(r: Result) -> None:
         _check(r.grid.state.ndim == 2 and r.grid.state.dtype == np.uint8, "grid.state must be (H, W) uint8")
         _check(np.asarray(r.grid.origin).shape == (2,), "grid.origin must be (2,)")
         _check(r.grid.resolution > 0, "grid.resolution must be > 0")
+    if r.logodds is not None:
+        lo = r.logodds
+        _check(r.grid is not None, "logodds needs the map grid (it has its geometry)")
+        _check(lo.value.dtype == np.float32 and lo.value.shape == r.grid.state.shape,
+               "logodds.value must be float32 of the grid's shape")
+        _check(lo.l_min < 0.0 < lo.l_max and lo.l_free < 0.0 < lo.l_occ, "logodds parameters")
     e = r.consistency.empty_events
     n = len(e)
     for name in ("step", "constraint", "measurement", "text"):
