@@ -26,6 +26,7 @@ from ivslam_cli.results.model import (
     Consistency,
     EmptyEvents,
     Landmarks,
+    LogOddsGrid,
     MapGrid,
     PairSubpavings,
     Poses,
@@ -104,6 +105,20 @@ def _write(f: h5py.File, r: Result) -> None:
             g.create_dataset("state", data=st, chunks=chunks, compression="gzip", compression_opts=4, shuffle=True)
         else:
             g.create_dataset("state", data=st)
+    if r.logodds is not None:
+        lo = r.logodds
+        g = f.create_group("logodds")
+        for key in ("l_occ", "l_free", "l_min", "l_max"):
+            g.attrs[key] = np.float64(getattr(lo, key))
+        g.attrs["scans"] = np.int64(lo.scans)
+        g.attrs["beams"] = np.int64(lo.beams)
+        g.attrs["guaranteed"] = np.bool_(False)
+        v = np.ascontiguousarray(lo.value, dtype=np.float32)
+        if v.size:
+            chunks = (min(256, v.shape[0]), min(256, v.shape[1]))
+            g.create_dataset("value", data=v, chunks=chunks, compression="gzip", compression_opts=4, shuffle=True)
+        else:
+            g.create_dataset("value", data=v)
 
     c = r.consistency
     g = f.create_group("consistency")
@@ -245,6 +260,14 @@ def _read(f: h5py.File) -> Result:
             origin=np.asarray(_attr(g, "origin"), dtype=np.float64),
             resolution=float(_attr(g, "resolution")),
             state=_get(g, "state", np.uint8),
+        )
+    if "logodds" in f:  # optional (results written before it existed have none)
+        g = f["logodds"]
+        r.logodds = LogOddsGrid(
+            value=_get(g, "value", np.float32),
+            **{key: float(_attr(g, key)) for key in ("l_occ", "l_free", "l_min", "l_max")},
+            scans=int(_attr(g, "scans")),
+            beams=int(_attr(g, "beams")),
         )
 
     g = _group(f, "consistency")
