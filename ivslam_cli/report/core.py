@@ -287,6 +287,10 @@ class Report:
     map_cells: dict[str, int]
     map_area_m2: dict[str, float]
     map_beams: dict[str, int] = field(default_factory=dict)  # lidar: scans/beams mapped, old/new
+    # lidar: the log-odds baseline (not guaranteed) and where it disagrees with the interval map
+    logodds_cells: dict[str, int] = field(default_factory=dict)  # occupied / free / unknown
+    disagreement: dict[str, int] = field(default_factory=dict)  # see slam.lidar_logodds.compare
+    disagreement_code: np.ndarray | None = None  # (H, W) uint8 per-cell codes (for the plot)
 
     @property
     def empty_events(self) -> int:
@@ -346,6 +350,14 @@ def compute_report(r: Result) -> Report:
     beams = {name: int(r.stats[key]) for key, name in (
         ("scans", "scans"), ("scans_mapped", "scans_mapped"), ("beams", "beams"),
         ("valid_beams_mapped", "valid_mapped"), ("old_beams", "old"), ("new_beams", "new")) if key in r.stats}
+    lo_cells: dict[str, int] = {}
+    dis: dict[str, int] = {}
+    dis_code = None
+    if r.logodds is not None and r.grid is not None:
+        from ivslam_cli.slam.lidar_logodds import compare  # numba only when there is one
+
+        d = compare(r.grid, r.logodds)
+        lo_cells, dis, dis_code = d.logodds_cells, d.counts(), d.code
     return Report(
         result=r,
         containment=cont,
@@ -360,6 +372,9 @@ def compute_report(r: Result) -> Report:
         map_cells=cells,
         map_area_m2=area,
         map_beams=beams,
+        logodds_cells=lo_cells,
+        disagreement=dis,
+        disagreement_code=dis_code,
     )
 
 

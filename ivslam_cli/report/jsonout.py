@@ -7,7 +7,10 @@ non_empty), ``containment`` (kind → fraction, only kinds checkable against the
 (kind → "ok" / "SOUNDNESS FAILURE" / relaxed note), ``sound`` (bool), ``centre_error``
 (kind → median, max [m]), ``final_width`` (kind → median, max, count, empty),
 ``convergence`` (kind → initial/final median and max, increases, curve), ``rejected``,
-``q``, ``assumption``, ``stopped``, ``outliers_injected``, ``input``, ``config``, ``map``.
+``q``, ``assumption``, ``stopped``, ``outliers_injected``, ``input``, ``config``, ``map`` (lidar;
+with ``map.logodds`` when the result has the log-odds baseline: ``guaranteed`` (false), ``scans``,
+``beams``, ``model``, ``cells`` occupied/free/unknown and ``disagreement``: ``empty_occupied`` (a),
+``unknown_occupied``, ``occupied_outside_obstacle`` (b = a + unknown_occupied), ``obstacle_free`` (c)).
 NaN becomes null, ±inf the strings "inf"/"-inf".
 """
 
@@ -95,6 +98,16 @@ def report_dict(rep: Report) -> dict[str, Any]:
             "area_m2": rep.map_area_m2,
             "beams": rep.map_beams,
         }
+        if r.logodds is not None and rep.logodds_cells:
+            lo = r.logodds
+            out["map"]["logodds"] = {
+                "guaranteed": False,
+                "scans": lo.scans,
+                "beams": lo.beams,
+                "model": {"l_occ": lo.l_occ, "l_free": lo.l_free, "l_min": lo.l_min, "l_max": lo.l_max},
+                "cells": rep.logodds_cells,
+                "disagreement": rep.disagreement,
+            }
     return out
 
 

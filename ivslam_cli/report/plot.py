@@ -5,7 +5,9 @@ CLI never needs a display. Left panel, in world coordinates: the map grid (if an
 pose tube (x, y of the pose boxes), pair subpavings drawn where they place landmark i given
 landmark j (dl(i,j) + position of j: its truth when known, else its box centre; inner boxes
 darker), landmark boxes, and the truth (landmarks as crosses, trajectory as a line). Right
-panel: width-over-time curves per kind (median and max per step bin).
+panel: width-over-time curves per kind (median and max per step bin). A lidar result with the
+log-odds baseline gets it beside the map, on the same axes, with the cells where the two
+disagree in colour (``slam.lidar_logodds.compare``), and the widths below.
 """
 
 from __future__ import annotations
@@ -46,9 +48,7 @@ def _draw_map(ax, rep: Report) -> None:
         img[g.state == CELL_EMPTY] = (1.0, 1.0, 1.0, 1.0)
         img[g.state == CELL_OBSTACLE] = (0.0, 0.0, 0.0, 1.0)
         img[(g.state != CELL_EMPTY) & (g.state != CELL_OBSTACLE)] = (0.75, 0.75, 0.75, 1.0)
-        h, w = g.shape
-        ax.imshow(img, origin="lower", interpolation="nearest",
-                  extent=(g.origin[0], g.origin[0] + w * g.resolution, g.origin[1], g.origin[1] + h * g.resolution))
+        ax.imshow(img, origin="lower", interpolation="nearest", extent=_grid_extent(g))
     if r.poses is not None and len(r.poses):
         _rects(ax, r.poses.box[:, :2], facecolor="tab:blue", alpha=0.15, edgecolor="tab:blue", linewidth=0.3)
         c = box_centre(r.poses.box[:, :2])
@@ -99,6 +99,66 @@ def _draw_map(ax, rep: Report) -> None:
         ax.legend(fontsize="x-small", loc="best")
 
 
+# disagreement code -> colour, legend (see slam.lidar_logodds.compare). (a) and the occupied
+# unknown cells are few and small: drawn as markers (on both panels) so that they show at any
+# scale; (c) is a tint of the log-odds image (the outer obstacle set's margin).
+DIS_MARKED = (
+    (1, "red", "(a) proven free, log-odds occupied"),
+    (2, "darkorange", "log-odds occupied in interval unknown ((b) = (a) + these)"),
+)
+DIS_TINT = (3, (0.55, 0.75, 1.0, 1.0), "(c) interval obstacle, log-odds free")
+
+
+def _grid_extent(g) -> tuple[float, float, float, float]:
+    h, w = g.shape
+    return (g.origin[0], g.origin[0] + w * g.resolution, g.origin[1], g.origin[1] + h * g.resolution)
+
+
+def _mark_disagreement(ax, rep: Report, legend: bool) -> list:
+    """Markers at the centres of the (a) and occupied-unknown cells; their legend handles."""
+    from matplotlib.lines import Line2D
+
+    g, code = rep.result.grid, rep.disagreement_code
+    handles = []
+    for c, colour, text in DIS_MARKED:
+        rc = np.argwhere(code == c)
+        if rc.size:
+            x = g.origin[0] + (rc[:, 1] + 0.5) * g.resolution
+            y = g.origin[1] + (rc[:, 0] + 0.5) * g.resolution
+            ax.plot(x, y, "o", ms=3, mfc="none", mec=colour, mew=0.8, zorder=5,
+                    label=None if legend else f"{text} (log-odds baseline)")
+        handles.append(Line2D([], [], ls="none", marker="o", mfc="none", mec=colour,
+                              label=f"{text}: {int(rc.shape[0])} cells" if legend else text))
+    return handles
+
+
+def _draw_logodds(ax, rep: Report) -> None:
+    """The log-odds map (grey: 1 − p; never-updated cells in the interval map's unknown grey)
+    with the cells where it disagrees with the interval map in colour."""
+    from matplotlib.patches import Patch
+
+    r = rep.result
+    g, v = r.grid, r.logodds.value.astype(np.float64)
+    grey = 1.0 / (1.0 + np.exp(np.clip(v, -50.0, 50.0)))  # 1 − p
+    grey[v == 0] = 0.75
+    img = np.repeat(grey[..., None], 4, axis=-1)
+    img[..., 3] = 1.0
+    handles = []
+    if rep.disagreement_code is not None:
+        c, colour, text = DIS_TINT
+        m = rep.disagreement_code == c
+        img[m] = colour
+        handles = _mark_disagreement(ax, rep, legend=True)
+        handles.append(Patch(color=colour, label=f"{text}: {int(m.sum())} cells"))
+    ax.imshow(img, origin="lower", interpolation="nearest", extent=_grid_extent(g))
+    ax.set_aspect("equal", adjustable="box")  # its limits are the map panel's
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title("log-odds at the pose-box centres (NOT guaranteed)\nwhere it disagrees with the interval map")
+    if handles:
+        ax.legend(handles=handles, fontsize="x-small", loc="best")
+
+
 def _draw_widths(ax, rep: Report) -> None:
     drawn = False
     for kind, cv in rep.convergence.items():
@@ -130,9 +190,22 @@ def plot_report(rep: Report, path: str | Path, *, force: bool = False) -> None:
     matplotlib.use("Agg", force=True)
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(12, 5.5), layout="constrained")
-    ax_map, ax_w = fig.subplots(1, 2, width_ratios=(1.3, 1))
-    _draw_map(ax_map, rep)
-    _draw_widths(ax_w, rep)
+    r = rep.result
+    if r.logodds is not None and r.grid is not None and r.grid.state.size:
+        # the interval map and the log-odds map side by side (same axes), widths below
+        fig = Figure(figsize=(13, 11), layout="constrained")
+        axes = fig.subplot_mosaic([["map", "logodds"], ["widths", "widths"]], height_ratios=(1.6, 1))
+        if rep.disagreement_code is not None:
+            _mark_disagreement(axes["map"], rep, legend=False)
+        _draw_map(axes["map"], rep)
+        _draw_logodds(axes["logodds"], rep)
+        axes["logodds"].set_xlim(axes["map"].get_xlim())  # the same window of the world
+        axes["logodds"].set_ylim(axes["map"].get_ylim())
+        _draw_widths(axes["widths"], rep)
+    else:
+        fig = Figure(figsize=(12, 5.5), layout="constrained")
+        ax_map, ax_w = fig.subplots(1, 2, width_ratios=(1.3, 1))
+        _draw_map(ax_map, rep)
+        _draw_widths(ax_w, rep)
     with atomic_path(path, force=force) as tmp:
         fig.savefig(tmp, format=fmt, dpi=120)

@@ -134,4 +134,15 @@ def render_text(rep: Report, source: str = "") -> str:
             add(f"beams:      {b.get('scans_mapped', 0)} of {b.get('scans', 0)} scans mapped, {b.get('beams', 0)} beams, "
                 f"{b.get('valid_mapped', 0)} valid in mapped scans: {b.get('old', 0)} old, {b.get('new', 0)} new "
                 "(old: its P_OBSTACLE^{i,k} meets no unmeasured cell of the map before its scan)")
+    if r.logodds is not None and rep.logodds_cells:
+        lo, lc, d = r.logodds, rep.logodds_cells, rep.disagreement
+        add(f"log-odds:   NOT guaranteed (probabilistic baseline): {lo.scans} scans at their pose-box centres, "
+            f"{lo.beams} beams, l_occ {lo.l_occ:g}, l_free {lo.l_free:g}, clamp [{lo.l_min:g}, {lo.l_max:g}]; "
+            f"occupied {lc['occupied']}, free {lc['free']}, unknown {lc['unknown']} cells")
+        n_empty = rep.map_cells.get("empty", 0)
+        share = f" = {100.0 * d['empty_occupied'] / n_empty:.3g} % of the proven-free cells" if n_empty else ""
+        add(f"disagree:   (a) {d['empty_occupied']} proven-free cells log-odds calls occupied{share}; "
+            f"(b) {d['occupied_outside_obstacle']} occupied cells outside the interval obstacle set "
+            f"((a) + {d['unknown_occupied']} unknown); (c) {d['obstacle_free']} interval-obstacle cells "
+            "log-odds calls free (the obstacle set is outer: a margin, not a contradiction)")
     return "\n".join(out) + "\n"
