@@ -66,8 +66,11 @@ def run_pipeline(log: LogData, cfg: Config, mode: str, argv: Sequence[str] | Non
     elif mode == "lidar":
         from ivslam_cli.slam.lidar import run_lidar
 
+        from ivslam_cli.slam.lidar_logodds import logodds_of
+
         out = run_lidar(log, cfg)
-        result = _result(mode, log, cfg, argv, out, poses=out.poses, grid=out.grid)
+        # the probabilistic baseline (not guaranteed) from the same scans at the box centres
+        result = _result(mode, log, cfg, argv, out, poses=out.poses, grid=out.grid, logodds=logodds_of(out))
     else:
         raise IvslamError(f"unknown --mode {mode} (available: pairs, landmarks, lidar)")
     ev = result.consistency.empty_events
