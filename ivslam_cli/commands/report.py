@@ -15,9 +15,15 @@ import click
               help="Export pose box centres as a TUM trajectory (for evo).")
 @click.option("--map-pgm", "map_pgm", type=click.Path(path_type=Path),
               help="Export the map grid as ROS map_server PREFIX.pgm + PREFIX.yaml.")
+@click.option("--relations", type=click.Path(path_type=Path, dir_okay=False),
+              help="Benchmark relations file (t1 t2 dx dy dz droll dpitch dyaw; plain, .gz or .xz): check "
+                   "each true relative pose against what the result's two pose boxes allow.")
+@click.option("--stamp-tol", type=float, default=None, show_default="0.0001",
+              help="--relations: a relation end falls on a pose box when their stamps differ by at most "
+                   "this [s] and no other pose stamp is that close.")
 @click.option("--force", is_flag=True, help="Overwrite existing output files.")
 def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, map_pgm: Path | None,
-            force: bool) -> None:
+            relations: Path | None, stamp_tol: float | None, force: bool) -> None:
     """Report on a result: bounds used, empty intersections, convergence, containment.
 
     \b
@@ -29,13 +35,25 @@ def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, ma
       ivslam report result.h5
       ivslam report result.h5 --json > report.json
       ivslam report result.h5 --plot map.png --tum traj.txt --map-pgm map
+      ivslam report intel.h5 --relations ../shared/datasets/intel_lab/intel.relations.xz
     """
     from ivslam_cli.errors import IvslamError
     from ivslam_cli.report.core import compute_report
     from ivslam_cli.results.hdf5 import read_result
 
+    if stamp_tol is not None and relations is None:
+        raise IvslamError("--stamp-tol applies to --relations only")
     res = read_result(result)
     rep = compute_report(res)
+    rel_check = None
+    if relations is not None:
+        from ivslam_cli.report.relations import DEFAULT_TOL, check_relations, read_relations
+
+        if res.poses is None:
+            raise IvslamError(f"has no pose enclosures ({res.mode} mode): nothing to check --relations against",
+                              result)
+        rel_check = check_relations(res.poses, read_relations(relations),
+                                    DEFAULT_TOL if stamp_tol is None else stamp_tol)
     if tum is not None:
         if res.poses is None:
             raise IvslamError(f"has no pose enclosures ({res.mode} mode): nothing to export to --tum", result)
@@ -57,8 +75,21 @@ def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, ma
     if as_json:
         from ivslam_cli.report.jsonout import render_json
 
-        click.echo(render_json(rep))
+        text = render_json(rep)
+        if rel_check is not None:
+            import json
+
+            from ivslam_cli.report.relations import relations_dict
+
+            doc = json.loads(text)
+            doc["relations"] = relations_dict(rel_check)
+            text = json.dumps(doc, indent=2, allow_nan=False)
+        click.echo(text)
     else:
         from ivslam_cli.report.text import render_text
 
         click.echo(render_text(rep, str(result)), nl=False)
+        if rel_check is not None:
+            from ivslam_cli.report.relations import render_relations_text
+
+            click.echo(render_relations_text(rel_check), nl=False)

@@ -1,0 +1,337 @@
+"""``ivslam report --relations FILE``: a result's pose enclosures against benchmark relations.
+
+A relations file (Kümmerle et al., "On measuring the accuracy of SLAM algorithms", Autonomous
+Robots 27(4), 2009) has one relation a line, ``t1 t2 dx dy dz droll dpitch dyaw``: the true
+pose of the robot at ``t2`` expressed in its frame at ``t1``. Plain, gzip or xz; blank lines
+and ``#`` comments are skipped. The planar part ``(dx, dy, dyaw)`` is used.
+
+**Matching.** A relation end ``t`` falls on pose enclosure ``k`` of the result when
+``|t − stamp_k| ≤ tol`` and ``k`` is the only pose stamp that close (an ambiguous end is not
+matched). A relation is checked when both ends fall on pose enclosures, and on two different
+ones. The default ``tol`` (:data:`DEFAULT_TOL`, 0.1 ms) asks for the same stamp up to the
+microsecond printing of the files: a relation end a millisecond from a keyframe is another
+scan of the full log (on the Intel data such ends are 0.75 ms or more away, and some relations
+join two scans 5 ms apart that would both fall on one keyframe).
+
+**What the two boxes allow.** With ``[p1] = [x1] × [y1] × [θ1]`` and ``[p2]`` the boxes at the
+two ends, every pair of poses in them has its relative pose in
+
+    Δ  = R(−θ1) (p2 − p1)  ∈  [Δx] × [Δy],   Δθ = θ2 − θ1 ∈ [θ2] − [θ1]  (modulo 2π)
+
+computed in interval arithmetic with outward rounding (:mod:`ivslam_cli.interval.arith`):
+``[θ1]`` is cut into ``slices`` pieces (each piece's image is enclosed, their hull kept: a
+sound and tighter enclosure than one rotation by the whole interval), and each of
+``[Δx]``, ``[Δy]`` is met with ``[−ρ, ρ]`` where ``ρ`` bounds ``|p2 − p1|`` (a rotation keeps
+the length). The truth is inside when ``dx ∈ [Δx]``, ``dy ∈ [Δy]`` and ``dyaw + 2πn ∈ [Δθ]``
+for some integer ``n``. For a sound run every checked relation is inside.
+
+**How tight.** Widths of ``[Δx]``, ``[Δy]`` (m), ``[Δθ]`` (rad), median and max over the
+checked relations, and the larger of the x/y widths as a multiple of the relation's length
+``|(dx, dy)|``. Two independent boxes lose the correlation between the two poses, so these
+widths are those of the boxes (roughly their sum), not of the odometry between the two stamps.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from ivslam_cli.errors import IvslamError, LogError
+from ivslam_cli.interval import arith as K
+from ivslam_cli.interval.rounding import ensure_round_to_nearest, up
+from ivslam_cli.results.model import Poses, box_is_empty
+
+DEFAULT_TOL = 1e-4  # s
+DEFAULT_SLICES = 16
+FAILURES_LISTED = 20
+
+
+# ---------------------------------------------------------------- the file
+@dataclass
+class Relations:
+    """Relations of a file: ``t1``, ``t2`` stamps and the true relative pose ``(dx, dy, dyaw)``."""
+
+    path: str
+    t1: np.ndarray  # (R,)
+    t2: np.ndarray
+    rel: np.ndarray  # (R, 3) dx, dy, dyaw
+
+    def __len__(self) -> int:
+        return int(self.t1.shape[0])
+
+
+def read_relations(path) -> Relations:
+    """Read a relations file; any problem is a one-line :class:`IvslamError` naming it."""
+    from ivslam_cli.logs.textfile import read_text
+
+    path = Path(path)
+    if not path.exists():
+        raise IvslamError("no such relations file", path)
+    if path.is_dir():
+        raise IvslamError("is a directory, not a relations file", path)
+    try:
+        text = read_text(path)
+    except LogError as exc:  # the same message, said of a relations file
+        raise IvslamError(str(exc).removeprefix(f"{path}: ") + " (relations file)", path) from None
+    rows: list[list[float]] = []
+    for lineno, line in enumerate(text.splitlines(), 1):
+        s = line.split("#", 1)[0].strip()
+        if not s:
+            continue
+        tok = s.split()
+        if len(tok) != 8:
+            raise IvslamError(f"line {lineno}: {len(tok)} fields, a relation has 8 "
+                              "(t1 t2 dx dy dz droll dpitch dyaw)", path)
+        try:
+            vals = [float(t) for t in tok]
+        except ValueError:
+            raise IvslamError(f"line {lineno}: not a number in {s[:80]!r}", path) from None
+        if not all(math.isfinite(v) for v in vals):
+            raise IvslamError(f"line {lineno}: NaN or infinite value", path)
+        rows.append(vals)
+    if not rows:
+        raise IvslamError("no relations (empty file or only comments)", path)
+    a = np.asarray(rows, np.float64)
+    return Relations(path=str(path), t1=a[:, 0], t2=a[:, 1], rel=np.ascontiguousarray(a[:, [2, 3, 7]]))
+
+
+# ---------------------------------------------------------------- the enclosure
+@njit(cache=True)
+def _rel_one(b1, b2, slices, out):
+    """Relative pose enclosure of box ``b2`` in the frame of box ``b1`` (each ``(3, 2)``)."""
+    dxl, dxh = K.sub(b2[0, 0], b2[0, 1], b1[0, 0], b1[0, 1])
+    dyl, dyh = K.sub(b2[1, 0], b2[1, 1], b1[1, 0], b1[1, 1])
+    tl, th = K.sub(b2[2, 0], b2[2, 1], b1[2, 0], b1[2, 1])
+    out[2, 0], out[2, 1] = tl, th
+    if not (dxl <= dxh) or not (dyl <= dyh) or not (tl <= th):
+        for d in range(3):
+            out[d, 0], out[d, 1] = K.EMPTY_LO, K.EMPTY_HI
+        return
+    # |p2 − p1| ≤ rho, and a rotation keeps the length
+    mx = max(abs(dxl), abs(dxh))
+    my = max(abs(dyl), abs(dyh))
+    rho = up(math.sqrt(up(up(mx * mx) + up(my * my))))
+    a_lo, a_hi = b1[2, 0], b1[2, 1]
+    m = slices
+    if not (a_hi - a_lo < 1e3) or m < 1:  # unbounded or huge heading: one piece (sin, cos give [-1, 1])
+        m = 1
+    xl, xh, yl, yh = math.inf, -math.inf, math.inf, -math.inf
+    prev = a_lo
+    for j in range(m):
+        nxt = a_hi if j == m - 1 else a_lo + (a_hi - a_lo) * ((j + 1) / m)
+        if nxt < prev:  # rounding: keep the pieces ordered; their union still covers [a_lo, a_hi]
+            nxt = prev
+        cl, ch = K.cos(prev, nxt)
+        sl, sh = K.sin(prev, nxt)
+        # Δx = c·dx + s·dy,  Δy = −s·dx + c·dy
+        p1l, p1h = K.mul(cl, ch, dxl, dxh)
+        p2l, p2h = K.mul(sl, sh, dyl, dyh)
+        ql, qh = K.add(p1l, p1h, p2l, p2h)
+        p3l, p3h = K.mul(sl, sh, dxl, dxh)
+        p4l, p4h = K.mul(cl, ch, dyl, dyh)
+        rl, rh = K.sub(p4l, p4h, p3l, p3h)
+        xl, xh = min(xl, ql), max(xh, qh)
+        yl, yh = min(yl, rl), max(yh, rh)
+        prev = nxt
+    out[0, 0], out[0, 1] = max(xl, -rho), min(xh, rho)
+    out[1, 0], out[1, 1] = max(yl, -rho), min(yh, rho)
+
+
+@njit(cache=True)
+def _rel_all(b1, b2, slices, out):
+    for i in range(b1.shape[0]):
+        _rel_one(b1[i], b2[i], slices, out[i])
+
+
+def relative_enclosure(box1: np.ndarray, box2: np.ndarray, slices: int = DEFAULT_SLICES) -> np.ndarray:
+    """``(N, 3, 2)`` enclosures of the pose of box2's robot in box1's frame (see the module
+    docstring); rows of an empty box are empty (``[+inf, −inf]``)."""
+    ensure_round_to_nearest()
+    b1 = np.ascontiguousarray(box1, np.float64).reshape(-1, 3, 2)
+    b2 = np.ascontiguousarray(box2, np.float64).reshape(-1, 3, 2)
+    if b1.shape != b2.shape:
+        raise ValueError("box1 and box2 must have the same shape")
+    out = np.empty_like(b1)
+    _rel_all(b1, b2, int(slices), out)
+    return out
+
+
+# ---------------------------------------------------------------- matching and the check
+def match_stamps(stamps: np.ndarray, t: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """Index of the one pose stamp within ``tol`` of each ``t`` (−1 if none) and a mask of the
+    ``t`` with more than one pose stamp that close (ambiguous, index −1)."""
+    s = np.asarray(stamps, np.float64)
+    t = np.asarray(t, np.float64)
+    if s.size == 0:
+        return np.full(t.shape, -1, np.int64), np.zeros(t.shape, bool)
+    lo = np.searchsorted(s, t - tol, side="left")
+    hi = np.searchsorted(s, t + tol, side="right")
+    n = hi - lo
+    idx = np.where(n == 1, lo, -1).astype(np.int64)
+    return idx, n > 1
+
+
+@dataclass
+class RelationsCheck:
+    path: str
+    tol: float
+    slices: int
+    total: int
+    both: int  # both ends fall on pose enclosures (distinct)
+    one_end: int  # exactly one end does
+    ambiguous: int  # an end has several pose stamps within tol
+    same_pose: int  # both ends fall on the same pose enclosure (not checked)
+    index: np.ndarray  # (M,) rows of the file (0-based) that were checked
+    k1: np.ndarray  # (M,) pose enclosure indices
+    k2: np.ndarray
+    truth: np.ndarray  # (M, 3)
+    enclosure: np.ndarray  # (M, 3, 2)
+    inside: np.ndarray  # (M,) bool
+    failures: list[str] = field(default_factory=list)
+
+    @property
+    def checked(self) -> int:
+        return int(self.index.shape[0])
+
+    @property
+    def contained(self) -> int:
+        return int(np.count_nonzero(self.inside))
+
+    @property
+    def sound(self) -> bool:
+        return self.contained == self.checked
+
+    def widths(self) -> np.ndarray:
+        """(M, 3) widths of [Δx], [Δy], [Δθ] (NaN for empty enclosures)."""
+        w = self.enclosure[..., 1] - self.enclosure[..., 0]
+        return np.where(box_is_empty(self.enclosure)[:, None], np.nan, w)
+
+    def length(self) -> np.ndarray:
+        return np.hypot(self.truth[:, 0], self.truth[:, 1])
+
+
+def check_relations(poses: Poses, rel: Relations, tol: float = DEFAULT_TOL,
+                    slices: int = DEFAULT_SLICES) -> RelationsCheck:
+    """Match the relations to the pose enclosures and check the truth against what they allow."""
+    from ivslam_cli.report.core import angle_in
+
+    if not (tol >= 0 and math.isfinite(tol)):
+        raise IvslamError(f"--stamp-tol must be a finite number >= 0, got {tol}")
+    s = np.asarray(poses.stamp, np.float64)
+    order = np.argsort(s, kind="stable")
+    i1, amb1 = match_stamps(s[order], rel.t1, tol)
+    i2, amb2 = match_stamps(s[order], rel.t2, tol)
+    k1 = np.where(i1 >= 0, order[np.maximum(i1, 0)], -1)
+    k2 = np.where(i2 >= 0, order[np.maximum(i2, 0)], -1)
+    on1, on2 = k1 >= 0, k2 >= 0
+    same = on1 & on2 & (k1 == k2)
+    both = on1 & on2 & ~same
+    idx = np.flatnonzero(both)
+    a, b = k1[idx], k2[idx]
+    enc = relative_enclosure(poses.box[a], poses.box[b], slices)
+    truth = rel.rel[idx]
+    with np.errstate(invalid="ignore"):
+        ok_xy = np.all((enc[:, :2, 0] <= truth[:, :2]) & (truth[:, :2] <= enc[:, :2, 1]), axis=1)
+    ok = ok_xy & angle_in(enc[:, 2, 0], enc[:, 2, 1], truth[:, 2]) if idx.size else np.zeros(0, bool)
+    fails = [f"relation {int(i) + 1} (t1={rel.t1[i]:.6f}, t2={rel.t2[i]:.6f}; poses {int(p)}, {int(q)}): "
+             f"true ({truth[j, 0]:.4g}, {truth[j, 1]:.4g}, {truth[j, 2]:.4g}) not in "
+             f"[{enc[j, 0, 0]:.4g}, {enc[j, 0, 1]:.4g}] x [{enc[j, 1, 0]:.4g}, {enc[j, 1, 1]:.4g}] x "
+             f"[{enc[j, 2, 0]:.4g}, {enc[j, 2, 1]:.4g}]"
+             for j, (i, p, q) in enumerate(zip(idx, a, b)) if not ok[j]]
+    return RelationsCheck(
+        path=rel.path, tol=float(tol), slices=int(slices), total=len(rel), both=int(both.sum()),
+        one_end=int(np.count_nonzero(on1 ^ on2)), ambiguous=int(np.count_nonzero(amb1 | amb2)),
+        same_pose=int(same.sum()), index=idx.astype(np.int64), k1=a.astype(np.int64), k2=b.astype(np.int64),
+        truth=truth, enclosure=enc, inside=np.asarray(ok, bool), failures=fails)
+
+
+# ---------------------------------------------------------------- rendering
+def _stat(x: np.ndarray) -> dict[str, float | None]:
+    x = np.asarray(x, float)
+    x = x[~np.isnan(x)]
+    if x.size == 0:
+        return {"median": None, "max": None}
+    return {"median": float(np.median(x)), "max": float(np.max(x))}
+
+
+def _ratio(rc: RelationsCheck) -> np.ndarray:
+    w = rc.widths()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.max(w[:, :2], axis=1) / rc.length() if w.size else np.zeros(0)
+
+
+def _clean(x: Any) -> Any:
+    """Strict JSON, as the rest of ``report --json``: NaN → null, ±inf → "inf"/"-inf"."""
+    if isinstance(x, dict):
+        return {k: _clean(v) for k, v in x.items()}
+    if isinstance(x, list):
+        return [_clean(v) for v in x]
+    if isinstance(x, float) and not math.isfinite(x):
+        return None if math.isnan(x) else ("inf" if x > 0 else "-inf")
+    return x
+
+
+def relations_dict(rc: RelationsCheck) -> dict[str, Any]:
+    """The check as strict-JSON-ready data (the ``relations`` key of ``report --json``)."""
+    return _clean(_relations_dict(rc))
+
+
+def _relations_dict(rc: RelationsCheck) -> dict[str, Any]:
+    w = rc.widths()
+    return {
+        "file": rc.path,
+        "stamp_tol_s": rc.tol,
+        "heading_slices": rc.slices,
+        "relations": rc.total,
+        "matched": rc.checked,
+        "one_end_matched": rc.one_end,
+        "ambiguous": rc.ambiguous,
+        "same_pose": rc.same_pose,
+        "inside": rc.contained,
+        "soundness": "ok" if rc.sound else "SOUNDNESS FAILURE",
+        "sound": rc.sound,
+        "width": {"x": _stat(w[:, 0]), "y": _stat(w[:, 1]), "theta": _stat(w[:, 2])},
+        "width_over_length": _stat(_ratio(rc)),
+        "length": _stat(rc.length()),
+        "failures": rc.failures,
+        "list": [
+            {"line_index": int(i), "pose1": int(p), "pose2": int(q), "truth": [float(v) for v in t],
+             "enclosure": [[float(e[d, 0]), float(e[d, 1])] for d in range(3)], "inside": bool(o)}
+            for i, p, q, t, e, o in zip(rc.index, rc.k1, rc.k2, rc.truth, rc.enclosure, rc.inside)
+        ],
+    }
+
+
+def _g(x: float | None) -> str:
+    return "n/a" if x is None else f"{x:.4g}"
+
+
+def render_relations_text(rc: RelationsCheck) -> str:
+    d = _relations_dict(rc)
+    w = d["width"]
+    out = [
+        f"relations:  {rc.path}: {rc.total} relation(s); {rc.checked} with both ends on pose enclosures "
+        f"(stamps within {rc.tol:g} s), {rc.one_end} with one end, {rc.ambiguous} ambiguous, "
+        f"{rc.same_pose} with both ends on one pose",
+    ]
+    if rc.checked:
+        out.append(f"  inside:   {rc.contained}/{rc.checked} true relative poses within what the two pose "
+                   f"boxes allow — {d['soundness']}")
+        out.append(f"  widths:   x median {_g(w['x']['median'])}, max {_g(w['x']['max'])} m; "
+                   f"y median {_g(w['y']['median'])}, max {_g(w['y']['max'])} m; "
+                   f"θ median {_g(w['theta']['median'])}, max {_g(w['theta']['max'])} rad")
+        r, ln = d["width_over_length"], d["length"]
+        out.append(f"  relative: larger x/y width / relation length: median {_g(r['median'])}, max {_g(r['max'])} "
+                   f"(lengths median {_g(ln['median'])}, max {_g(ln['max'])} m)")
+        for f in rc.failures[:FAILURES_LISTED]:
+            out.append(f"  outside:  {f}")
+        if len(rc.failures) > FAILURES_LISTED:
+            out.append(f"  outside:  … and {len(rc.failures) - FAILURES_LISTED} more (see --json)")
+    else:
+        out.append("  no relation has both ends on pose enclosures of this result: nothing checked")
+    return "\n".join(out) + "\n"
