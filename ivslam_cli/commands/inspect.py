@@ -115,7 +115,7 @@ def command(log, fmt, as_json, robot, scan_topic, odom_topic, landmark_topic, tr
     and what the reader dropped.
 
     \b
-    Formats: ros1, ros2, mcap, carmen, mrclam, urg, victoria, ivslam-h5.
+    Formats: ros1, ros2, mcap, carmen, mrclam, urg, victoria, keyframe-json, ivslam-h5.
     Examples:
       ivslam inspect recording.bag
       ivslam inspect MRCLAM_Dataset6 --robot 2 --json

@@ -22,6 +22,8 @@ FORMATS: dict[str, str] = {
     "mrclam": "UTIAS MRCLAM directory (Barcodes.dat, RobotN_*.dat)",
     "urg": "CoreSLAM/BreezySLAM URG-04LX .dat log (wheel ticks + 683 ranges in mm)",
     "victoria": "Victoria Park graph text (ODOMETRY / LANDMARK lines)",
+    "keyframe-json": "keyframe JSON {\"map\": {\"<unix time>\": {x, y, theta, range}}} (Intel "
+                     "intel_gfs.json: raw odometry, intel_corrected_log.json: corrected; plain, .gz or .xz)",
     "ivslam-h5": "ivslam's own HDF5 log (.h5), as written by `ivslam simulate`",
 }
 
@@ -74,6 +76,10 @@ def read_log(path, fmt: str | None = None, *, scan_topic: str | None = None,
             from ivslam_cli.logs.victoria import read_victoria
 
             return read_victoria(path)
+        if fmt == "keyframe-json":
+            from ivslam_cli.logs.keyframe_json import read_keyframe_json
+
+            return read_keyframe_json(path)
         return _read_h5(path)
     except LogError:
         raise

@@ -2,7 +2,8 @@
 
 Order: directories (ROS 2 bag with ``metadata.yaml``, MRCLAM with ``Barcodes.dat``),
 then extensions (``.bag``, ``.db3``, ``.mcap``, ``.h5``), then text logs (optionally
-``.gz``/``.xz``) recognised by their first meaningful record keyword.
+``.gz``/``.xz``) recognised by their first meaningful record keyword, or keyframe JSON by
+its opening ``{"map"``.
 """
 
 from __future__ import annotations
@@ -42,6 +43,10 @@ def detect_format(path: Path) -> str:
 
 def _sniff_text(path: Path) -> str:
     lines = first_lines(path, 200)
+    from ivslam_cli.logs.keyframe_json import is_keyframe_json
+
+    if is_keyframe_json("".join(lines[:3])):
+        return "keyframe-json"
     for line in lines:
         tok = line.split()
         if not tok or tok[0].startswith("#"):
@@ -52,5 +57,5 @@ def _sniff_text(path: Path) -> str:
             return "victoria"
         if len(tok) == 707 and all(t.isdigit() for t in tok[:4]):  # 24 + 683 ranges
             return "urg"
-    raise LogError("unknown log format (not a bag, MCAP, HDF5, CARMEN, URG .dat or "
-                   "Victoria Park text; use --format)", path)
+    raise LogError("unknown log format (not a bag, MCAP, HDF5, CARMEN, URG .dat, "
+                   "Victoria Park text or keyframe JSON; use --format)", path)
