@@ -115,6 +115,7 @@ KEYS: tuple[Key, ...] = (
     Key("lidar", "q_beams", 5, "int", "pose contraction: beams of a scan allowed to end in proven-free cells (moving people, glass, beams the static-world model does not explain)"),
     Key("lidar", "contract_boxes", 1024, "int", "pose contraction: sub-boxes tested per scan at most (the set inversion's budget)"),
     Key("lidar", "contract_stride", 2, "int", "pose contraction: every n-th valid beam is tested"),
+    Key("lidar", "contract_max_width", 2.0, "float", "pose contraction is tried only on boxes at most this wide in x and y (a wider box is beyond what contract_boxes sub-boxes resolve: the test would cost the budget and contract nothing); 0: always tried", "m", 0.0),
     Key("lidar", "poses_known", False, "bool", "guaranteed mapping only: the poses are given (known_poses) within pose_margin; no odometry needed"),
     Key("lidar", "known_poses", "auto", "str", "with poses_known, where the poses come from: truth (the log's ground truth), scan (poses recorded with each scan, e.g. CARMEN FLASER), odometry (odometry poses), or auto (the first of these the log has); interpolated at scan stamps between given poses"),
     Key("lidar", "pose_margin", (0.05, 0.05, 0.01), "float3", "with poses_known: half-widths of the pose box around each given pose (must cover their error and any interpolation)", "m, m, rad"),

@@ -18,10 +18,11 @@ Stages of :func:`run_lidar` (one pass over the log, in this order):
      scan, or odometry poses: ``lidar.known_poses``) within ``lidar.pose_margin``; a scan
      between two given poses gets the hull of the two, widened by the margin.
 
-2. **pose contraction against the map** — not done yet: the boxes of stage 1 are used as
-   they are. (The contractor will take the boxes of a chunk of scans and the map built from
-   the scans before it, so stages 1-3 then run chunk by chunk; :func:`map_scans` already
-   accepts any subset of scans in any order.)
+2. **pose contraction against the map** (``lidar.contract``, :func:`track_and_map`): scan by
+   scan, the box predicted from the previous one is contracted against the map built so far
+   (:func:`ivslam_cli.slam.lidar_contract.contract_pose`: set inversion in pose space, q-relaxed
+   over the beams), written back into the trajectory, then the scan is mapped; a backward pass
+   over the motion steps at the end carries the contractions to the earlier scans.
 
 3. **map update** (:func:`ivslam_cli.slam.lidar_map.update_map`, compiled kernels over the tiles): the
    laser mount (``Scans.mount``, from tf or the reader) is applied soundly to each box; beams
@@ -230,22 +231,30 @@ class Tracking:
     before: np.ndarray  # (S', 6) predicted boxes
     contradicted: np.ndarray  # (S',) bool: no pose of the box agrees with the map (box kept)
     tested: int  # sub-boxes tested in all
+    forward: np.ndarray  # (S', 6) boxes after the forward pass (before the backward one)
+    smoothed: int  # trajectory nodes the backward pass narrowed
+    too_wide: int  # scans not contracted: box wider than lidar.contract_max_width
 
 
 def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
     """Stages 1-3 scan by scan: predict the pose box from the previous (contracted) one,
     contract it against the map built so far (:func:`ivslam_cli.slam.lidar_contract.contract_pose`),
     write it back into the trajectory, then add the scan to the map when its box is narrow
-    enough. Returns ``(PosePrediction, UpdateResult, narrow (S',), Tracking)``."""
+    enough. After the last scan, a backward pass over the motion steps
+    (:func:`ivslam_cli.slam.lidar_poses.smooth_backward`) carries every contraction back to the
+    scans before it; a scan's final box is its forward box met with the smoothed one (the map
+    keeps the forward boxes it was built with: wider, so still sound).
+    Returns ``(PosePrediction, UpdateResult, narrow (S',), Tracking)``."""
     from ivslam_cli.slam.lidar_contract import contract_pose
     from ivslam_cli.slam.lidar_map import UpdateResult, update_map
-    from ivslam_cli.slam.lidar_poses import meet_node, propagate
+    from ivslam_cli.slam.lidar_poses import meet_boxes, meet_node, propagate, smooth_backward
 
     used, dropped, m, P, source, events = _trajectory(log, cfg, scans)
     max_w = float(cfg["lidar.max_pose_width"])
     q = int(cfg["lidar.q_beams"])
     budget = int(cfg["lidar.contract_boxes"])
     stride = int(cfg["lidar.contract_stride"])
+    max_cw = float(cfg["lidar.contract_max_width"])
     boxes = np.empty((used.size, 6))
     before = np.empty((used.size, 6))
     contracted = np.zeros(used.size, bool)
@@ -255,6 +264,7 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
     is_old = np.zeros(scans.ranges.shape[0], bool)
     stats = np.zeros((len(scans), 6), np.int64)
     tested = 0
+    too_wide = 0
     one = np.zeros(1, np.int64)
     k_prev = 0
     for j in range(used.size):
@@ -266,7 +276,9 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
         widen_boxes(P, m.node[j:j + 1], m.reach[j:j + 1], box)
         box = box[0]
         before[j] = box
-        if tmap.n_tiles > 0 and np.all(np.isfinite(box)):
+        wide = max_cw > 0 and max(box[1] - box[0], box[3] - box[2]) > max_cw
+        too_wide += int(wide)
+        if tmap.n_tiles > 0 and np.all(np.isfinite(box)) and not wide:
             out, kept, nt = contract_pose(tmap, scans, int(used[j]), box, bounds, q=q, stride=stride,
                                           max_boxes=budget)
             tested += nt
@@ -285,9 +297,17 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
             r = update_map(tmap, scans, all_boxes, bounds, order=one)
             is_old |= r.is_old
             stats[used[j]] = r.stats[used[j]]
+    forward = boxes.copy()
+    smoothed = 0
+    if contracted.any():
+        smoothed = int(smooth_backward(P, m.kind, m.U, events, k_prev))
+        back = np.empty((used.size, 6))
+        widen_boxes(P, m.node, m.reach, back)
+        meet_boxes(forward, back, boxes)
     pred = PosePrediction(used=used, boxes=boxes, source=source, motion=m.motion, step_events=events,
                           node_stamp=m.node_stamp, dropped=dropped)
-    return pred, UpdateResult(is_old, stats), narrow, Tracking(contracted, before, contradicted, tested)
+    return pred, UpdateResult(is_old, stats), narrow, Tracking(contracted, before, contradicted, tested,
+                                                               forward, smoothed, too_wide)
 
 
 def predict_poses(log: LogData, cfg: Config, scans: Scans) -> PosePrediction:
@@ -475,11 +495,15 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
     }
     if tracking is not None:
         bw = _box_width(tracking.before)
+        fw = _box_width(tracking.forward)
         stats.update({
             "scans_contracted": int(tracking.contracted.sum()),
             "scans_contradicting_map": int(tracking.contradicted.sum()),
             "contraction_boxes_tested": int(tracking.tested),
             "median_predicted_width": float(np.nanmedian(bw)) if np.isfinite(bw).any() else float("nan"),
+            "median_forward_width": float(np.nanmedian(fw)) if np.isfinite(fw).any() else float("nan"),
+            "nodes_smoothed": int(tracking.smoothed),
+            "scans_too_wide_to_contract": int(tracking.too_wide),
         })
     return LidarOutput(
         poses=Poses(stamp=stamp, box=np.ascontiguousarray(box3)), grid=grid, consistency=consistency,

@@ -65,3 +65,41 @@ def meet_node(P, k, box, rp, rt):
         return False
     P[k, 0, 0], P[k, 0, 1], P[k, 1, 0], P[k, 1, 1], P[k, 2, 0], P[k, 2, 1] = xl, xh, yl, yh, tl, th
     return True
+
+
+@njit(cache=True)
+def smooth_backward(P, kind, U, step_events, k_last):
+    """Backward pass of the motion steps ``k_last - 1 .. 0`` (forward-backward, as the landmark
+    CSP): every node box meets what the next one allows through its step, so a contraction
+    at a later scan narrows the boxes before it. In place; a step with no solution is counted
+    in ``step_events`` and skipped. Returns the number of nodes that got narrower."""
+    n = 0
+    for k in range(k_last - 1, -1, -1):
+        w0 = (P[k, 0, 1] - P[k, 0, 0]) + (P[k, 1, 1] - P[k, 1, 0]) + (P[k, 2, 1] - P[k, 2, 0])
+        if not step_contract(P, k, kind, U):
+            step_events[k] += 1
+            continue
+        cap_heading(P, k)
+        if (P[k, 0, 1] - P[k, 0, 0]) + (P[k, 1, 1] - P[k, 1, 0]) + (P[k, 2, 1] - P[k, 2, 0]) < w0:
+            n += 1
+    return n
+
+
+@njit(cache=True)
+def meet_boxes(a, b, out):
+    """``out[j]`` = ``a[j] ∩ b[j]`` for flat pose boxes ``(x_lo, x_hi, y_lo, y_hi, θ_lo, θ_hi)``
+    that both hold the same pose (headings met as angles, in the narrower one's branch); a row
+    whose intersection is empty keeps ``a[j]``. Returns the number of such rows."""
+    bad = 0
+    for j in range(a.shape[0]):
+        xl = max(a[j, 0], b[j, 0])
+        xh = min(a[j, 1], b[j, 1])
+        yl = max(a[j, 2], b[j, 2])
+        yh = min(a[j, 3], b[j, 3])
+        tl, th = angle_meet_narrow(a[j, 4], a[j, 5], b[j, 4], b[j, 5])
+        if xl <= xh and yl <= yh and tl <= th:
+            out[j, 0], out[j, 1], out[j, 2], out[j, 3], out[j, 4], out[j, 5] = xl, xh, yl, yh, tl, th
+        else:
+            bad += 1
+            out[j] = a[j]
+    return bad
