@@ -1,8 +1,11 @@
-"""Pose contraction against the map (second seed): soundness and how much it contracts.
+"""Pose contraction against the map (second seed): soundness, how much it contracts, and the
+fast path equal to the reference.
 
 Worlds, the cone LiDAR and pose boxes come from ``test_lidar_map``: a map is built from scans
 at known poses (tight boxes), then a new scan from a true pose inside a wide box is
-contracted against it.
+contracted against it. The fast path (``contract_kernel``) must give the reference's
+(``contract_kernel_reference``) kept count, hull and tested count exactly, on those worlds and
+on random maps (random proven-free cells, missing tiles, far coordinates) with random scans.
 """
 
 from __future__ import annotations
@@ -12,7 +15,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_lidar_map import SETTINGS, make_scans, random_box, random_pose, random_world
 
-from ivslam_cli.paving.tiles import TileMap
+from ivslam_cli.logs.model import Scans
+from ivslam_cli.paving.tiles import EMPTY, OBST_NEW, OBST_OLD, TILE, TileMap
 from ivslam_cli.slam.lidar_contract import contract_pose
 from ivslam_cli.slam.lidar_map import LidarBounds, update_map
 
@@ -96,3 +100,79 @@ def test_the_pipeline_contracts_its_pose_boxes_against_the_map():
         widths[contract] = out.stats["median_pose_width"]
     assert out.stats["scans_contracted"] > 100 and out.stats["scans_contradicting_map"] == 0
     assert widths[True] < 0.8 * widths[False], widths
+
+
+# ---------------------------------------------------------------- fast path = reference
+def _both(tmap, scans, k, box, bounds, **kw):
+    """Fast path (with and without its dense window) and reference; asserts they agree."""
+    ref = contract_pose(tmap, scans, k, box, bounds, reference=True, **kw)
+    for cells in (1 << 24, 0):
+        fast = contract_pose(tmap, scans, k, box, bounds, window_cells=cells, **kw)
+        assert fast[1:] == ref[1:], (cells, fast, ref, box)
+        assert np.array_equal(fast[0], ref[0]), (cells, fast, ref, box)
+    return ref
+
+
+@given(st.integers(0, 2**32 - 1), st.sampled_from([0, 2, 5]), st.sampled_from([1, 2, 3]),
+       st.sampled_from([16, 200, 1024]), st.sampled_from([0.02, 0.3, 1.0, 5.0]), st.sampled_from([0.0, 0.08, 1.0, 4.0]))
+@settings(max_examples=60, **SETTINGS)
+def test_fast_path_equals_reference_on_mapped_worlds(seed, q, stride, budget, wxy, wth):
+    tmap, scans, truth, bounds, rng = _mapped_world(seed, n_map=6)
+    box = random_box(rng, truth, wxy, wth)
+    out, kept, tested = _both(tmap, scans, len(scans) - 1, box, bounds, q=q, stride=stride, max_boxes=budget)
+    if kept > 0:
+        assert _inside(out, truth)
+
+
+def _random_map(rng, eps, offset):
+    """Tiles with random flags: blobs of proven-free cells (so that many endpoint regions are
+    free), obstacle cells, holes (never-written tiles inside the bounding box)."""
+    tmap = TileMap(eps)
+    n = int(rng.integers(40, 200))
+    ix = rng.integers(-2 * TILE, 2 * TILE, n)
+    iy = rng.integers(-2 * TILE, 2 * TILE, n)
+    for cx, cy in zip(ix, iy):
+        r = int(rng.integers(1, 12))
+        gx, gy = np.meshgrid(np.arange(cx - r, cx + r + 1), np.arange(cy - r, cy + r + 1))
+        keep = rng.random(gx.shape) < rng.uniform(0.6, 1.0)
+        tmap.set(gx[keep] + offset, gy[keep] + offset, EMPTY)
+    k = int(rng.integers(0, 300))
+    tmap.set(rng.integers(-2 * TILE, 2 * TILE, k) + offset, rng.integers(-2 * TILE, 2 * TILE, k) + offset,
+             OBST_NEW | OBST_OLD)
+    return tmap
+
+
+@given(st.integers(0, 2**32 - 1), st.sampled_from([0.03, 0.05, 0.1]), st.sampled_from([0.0, 0.003, 0.05]),
+       st.sampled_from([0, 1, 3, 8]), st.sampled_from([1, 2]), st.sampled_from([0.05, 0.5, 3.0, 20.0]),
+       st.sampled_from([0.01, 0.2, 7.0]), st.booleans())
+@settings(max_examples=120, **SETTINGS)
+def test_fast_path_equals_reference_on_random_maps(seed, eps, bearing, q, stride, wxy, wth, far):
+    rng = np.random.default_rng(seed)
+    offset = int(3e6 / eps) if far else 0  # far: beyond the fast path's skip guard (1e6 m)
+    tmap = _random_map(rng, eps, offset)
+    nb = int(rng.integers(1, 400))
+    inc = float(rng.uniform(0.001, 0.02))
+    ranges = rng.uniform(0.02, 6.0, nb).astype(np.float32)
+    valid = rng.random(nb) < 0.9
+    mount = (float(rng.uniform(-0.3, 0.3)), float(rng.uniform(-0.2, 0.2)), float(rng.uniform(-3.2, 3.2)))
+    one = np.ones(1)
+    scans = Scans(stamp=np.zeros(1), angle_min=one * float(rng.uniform(-3.0, 0.0)), angle_increment=one * inc,
+                  range_min=one * 0.02, range_max=one * 6.0, offsets=np.array([0, nb], np.int64), ranges=ranges,
+                  valid=valid, mount=mount)
+    bounds = LidarBounds(float(rng.choice([0.0, 0.03])), float(rng.choice([0.0, 0.01])), bearing)
+    c = rng.uniform(-2 * TILE, 2 * TILE, 2) * eps + offset * eps
+    pose = np.array([c[0], c[1], rng.uniform(-4.0, 4.0)])
+    box = random_box(rng, pose, wxy, wth)
+    _both(tmap, scans, 0, box, bounds, q=q, stride=stride, max_boxes=int(rng.choice([8, 300, 1024])))
+
+
+def test_fast_path_equals_reference_on_an_empty_map_and_no_beams():
+    rng = np.random.default_rng(11)
+    tmap, scans, truth, bounds, _ = _mapped_world(4, n_map=3)
+    box = random_box(rng, truth, 0.3, 0.08)
+    _both(TileMap(EPS), scans, len(scans) - 1, box, bounds, q=0, stride=2, max_boxes=64)
+    from dataclasses import replace
+
+    none = replace(scans, valid=np.zeros_like(scans.valid))
+    out, kept, tested = _both(tmap, none, len(scans) - 1, box, bounds, q=0, stride=2, max_boxes=64)
+    assert kept > 0 and np.array_equal(out, box)

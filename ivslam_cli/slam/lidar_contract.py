@@ -29,9 +29,9 @@ import math
 import numpy as np
 from numba import njit
 
-from ivslam_cli.interval.arith import add, cos, mul, sin
+from ivslam_cli.interval.arith import add, cos, mul, sin, sub
 from ivslam_cli.interval.rounding import down, up
-from ivslam_cli.paving.tiles import EMPTY, cell_flags
+from ivslam_cli.paving.tiles import EMPTY, TILE, cell_flags
 from ivslam_cli.slam.lidar_geometry import range_bounds, sensor_box
 
 #: an endpoint region over more cells than this is not tested (kept: sound, cheaper)
@@ -80,7 +80,7 @@ def excluded_beams(keys, slots, cells, eps, ranges, valid, a0, inc, sb, r_abs, r
 
 
 @njit(cache=True)
-def contract_kernel(keys, slots, cells, eps, ranges, valid, a0, inc, box, mx, my, myaw, r_abs, r_rel, r_alpha,
+def contract_kernel_reference(keys, slots, cells, eps, ranges, valid, a0, inc, box, mx, my, myaw, r_abs, r_rel, r_alpha,
                     q, stride, min_xy, min_th, reach, max_boxes, out):
     """Set inversion over the robot pose ``box`` (6,): the hull of the sub-boxes not excluded,
     in ``out`` (6,). Returns ``(kept leaves, tested boxes)``; 0 kept means every pose is excluded
@@ -139,12 +139,407 @@ def contract_kernel(keys, slots, cells, eps, ranges, valid, a0, inc, box, mx, my
     return kept, tested
 
 
+# ---------------------------------------------------------------- fast path
+# Same answers as the reference above (kept count, hull, tested count), by construction:
+#
+# - what does not depend on the sub-box is computed once: per beam the range bounds and angle;
+#   per heading interval (a "node": boxes split along x or y share their parent's, and a node's
+#   two halves are made once) the sensor offset of the mount and, on first use, each beam's
+#   endpoint offset ``[r] (cos, sin)(θ_s + α_i ± r_α)``, with the reference's own operations;
+# - witnesses: a beam is not free as soon as one real point of its endpoint region lies in a
+#   cell not proven free, for that cell is among the ones the reference enumerates (its cell
+#   range holds every cell meeting the region). Two such points are tried first: from the
+#   sensor pose of the box's centre, at ranges mid(r) and sup(r) along the beam's nominal
+#   direction; they are computed in floating point and used only when their cell is certain
+#   (farther than ``mu`` cells from the cell's edges, far beyond the rounding error);
+# - otherwise the region's cells are tested in O(1) by a summed-area table of "not proven free"
+#   over a dense window of the map (around the reach of the root box, within the tiles'
+#   bounding box), built once per call when a first box needs it; a region outside the window
+#   is looked up in the tiles as before (outside the tiles' bounding box: unknown, not free);
+# - skips that cannot change a count: a beam whose endpoint offset alone spans more than
+#   MAX_REGION_CELLS cells is never free for a box of its node, and a box whose sensor box alone
+#   does is free for no beam (the one-cell margin of ``_cells_lb`` absorbs every rounding error
+#   while coordinates stay below ``_SKIP_MAX`` and the cell side above ``_SKIP_EPS``);
+# - beams are tested in any order: only "more than q free" is used.
+
+#: the dense window holds at most this many cells (larger: regions are looked up in the tiles)
+MAX_WINDOW_CELLS = 1 << 24
+#: the skip rules and witnesses are used only when every coordinate and range is below this (m) ...
+_SKIP_MAX = 1e6
+#: ... and the cell side above this (m)
+_SKIP_EPS = 1e-5
+
+
+@njit(cache=True, inline="always")
+def _cells_lb(w, eps):
+    """A lower bound (>= 1) on the cells ``_region_free`` counts along an axis for an interval
+    at least ``w`` wide (coordinates within the ``_SKIP_MAX`` / ``_SKIP_EPS`` guard)."""
+    c = math.floor(w / eps) - 1
+    return c if c > 1 else 1
+
+
+@njit(cache=True)
+def _build_window(cells, coords, n, wx0, wx1, wy0, wy1):
+    """The cells ``[wx0, wx1] x [wy0, wy1]`` not proven free: flags ``F`` (nx, ny) uint8 and
+    their summed-area table ``S`` (nx + 1, ny + 1) int32, ``S[a, b]`` counting them over
+    ``[wx0, wx0 + a) x [wy0, wy0 + b)``."""
+    nx = wx1 - wx0 + 1
+    ny = wy1 - wy0 + 1
+    F = np.ones((nx, ny), np.uint8)  # not in a tile: unknown
+    for t in range(n):
+        ox = coords[t, 0] * TILE - wx0
+        oy = coords[t, 1] * TILE - wy0
+        a0 = max(0, -ox)
+        a1 = min(TILE, nx - ox)
+        b0 = max(0, -oy)
+        b1 = min(TILE, ny - oy)
+        for a in range(a0, a1):
+            for b in range(b0, b1):
+                F[ox + a, oy + b] = np.uint8(1) - (cells[t, a, b] & EMPTY)
+    S = np.empty((nx + 1, ny + 1), np.int32)
+    S[0, :] = 0
+    for a in range(nx):
+        run = np.int32(0)
+        S[a + 1, 0] = 0
+        for b in range(ny):
+            run += np.int32(F[a, b])
+            S[a + 1, b + 1] = S[a, b + 1] + run
+    return F, S
+
+
+@njit(cache=True)
+def _node_sensor(tl, th, mx, my, myaw, off):
+    """The sensor offset and heading of the heading interval ``[tl, th]`` as :func:`sensor_box`
+    computes them, in ``off`` (8,): ``(ox, oxh, oy, oyh, stl, sth)``, then the sensor offset of
+    the heading ``mid(tl, th)`` in floating point (for witnesses)."""
+    cl, ch = cos(tl, th)
+    sl, sh = sin(tl, th)
+    ax, bx = mul(cl, ch, mx, mx)
+    cx, dx = mul(sl, sh, my, my)
+    off[0], off[1] = sub(ax, bx, cx, dx)
+    ay, by = mul(sl, sh, mx, mx)
+    cy, dy = mul(cl, ch, my, my)
+    off[2], off[3] = add(ay, by, cy, dy)
+    off[4], off[5] = add(tl, th, myaw, myaw)
+    tc = 0.5 * (tl + th)
+    c, s = math.cos(tc), math.sin(tc)
+    off[6] = c * mx - s * my
+    off[7] = s * mx + c * my
+
+
+@njit(cache=True)
+def _node_witness(tl, th, rmid, rh, uc, us, out):
+    """Witness offsets from the sensor, ``out`` (B, 4): ``r (cos, sin)(mid(tl, th) + myaw + α_i)``
+    for ``r`` = ``rmid`` and ``rh`` (``uc, us``: cos, sin of ``myaw + α_i``), floating point."""
+    tc = 0.5 * (tl + th)
+    c, s = math.cos(tc), math.sin(tc)
+    for j in range(uc.shape[0]):
+        ex = c * uc[j] - s * us[j]
+        ey = s * uc[j] + c * us[j]
+        out[j, 0] = rmid[j] * ex
+        out[j, 1] = rmid[j] * ey
+        out[j, 2] = rh[j] * ex
+        out[j, 3] = rh[j] * ey
+
+
+@njit(cache=True, inline="always")
+def _beam_offset(stl, sth, rl, rh, ang, r_alpha):
+    """Endpoint offset of one beam from the sensor heading ``[stl, sth]``, as
+    :func:`excluded_beams` computes it: ``(dxl, dxh, dyl, dyh)``."""
+    al, ah = add(stl, sth, ang, ang)
+    al = down(down(al - r_alpha) - 1e-15 * abs(al))
+    ah = up(up(ah + r_alpha) + 1e-15 * abs(ah))
+    cl, ch = cos(al, ah)
+    sl, sh = sin(al, ah)
+    dxl, dxh = mul(rl, rh, cl, ch)
+    dyl, dyh = mul(rl, rh, sl, sh)
+    return dxl, dxh, dyl, dyh
+
+
+@njit(cache=True, inline="always")
+def _witness_cell(ux, uy, mu, cx0, cx1, cy0, cy1):
+    """The cell surely holding the point ``(ux, uy)`` (in cells): ``(0, ix, iy)``; ``(1, ., .)``
+    if that cell is in no tile (unknown); ``(-1, ., .)`` if no cell is certain (near an edge,
+    or NaN)."""
+    fx = math.floor(ux)
+    fy = math.floor(uy)
+    dx = ux - fx
+    dy = uy - fy
+    if not (dx > mu and dx < 1.0 - mu and dy > mu and dy < 1.0 - mu):
+        return -1, 0, 0
+    ix = int(fx)
+    iy = int(fy)
+    if ix < cx0 or ix > cx1 or iy < cy0 or iy > cy1:
+        return 1, ix, iy
+    return 0, ix, iy
+
+
+@njit(cache=True)
+def _free_count(keys, slots, cells, eps, F, S, built, wx0, wx1, wy0, wy1, cx0, cx1, cy0, cy1, wit, dof, dst, row,
+                nb, rl, rh, ang, r_alpha, stl, sth, sxl, sxh, syl, syh, scx, scy, wn, mu, inv_eps, skip, q):
+    """How many of the ``nb`` beams have a free endpoint region from the sensor box
+    ``[sxl, sxh] x [syl, syh]`` (heading ``[stl, sth]``), stopping past ``q``: the loop of
+    :func:`excluded_beams` with witnesses first (sensor position ``(scx, scy)``, when ``wn``),
+    the node's endpoint offsets (row ``row`` of ``wit`` / ``dof`` / ``dst``, the latter two
+    filled on first use) and the window ``F`` / ``S`` (when ``built``). A function of its own:
+    its loop makes no array references (no reference counting per beam)."""
+    n = 0
+    for k in range(nb):
+        st = dst[row, k]
+        if st == 2:
+            continue
+        if wn:
+            c, ix, iy = _witness_cell((scx + wit[row, k, 0]) * inv_eps, (scy + wit[row, k, 1]) * inv_eps, mu,
+                                      cx0, cx1, cy0, cy1)
+            if c == 1 or (c == 0 and built and ix >= wx0 and ix <= wx1 and iy >= wy0 and iy <= wy1
+                          and F[ix - wx0, iy - wy0] != 0):
+                continue
+            c, ix, iy = _witness_cell((scx + wit[row, k, 2]) * inv_eps, (scy + wit[row, k, 3]) * inv_eps, mu,
+                                      cx0, cx1, cy0, cy1)
+            if c == 1 or (c == 0 and built and ix >= wx0 and ix <= wx1 and iy >= wy0 and iy <= wy1
+                          and F[ix - wx0, iy - wy0] != 0):
+                continue
+        if st == 0:
+            dxl, dxh, dyl, dyh = _beam_offset(stl, sth, rl[k], rh[k], ang[k], r_alpha)
+            dof[row, k, 0] = dxl
+            dof[row, k, 1] = dxh
+            dof[row, k, 2] = dyl
+            dof[row, k, 3] = dyh
+            if skip and _cells_lb(dxh - dxl, eps) * _cells_lb(dyh - dyl, eps) > MAX_REGION_CELLS:
+                dst[row, k] = 2  # never free for a box of this heading interval
+                continue
+            dst[row, k] = 1
+        xl, xh = add(sxl, sxh, dof[row, k, 0], dof[row, k, 1])
+        yl, yh = add(syl, syh, dof[row, k, 2], dof[row, k, 3])
+        if not (abs(xl) < math.inf and abs(xh) < math.inf and abs(yl) < math.inf and abs(yh) < math.inf):
+            free = _region_free(keys, slots, cells, eps, xl, xh, yl, yh)
+        else:
+            ix0 = math.floor(down(xl / eps))
+            ix1 = math.floor(up(xh / eps))
+            iy0 = math.floor(down(yl / eps))
+            iy1 = math.floor(up(yh / eps))
+            if (ix1 - ix0 + 1) * (iy1 - iy0 + 1) > MAX_REGION_CELLS:
+                free = False
+            elif built and ix0 >= wx0 and ix1 <= wx1 and iy0 >= wy0 and iy1 <= wy1:
+                ax0 = ix0 - wx0
+                ax1 = ix1 - wx0 + 1
+                ay0 = iy0 - wy0
+                ay1 = iy1 - wy0 + 1
+                free = S[ax1, ay1] - S[ax0, ay1] - S[ax1, ay0] + S[ax0, ay0] == 0
+            elif ix0 < cx0 or ix1 > cx1 or iy0 < cy0 or iy1 > cy1:
+                free = False  # a cell in no tile: unknown
+            else:
+                free = _region_free(keys, slots, cells, eps, xl, xh, yl, yh)
+        if free:
+            n += 1
+            if n > q:
+                break
+    return n
+
+
+@njit(cache=True)
+def contract_kernel(keys, slots, cells, coords, n_tiles, eps, ranges, valid, a0, inc, box, mx, my, myaw, r_abs,
+                    r_rel, r_alpha, q, stride, min_xy, min_th, reach, max_boxes, out, max_window=MAX_WINDOW_CELLS):
+    """:func:`contract_kernel_reference` (same arguments plus the tiles' ``coords`` and count),
+    same results, faster (see the comment above). ``max_window``: cells of the dense window at
+    most (0: none, every region looked up in the tiles; for tests)."""
+    # the beams tested, and what does not depend on the sub-box
+    nb = 0
+    for i in range(0, ranges.shape[0], stride):
+        if valid[i]:
+            nb += 1
+    nbc = max(nb, 1)
+    rl = np.empty(nb)
+    rh = np.empty(nb)
+    rmid = np.empty(nb)
+    ang = np.empty(nb)
+    uc = np.empty(nb)
+    us = np.empty(nb)
+    j = 0
+    rmax = 0.0
+    amax = abs(myaw)
+    for i in range(0, ranges.shape[0], stride):
+        if valid[i]:
+            rl[j], rh[j] = range_bounds(float(ranges[i]), r_abs, r_rel)
+            rmid[j] = 0.5 * (rl[j] + rh[j]) if rl[j] <= rh[j] else math.nan
+            ang[j] = a0 + i * inc
+            u = myaw + ang[j]
+            uc[j] = math.cos(u)
+            us[j] = math.sin(u)
+            rmax = max(rmax, rh[j]) if rh[j] == rh[j] else math.inf
+            amax = max(amax, abs(ang[j])) if ang[j] == ang[j] else math.inf
+            j += 1
+    # the guard of the skip rules and witnesses, and the window around the root box's reach
+    ext = max(abs(box[0]), abs(box[1]), abs(box[2]), abs(box[3])) + abs(mx) + abs(my) + rmax
+    skip = ext < _SKIP_MAX and eps > _SKIP_EPS
+    mu = 1e-9 * (ext + 1.0) / eps
+    # (a witness's direction is within ~1e-15 rad of a direction of the beam's cone: a node's
+    # witnesses need r_alpha or the node's heading width to exceed that; see wn below)
+    witness = skip and mu < 1e-3 and amax < 10.0 and abs(box[4]) < 100.0 and abs(box[5]) < 100.0
+    inv_eps = 1.0 / eps
+    cx0, cx1, cy0, cy1 = 0, -1, 0, -1  # the tiles' bounding box (cells)
+    if n_tiles > 0:
+        cx0, cx1, cy0, cy1 = coords[0, 0], coords[0, 0], coords[0, 1], coords[0, 1]
+        for t in range(1, n_tiles):
+            cx0 = min(cx0, coords[t, 0])
+            cx1 = max(cx1, coords[t, 0])
+            cy0 = min(cy0, coords[t, 1])
+            cy1 = max(cy1, coords[t, 1])
+        cx0, cx1, cy0, cy1 = cx0 * TILE, cx1 * TILE + TILE - 1, cy0 * TILE, cy1 * TILE + TILE - 1
+    wx0, wx1, wy0, wy1 = 0, -1, 0, -1
+    if skip and n_tiles > 0:
+        rsb = sensor_box(box[0], box[1], box[2], box[3], box[4], box[5], mx, my, myaw)
+        wx0 = max(cx0, math.floor((rsb[0] - rmax) / eps) - 2)
+        wx1 = min(cx1, math.floor((rsb[1] + rmax) / eps) + 2)
+        wy0 = max(cy0, math.floor((rsb[2] - rmax) / eps) - 2)
+        wy1 = min(cy1, math.floor((rsb[3] + rmax) / eps) + 2)
+        if wx1 < wx0 or wy1 < wy0 or (wx1 - wx0 + 1) * (wy1 - wy0 + 1) > max_window:
+            wx0, wx1, wy0, wy1 = 0, -1, 0, -1
+    has_window = wx1 >= wx0
+    F = np.zeros((1, 1), np.uint8)
+    S = np.zeros((1, 1), np.int32)
+    built = False
+
+    # heading nodes: (tl, th), children, sensor offsets, and a row of beam data on first use
+    ncap = 64
+    node_th = np.empty((ncap, 2))
+    node_ch = np.full(ncap, -1, np.int64)
+    node_off = np.empty((ncap, 8))
+    node_row = np.full(ncap, -1, np.int64)
+    node_th[0, 0] = box[4]
+    node_th[0, 1] = box[5]
+    _node_sensor(box[4], box[5], mx, my, myaw, node_off[0])
+    n_nodes = 1
+    pcap = 4
+    wit = np.empty((pcap, nbc, 4))  # witness offsets
+    dof = np.empty((pcap, nbc, 4))  # endpoint offsets (interval)
+    dst = np.zeros((pcap, nbc), np.int8)  # 0: offset not computed, 1: computed, 2: never free
+    n_rows = 0
+
+    cap = max_boxes + 2
+    cur = np.empty((cap, 6))
+    nxt = np.empty((cap, 6))
+    cur_n = np.empty(cap, np.int64)
+    nxt_n = np.empty(cap, np.int64)
+    for d in range(6):
+        cur[0, d] = box[d]
+    cur_n[0] = 0
+    n_cur = 1
+    tested = 0
+    kept = 0
+    hull = np.empty(6)
+    hull[0::2] = np.inf
+    hull[1::2] = -np.inf
+    while n_cur > 0:
+        if tested + n_cur > max_boxes:  # out of budget: keep this level as it is
+            for j in range(n_cur):
+                kept += 1
+                for d in range(6):
+                    hull[d] = min(hull[d], cur[j, d]) if d % 2 == 0 else max(hull[d], cur[j, d])
+            break
+        n_nxt = 0
+        for j in range(n_cur):
+            b = cur[j]
+            nd = cur_n[j]
+            tested += 1
+            sxl, sxh = add(b[0], b[1], node_off[nd, 0], node_off[nd, 1])
+            syl, syh = add(b[2], b[3], node_off[nd, 2], node_off[nd, 3])
+            # the beams' count of free regions (stops past q)
+            n = 0
+            if nb > 0 and not (skip and _cells_lb(sxh - sxl, eps) * _cells_lb(syh - syl, eps) > MAX_REGION_CELLS):
+                # (else every region of this box spans too many cells: none is free)
+                if has_window and not built:
+                    F, S = _build_window(cells, coords, n_tiles, wx0, wx1, wy0, wy1)
+                    built = True
+                row = node_row[nd]
+                if row < 0:
+                    if n_rows == pcap:
+                        pcap *= 2
+                        w2 = np.empty((pcap, nbc, 4))
+                        w2[:n_rows] = wit[:n_rows]
+                        wit = w2
+                        o2 = np.empty((pcap, nbc, 4))
+                        o2[:n_rows] = dof[:n_rows]
+                        dof = o2
+                        s2 = np.zeros((pcap, nbc), np.int8)
+                        s2[:n_rows] = dst[:n_rows]
+                        dst = s2
+                    row = n_rows
+                    node_row[nd] = row
+                    n_rows += 1
+                    if witness:  # (filled whether or not wn: cheap)
+                        _node_witness(node_th[nd, 0], node_th[nd, 1], rmid, rh, uc, us, wit[row])
+                wn = witness and (r_alpha >= 1e-12 or node_th[nd, 1] - node_th[nd, 0] >= 1e-9)
+                n = _free_count(keys, slots, cells, eps, F, S, built, wx0, wx1, wy0, wy1, cx0, cx1, cy0, cy1, wit,
+                                dof, dst, row, nb, rl, rh, ang, r_alpha, node_off[nd, 4], node_off[nd, 5],
+                                sxl, sxh, syl, syh, 0.5 * (b[0] + b[1]) + node_off[nd, 6],
+                                0.5 * (b[2] + b[3]) + node_off[nd, 7], wn, mu, inv_eps, skip, q)
+            if n > q:
+                continue
+            wx = b[1] - b[0]
+            wy = b[3] - b[2]
+            wt = (b[5] - b[4]) * reach
+            if (wx <= min_xy and wy <= min_xy and b[5] - b[4] <= min_th) or n_nxt + 2 > cap:
+                kept += 1
+                for d in range(6):
+                    hull[d] = min(hull[d], b[d]) if d % 2 == 0 else max(hull[d], b[d])
+                continue
+            d = 0 if (wx >= wy and wx >= wt) else (1 if wy >= wt else 2)
+            mid = 0.5 * (b[2 * d] + b[2 * d + 1])
+            for e in range(6):
+                nxt[n_nxt, e] = b[e]
+                nxt[n_nxt + 1, e] = b[e]
+            nxt[n_nxt, 2 * d + 1] = mid
+            nxt[n_nxt + 1, 2 * d] = mid
+            if d == 2:  # the two halves of the heading interval
+                if node_ch[nd] < 0:
+                    if n_nodes + 2 > ncap:
+                        ncap *= 2
+                        t2 = np.empty((ncap, 2))
+                        t2[:n_nodes] = node_th[:n_nodes]
+                        node_th = t2
+                        f2 = np.empty((ncap, 8))
+                        f2[:n_nodes] = node_off[:n_nodes]
+                        node_off = f2
+                        c2 = np.full(ncap, -1, np.int64)
+                        c2[:n_nodes] = node_ch[:n_nodes]
+                        node_ch = c2
+                        r2 = np.full(ncap, -1, np.int64)
+                        r2[:n_nodes] = node_row[:n_nodes]
+                        node_row = r2
+                    node_th[n_nodes, 0] = b[4]
+                    node_th[n_nodes, 1] = mid
+                    node_th[n_nodes + 1, 0] = mid
+                    node_th[n_nodes + 1, 1] = b[5]
+                    _node_sensor(b[4], mid, mx, my, myaw, node_off[n_nodes])
+                    _node_sensor(mid, b[5], mx, my, myaw, node_off[n_nodes + 1])
+                    node_ch[nd] = n_nodes
+                    n_nodes += 2
+                nxt_n[n_nxt] = node_ch[nd]
+                nxt_n[n_nxt + 1] = node_ch[nd] + 1
+            else:
+                nxt_n[n_nxt] = nd
+                nxt_n[n_nxt + 1] = nd
+            n_nxt += 2
+        cur, nxt = nxt, cur
+        cur_n, nxt_n = nxt_n, cur_n
+        n_cur = n_nxt
+    if kept > 0:
+        for d in range(6):
+            out[d] = hull[d]
+    return kept, tested
+
+
 def contract_pose(tmap, scans, k: int, robot_box, bounds, *, q: int = 0, stride: int = 1, min_xy: float = 0.02,
-                  min_th: float = 0.005, reach: float = 4.0, max_boxes: int = 4096):
+                  min_th: float = 0.005, reach: float = 4.0, max_boxes: int = 4096, reference: bool = False,
+                  window_cells: int = MAX_WINDOW_CELLS):
     """Contract the robot pose box (6,) of scan ``k`` against ``tmap`` (see the module docstring).
 
     Returns ``(box, kept, tested)``: the contracted box (the input box when no sub-box is kept,
-    ``kept == 0``: the scan contradicts the map beyond ``q``)."""
+    ``kept == 0``: the scan contradicts the map beyond ``q``). ``reference``: run
+    :func:`contract_kernel_reference` (hash lookups cell by cell) instead of
+    :func:`contract_kernel`; the results are the same. ``window_cells``: the fast path's dense
+    window at most (0: none; the results are the same)."""
     from ivslam_cli.interval.rounding import ensure_round_to_nearest
 
     ensure_round_to_nearest()
@@ -153,12 +548,16 @@ def contract_pose(tmap, scans, k: int, robot_box, bounds, *, q: int = 0, stride:
     box = np.ascontiguousarray(robot_box, dtype=np.float64).reshape(6)
     out = box.copy()
     mx, my, myaw = (float(v) for v in scans.mount)
-    kept, tested = contract_kernel(*tmap.arrays()[:3], float(tmap.eps), scans.ranges[b0:b1], scans.valid[b0:b1],
-                                   float(scans.angle_min[k]), float(scans.angle_increment[k]), box, mx, my, myaw,
-                                   float(bounds.range_abs), float(bounds.range_rel), float(bounds.bearing),
-                                   int(q), int(stride), float(min_xy), float(min_th), float(reach),
-                                   int(max_boxes), out)
+    keys, slots, cells, coords, n = tmap.arrays()
+    args = (float(tmap.eps), scans.ranges[b0:b1], scans.valid[b0:b1], float(scans.angle_min[k]),
+            float(scans.angle_increment[k]), box, mx, my, myaw, float(bounds.range_abs), float(bounds.range_rel),
+            float(bounds.bearing), int(q), int(stride), float(min_xy), float(min_th), float(reach), int(max_boxes),
+            out)
+    if reference:
+        kept, tested = contract_kernel_reference(keys, slots, cells, *args)
+    else:
+        kept, tested = contract_kernel(keys, slots, cells, coords, int(n), *args, int(window_cells))
     return out, int(kept), int(tested)
 
 
-__all__ = ["contract_pose", "contract_kernel", "excluded_beams"]
+__all__ = ["MAX_REGION_CELLS", "contract_kernel", "contract_kernel_reference", "contract_pose", "excluded_beams"]
