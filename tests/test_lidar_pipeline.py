@@ -112,6 +112,16 @@ def test_simulated_urg_runs_keep_the_truth(seed, world, noise):
     assert out.stats["old_beams"] + out.stats["new_beams"] == out.stats["valid_beams_mapped"]
 
 
+@given(st.integers(0, 2**31 - 1), st.sampled_from(WORLDS))
+@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+def test_keyframe_scan_matching_keeps_the_truth(seed, world):
+    """lidar.keyframes: scans matched to keyframes every 0.3 m / 0.2 rad (several per log)."""
+    log, out = run_sim(seed, world, overrides={"lidar.keyframes": True, "lidar.keyframe_distance": 0.3,
+                                                "lidar.keyframe_turn": 0.2, "lidar.match_boxes": 300})
+    assert_truth_kept(log, out)
+    assert out.stats["keyframes"] >= 2 and out.stats["keyframes_matched"] >= 1
+
+
 @pytest.mark.parametrize("seed,world", [(3, "rooms"), (5, "corridor")])
 def test_simulated_sick_rooms_and_corridor_keep_the_truth(seed, world):
     log, out = run_sim(seed, world, sensor="sick")

@@ -234,20 +234,62 @@ class Tracking:
     forward: np.ndarray  # (S', 6) boxes after the forward pass (before the backward one)
     smoothed: int  # trajectory nodes the backward pass narrowed
     too_wide: int  # scans not contracted: box wider than lidar.contract_max_width
+    relative: np.ndarray  # (S',) bool: box met with keyframe box ⊕ contracted relative box
+    keyframes: int  # keyframes made
+    unmatched: int  # keyframe matches where no relative pose agreed with both scans (box kept)
+
+
+@dataclass
+class _Keyframe:
+    """A scan whose frame anchors relative dead reckoning: the global box of its scan and the
+    trajectory in its frame (``P``: node boxes relative to its robot pose; rows before its node
+    unbounded)."""
+
+    box: np.ndarray  # (6,) global robot box of the keyframe scan
+    P: np.ndarray  # (N, 3, 2)
+    k_prev: int  # last node propagated in ``P``
+    scan: int  # index of the keyframe scan
+
+
+def _new_keyframe(scan: int, box: np.ndarray, P_shape, k: int, reach) -> _Keyframe:
+    P = np.empty(P_shape)
+    P[:, :, 0] = -np.inf
+    P[:, :, 1] = np.inf
+    rp, rt = float(reach[0]), float(reach[1])  # node k holds the modelled pose, within reach of the scan's
+    P[k] = [[-rp, rp], [-rp, rp], [-rt, rt]]
+    return _Keyframe(box.copy(), P, k, scan)
+
+
+def _far_from_keyframe(r: np.ndarray, cfg: Config) -> bool:
+    cx, cy, ct = 0.5 * (r[0] + r[1]), 0.5 * (r[2] + r[3]), 0.5 * (r[4] + r[5])
+    return bool(math.hypot(cx, cy) >= float(cfg["lidar.keyframe_distance"])
+                or abs(ct) >= float(cfg["lidar.keyframe_turn"]))
 
 
 def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
     """Stages 1-3 scan by scan: predict the pose box from the previous (contracted) one,
-    contract it against the map built so far (:func:`ivslam_cli.slam.lidar_contract.contract_pose`),
-    write it back into the trajectory, then add the scan to the map when its box is narrow
-    enough. After the last scan, a backward pass over the motion steps
+    contract it against the last keyframe and against the map built so far
+    (:func:`ivslam_cli.slam.lidar_contract.contract_pose`), write it back into the trajectory,
+    then add the scan to the map when its box is narrow enough.
+
+    Keyframes (``lidar.keyframes``): the pose of each scan *relative to the last keyframe
+    scan* is dead-reckoned in that scan's frame (where the keyframe's pose is exact). When the
+    robot has moved ``lidar.keyframe_distance`` or turned ``lidar.keyframe_turn`` from it, the
+    relative box is contracted by interval scan matching against the keyframe scan
+    (:func:`ivslam_cli.slam.lidar_scanmatch.match_scan`: continuous free space of both scans,
+    eroded by neither cells nor global boxes), the global box meets keyframe box ⊕ relative
+    box, and the scan becomes the next keyframe: global boxes then grow by the matched
+    relative boxes' widths from keyframe to keyframe, not by the odometry's.
+
+    After the last scan, a backward pass over the motion steps
     (:func:`ivslam_cli.slam.lidar_poses.smooth_backward`) carries every contraction back to the
     scans before it; a scan's final box is its forward box met with the smoothed one (the map
     keeps the forward boxes it was built with: wider, so still sound).
     Returns ``(PosePrediction, UpdateResult, narrow (S',), Tracking)``."""
     from ivslam_cli.slam.lidar_contract import contract_pose
     from ivslam_cli.slam.lidar_map import UpdateResult, update_map
-    from ivslam_cli.slam.lidar_poses import meet_boxes, meet_node, propagate, smooth_backward
+    from ivslam_cli.slam.lidar_poses import compose, meet_boxes, meet_node, propagate, smooth_backward
+    from ivslam_cli.slam.lidar_scanmatch import match_scan
 
     used, dropped, m, P, source, events = _trajectory(log, cfg, scans)
     max_w = float(cfg["lidar.max_pose_width"])
@@ -255,18 +297,27 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
     budget = int(cfg["lidar.contract_boxes"])
     stride = int(cfg["lidar.contract_stride"])
     max_cw = float(cfg["lidar.contract_max_width"])
+    use_kf = bool(cfg["lidar.keyframes"])
+    m_budget = int(cfg["lidar.match_boxes"])
+    m_stride = int(cfg["lidar.match_stride"])
+    unmatched = 0
     boxes = np.empty((used.size, 6))
     before = np.empty((used.size, 6))
     contracted = np.zeros(used.size, bool)
     contradicted = np.zeros(used.size, bool)
+    relative = np.zeros(used.size, bool)
     narrow = np.zeros(used.size, bool)
     all_boxes = np.zeros((len(scans), 6))
     is_old = np.zeros(scans.ranges.shape[0], bool)
     stats = np.zeros((len(scans), 6), np.int64)
     tested = 0
     too_wide = 0
+    keyframes = 0
+    kf_events = np.zeros(max(P.shape[0] - 1, 0), np.int64)
     one = np.zeros(1, np.int64)
+    g = np.empty(6)
     k_prev = 0
+    kf = None
     for j in range(used.size):
         k = int(m.node[j])
         propagate(P, m.kind, m.U, events, k_prev, k)
@@ -276,6 +327,28 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
         widen_boxes(P, m.node[j:j + 1], m.reach[j:j + 1], box)
         box = box[0]
         before[j] = box
+        switch = use_kf and kf is None
+        if kf is not None:  # this scan in the keyframe's frame
+            propagate(kf.P, m.kind, m.U, kf_events, kf.k_prev, k)
+            kf.k_prev = k
+            rel = np.empty((1, 6))
+            widen_boxes(kf.P, m.node[j:j + 1], m.reach[j:j + 1], rel)
+            rel = rel[0]
+            if _far_from_keyframe(rel, cfg) or j == used.size - 1:
+                switch = True
+                if np.all(np.isfinite(rel)):
+                    out, kept, nt = match_scan(scans, kf.scan, int(used[j]), rel, bounds, q=q, stride=m_stride,
+                                               max_boxes=m_budget)
+                    tested += nt
+                    if kept > 0:
+                        compose(kf.box, out, g)
+                        met = np.empty((1, 6))
+                        if meet_boxes(box[None, :], g[None, :], met) == 0:
+                            box = met[0]
+                            relative[j] = True
+                            meet_node(P, k, box, rp, rt)
+                    else:
+                        unmatched += 1
         wide = max_cw > 0 and max(box[1] - box[0], box[3] - box[2]) > max_cw
         too_wide += int(wide)
         if tmap.n_tiles > 0 and np.all(np.isfinite(box)) and not wide:
@@ -297,9 +370,12 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
             r = update_map(tmap, scans, all_boxes, bounds, order=one)
             is_old |= r.is_old
             stats[used[j]] = r.stats[used[j]]
+        if switch and np.all(np.isfinite(box)):
+            kf = _new_keyframe(int(used[j]), box, P.shape, k, m.reach[j])
+            keyframes += 1
     forward = boxes.copy()
     smoothed = 0
-    if contracted.any():
+    if contracted.any() or relative.any():
         smoothed = int(smooth_backward(P, m.kind, m.U, events, k_prev))
         back = np.empty((used.size, 6))
         widen_boxes(P, m.node, m.reach, back)
@@ -307,7 +383,8 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
     pred = PosePrediction(used=used, boxes=boxes, source=source, motion=m.motion, step_events=events,
                           node_stamp=m.node_stamp, dropped=dropped)
     return pred, UpdateResult(is_old, stats), narrow, Tracking(contracted, before, contradicted, tested,
-                                                               forward, smoothed, too_wide)
+                                                               forward, smoothed, too_wide, relative, keyframes,
+                                                               unmatched)
 
 
 def predict_poses(log: LogData, cfg: Config, scans: Scans) -> PosePrediction:
@@ -504,6 +581,9 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
             "median_forward_width": float(np.nanmedian(fw)) if np.isfinite(fw).any() else float("nan"),
             "nodes_smoothed": int(tracking.smoothed),
             "scans_too_wide_to_contract": int(tracking.too_wide),
+            "keyframes": int(tracking.keyframes),
+            "keyframes_matched": int(tracking.relative.sum()),
+            "keyframes_unmatched": int(tracking.unmatched),
         })
     return LidarOutput(
         poses=Poses(stamp=stamp, box=np.ascontiguousarray(box3)), grid=grid, consistency=consistency,

@@ -6,6 +6,7 @@ from __future__ import annotations
 from numba import njit
 
 from ivslam_cli.interval.angles import angle_meet_narrow
+from ivslam_cli.interval.arith import add, cos, mul, sin, sub
 from ivslam_cli.interval.rounding import down, up
 from ivslam_cli.slam.landmarks_kernel import cap_heading, init_headings, step_contract
 
@@ -103,3 +104,22 @@ def meet_boxes(a, b, out):
             bad += 1
             out[j] = a[j]
     return bad
+
+
+@njit(cache=True)
+def compose(a, r, out):
+    """``out`` ⊇ ``{a ⊕ r}``: the pose ``r`` (relative, in the frame of pose ``a``) in the frame
+    ``a`` is given in, for every ``a`` and ``r`` in the flat boxes ``(x_lo, x_hi, y_lo, y_hi,
+    θ_lo, θ_hi)``: ``x = x_a + cos θ_a·x_r − sin θ_a·y_r``, ``y = y_a + sin θ_a·x_r + cos θ_a·y_r``,
+    ``θ = θ_a + θ_r``; rounded outward."""
+    cl, ch = cos(a[4], a[5])
+    sl, sh = sin(a[4], a[5])
+    p1l, p1h = mul(cl, ch, r[0], r[1])
+    p2l, p2h = mul(sl, sh, r[2], r[3])
+    dxl, dxh = sub(p1l, p1h, p2l, p2h)
+    q1l, q1h = mul(sl, sh, r[0], r[1])
+    q2l, q2h = mul(cl, ch, r[2], r[3])
+    dyl, dyh = add(q1l, q1h, q2l, q2h)
+    out[0], out[1] = add(a[0], a[1], dxl, dxh)
+    out[2], out[3] = add(a[2], a[3], dyl, dyh)
+    out[4], out[5] = add(a[4], a[5], r[4], r[5])
