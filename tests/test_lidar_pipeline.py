@@ -120,6 +120,18 @@ def test_keyframe_scan_matching_keeps_the_truth(seed, world):
                                                 "lidar.keyframe_turn": 0.2, "lidar.match_boxes": 300})
     assert_truth_kept(log, out)
     assert out.stats["keyframes"] >= 2 and out.stats["keyframes_matched"] >= 1
+    pairs, boxes = out.relative
+    assert pairs.shape[0] > 0
+    tr = log.truth
+    p = tr.pose[np.searchsorted(tr.pose_stamp, out.poses.stamp)]
+    a, b = p[pairs[:, 0]], p[pairs[:, 1]]
+    d = b - a
+    c, s_ = np.cos(a[:, 2]), np.sin(a[:, 2])
+    rel = np.column_stack([c * d[:, 0] + s_ * d[:, 1], -s_ * d[:, 0] + c * d[:, 1], d[:, 2]])
+    th = boxes[:, 4] + np.mod(rel[:, 2] - boxes[:, 4], 2 * math.pi)
+    inside = ((boxes[:, 0] <= rel[:, 0]) & (rel[:, 0] <= boxes[:, 1]) & (boxes[:, 2] <= rel[:, 1])
+              & (rel[:, 1] <= boxes[:, 3]) & (th <= boxes[:, 5]))
+    assert inside.all(), f"{(~inside).sum()} of {inside.size} relative boxes miss the true relative pose"
 
 
 @pytest.mark.parametrize("seed,world", [(3, "rooms"), (5, "corridor")])

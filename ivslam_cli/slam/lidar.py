@@ -237,6 +237,8 @@ class Tracking:
     relative: np.ndarray  # (S',) bool: box met with keyframe box ⊕ contracted relative box
     keyframes: int  # keyframes made
     unmatched: int  # keyframe matches where no relative pose agreed with both scans (box kept)
+    rel_pairs: np.ndarray  # (R, 2) rows (keyframe scan, scan) among the used scans
+    rel_boxes: np.ndarray  # (R, 6) robot pose of the second in the robot frame of the first
 
 
 @dataclass
@@ -249,15 +251,16 @@ class _Keyframe:
     P: np.ndarray  # (N, 3, 2)
     k_prev: int  # last node propagated in ``P``
     scan: int  # index of the keyframe scan
+    row: int  # its row among the used scans
 
 
-def _new_keyframe(scan: int, box: np.ndarray, P_shape, k: int, reach) -> _Keyframe:
+def _new_keyframe(scan: int, row: int, box: np.ndarray, P_shape, k: int, reach) -> _Keyframe:
     P = np.empty(P_shape)
     P[:, :, 0] = -np.inf
     P[:, :, 1] = np.inf
     rp, rt = float(reach[0]), float(reach[1])  # node k holds the modelled pose, within reach of the scan's
     P[k] = [[-rp, rp], [-rp, rp], [-rt, rt]]
-    return _Keyframe(box.copy(), P, k, scan)
+    return _Keyframe(box.copy(), P, k, scan, row)
 
 
 def _far_from_keyframe(r: np.ndarray, cfg: Config) -> bool:
@@ -301,6 +304,8 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
     m_budget = int(cfg["lidar.match_boxes"])
     m_stride = int(cfg["lidar.match_stride"])
     unmatched = 0
+    rel_pairs: list = []
+    rel_boxes: list = []
     boxes = np.empty((used.size, 6))
     before = np.empty((used.size, 6))
     contracted = np.zeros(used.size, bool)
@@ -341,6 +346,7 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
                                                max_boxes=m_budget)
                     tested += nt
                     if kept > 0:
+                        rel = out
                         compose(kf.box, out, g)
                         met = np.empty((1, 6))
                         if meet_boxes(box[None, :], g[None, :], met) == 0:
@@ -349,6 +355,9 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
                             meet_node(P, k, box, rp, rt)
                     else:
                         unmatched += 1
+            if np.all(np.isfinite(rel)):
+                rel_pairs.append((kf.row, j))
+                rel_boxes.append(rel.copy())
         wide = max_cw > 0 and max(box[1] - box[0], box[3] - box[2]) > max_cw
         too_wide += int(wide)
         if tmap.n_tiles > 0 and np.all(np.isfinite(box)) and not wide:
@@ -371,7 +380,7 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
             is_old |= r.is_old
             stats[used[j]] = r.stats[used[j]]
         if switch and np.all(np.isfinite(box)):
-            kf = _new_keyframe(int(used[j]), box, P.shape, k, m.reach[j])
+            kf = _new_keyframe(int(used[j]), j, box, P.shape, k, m.reach[j])
             keyframes += 1
     forward = boxes.copy()
     smoothed = 0
@@ -384,7 +393,9 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
                           node_stamp=m.node_stamp, dropped=dropped)
     return pred, UpdateResult(is_old, stats), narrow, Tracking(contracted, before, contradicted, tested,
                                                                forward, smoothed, too_wide, relative, keyframes,
-                                                               unmatched)
+                                                               unmatched,
+                                                               np.array(rel_pairs, np.int64).reshape(-1, 2),
+                                                               np.array(rel_boxes, float).reshape(-1, 6))
 
 
 def predict_poses(log: LogData, cfg: Config, scans: Scans) -> PosePrediction:
@@ -445,6 +456,10 @@ class LidarOutput:
     mapped: np.ndarray  # indices of the scans that went into the map
     used: np.ndarray  # indices of the scans that got a pose box (rows of ``poses``)
     scans: Scans  # the scans as used (returns beyond lidar.max_range marked invalid)
+    #: with lidar.keyframes: ``(pairs (R, 2), boxes (R, 6))``: the robot pose at pose row
+    #: ``pairs[r, 1]`` in the robot frame at pose row ``pairs[r, 0]`` (a keyframe), within ``boxes[r]``
+    #: (dead-reckoned in the keyframe's frame, matched where the scan was matched); else None
+    relative: tuple | None = None
 
 
 def _box_width(b: np.ndarray) -> np.ndarray:
@@ -588,4 +603,5 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
     return LidarOutput(
         poses=Poses(stamp=stamp, box=np.ascontiguousarray(box3)), grid=grid, consistency=consistency,
         stats=stats, dropped=dropped, is_old=res.is_old, tmap=tmap, mapped=mapped, used=used, scans=scans,
+        relative=None if tracking is None or not cfg["lidar.keyframes"] else (tracking.rel_pairs, tracking.rel_boxes),
     )
