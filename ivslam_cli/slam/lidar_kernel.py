@@ -153,7 +153,7 @@ def _grow_i(a, need):
     return b
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, inline="always")
 def _unmeasured(cells, t, lx, ly):
     return t < 0 or cells[t, lx, ly] == 0
 
@@ -511,7 +511,7 @@ def _fast_tables(ranges, valid, r_abs, r_rel, cos_gap, T):
     return rmax
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, inline="always")
 def _win(T, lg, l, r):
     """Over beams ``[l, r]`` (``l <= r``): min lo, max hi, min free, max free."""
     k = lg[r - l + 1]
@@ -520,7 +520,7 @@ def _win(T, lg, l, r):
             max(T[k, l, 3], T[k, j, 3]))
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, inline="always")
 def _meets(T, lg, l, r, a, b, lo_min, hi_max, st):
     """Whether a valid beam ``i`` in ``[l, r]`` has ``lo_i <= a`` and ``hi_i >= b`` (exact);
     ``lo_min, hi_max``: the window's hull (:func:`_win`).
@@ -532,7 +532,7 @@ def _meets(T, lg, l, r, a, b, lo_min, hi_max, st):
     return _meets_g(T, lg, l, r, a, b, lo_min, hi_max, down(a - b), st)
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, inline="always")
 def _meets_g(T, lg, l, r, a, b, lo_min, hi_max, g, st):
     """:func:`_meets`, the gaps allowed up to ``g`` (``g <= a - b``, or see the callers)."""
     if l > r or lo_min > a or hi_max < b:
@@ -542,10 +542,23 @@ def _meets_g(T, lg, l, r, a, b, lo_min, hi_max, g, st):
     k = lg[r - l]
     if max(T[k, l, 4], T[k, r - (1 << k), 4]) <= g:
         return True
-    for i in range(l, r + 1):
-        st[2] += 1
-        if T[0, i, 0] <= a and T[0, i, 1] >= b:
-            return True
+    # a jump: the same two tests on sub-windows [p, p + 2^k - 1] (the argument holds on any
+    # run of consecutive beams), halving those whose hull meets but which hold a jump, skipping
+    # those whose hull misses; single beams are tested exactly
+    p = l
+    while p <= r:
+        k = lg[r - p + 1]
+        while True:
+            st[2] += 1
+            if T[k, p, 0] > a or T[k, p, 1] < b:
+                p += 1 << k
+                break
+            if k == 0:
+                return True
+            j = k - 1
+            if max(T[j, p, 4], T[j, p + (1 << j) - 1, 4]) <= g:  # gaps of beams p .. p + 2^k - 2
+                return True
+            k = j
     return False
 
 
@@ -558,7 +571,7 @@ def _scan_new(T, o_lo, o_hi, r_lo, r_hi, new, st):
             new[i] = True
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, inline="always")
 def _window_fast(pl, ph, a0, inc, h, nb, mid, lo_edge, hi_edge):
     """:func:`beam_window` (same results): the branch search is skipped when the bearings'
     middle is within 3 rad of the scan's (then ``round(c / 2π) = 0``)."""
@@ -581,7 +594,7 @@ def _window_fast(pl, ph, a0, inc, h, nb, mid, lo_edge, hi_edge):
     return o_lo, o_hi, e_lo, e_hi, cover
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, inline="always")
 def _classify(T, lg, o_lo, o_hi, e_lo, e_hi, cover, r_lo, r_hi, st):
     """The reference's leaf decision for a cell with window ``[o_lo, o_hi]`` (``[e_lo, e_hi]``
     unclipped) and range interval ``[r_lo, r_hi]``: 0 nothing, 1 proven empty, 2 the hull
@@ -622,7 +635,7 @@ def _cell(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, T, lg, 
     return _classify(T, lg, o_lo, o_hi, e_lo, e_hi, cover, r_lo, r_hi, st), o_lo, o_hi, r_lo, r_hi
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, inline="always")
 def _geom4(ix, iy, eps, box, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc, R, W):
     """The reference's range interval and window of the four cells ``(ix + (q & 1), iy + (q >>
     1))``, computed one after the other (no decision in between, so that the processor
@@ -686,7 +699,7 @@ def _geom4(ix, iy, eps, box, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc, R, 
         W[q, 5] = state
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, inline="always")
 def _window_block(bl, bh, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err):
     """Outer window of a block from its approximate bearings ``[bl, bh]`` (within ``err``):
     ``(o_lo, o_hi, e_lo, e_hi, cover, simple)``. ``simple``: the bearings minus ``[theta]``
@@ -751,7 +764,7 @@ def _inner_consts(box, inc):
     return cx, cy, wx, wy, rc, amg, 1.0 / inc, gmin
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, inline="always")
 def _inner(x0, x1, y0, y1, eps, box, a0, h, mid, cx, cy, wx, wy, rc, amg, inv_inc, lev, LC):
     """What holds for *every* cell inside ``[x0, x1] x [y0, y1]`` (real geometry, margins far
     above every rounding): ``(i_lo, i_hi, k_lo, k_hi)``.
@@ -841,7 +854,7 @@ def _inner(x0, x1, y0, y1, eps, box, a0, h, mid, cx, cy, wx, wy, rc, amg, inv_in
     return int(math.ceil(u_lo + 1e-6)), int(math.floor(u_hi - 1e-6)), k_lo, k_hi
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, inline="always")
 def _tile_slot(tl, n_tl, slot, tx, ty, what):
     """The index of the current tile in the scan's tile list (added on its first record);
     ``what`` (1 empty, 2 obstacle) is or-ed into its flags. -1 when the list is full."""
