@@ -25,6 +25,7 @@ generously (a region's cells include every cell it may touch).
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 from numba import njit
@@ -160,14 +161,25 @@ def contract_kernel_reference(keys, slots, cells, eps, ranges, valid, a0, inc, b
 #   MAX_REGION_CELLS cells is never free for a box of its node, and a box whose sensor box alone
 #   does is free for no beam (the one-cell margin of ``_cells_lb`` absorbs every rounding error
 #   while coordinates stay below ``_SKIP_MAX`` and the cell side above ``_SKIP_EPS``);
+# - a box's centre lies in both its halves (on their common face): the beams witnessed from a
+#   box's centre are witnessed for its halves without a test. Boxes of even depth test every
+#   beam from their centre and hand the witnessed ones down; boxes of odd depth skip those
+#   (a θ split hands them down only when r_α covers the witness direction's rounding);
 # - beams are tested in any order: only "more than q free" is used.
+#
+# Speed: the arrays live in a per-thread workspace kept between calls (a call allocates nothing
+# large: no page faults), and the loops over boxes and beams run in ``_level``, which makes and
+# rebinds no array (numba then counts no references there: atomic increments per beam cost
+# more than the beam's test).
 
 #: the dense window holds at most this many cells (larger: regions are looked up in the tiles)
-MAX_WINDOW_CELLS = 1 << 24
+MAX_WINDOW_CELLS = 1 << 22
 #: the skip rules and witnesses are used only when every coordinate and range is below this (m) ...
 _SKIP_MAX = 1e6
 #: ... and the cell side above this (m)
 _SKIP_EPS = 1e-5
+# node columns (float): tl, th, then _node_sensor's 8 values; (int): first child, pool row
+_NF = 10
 
 
 @njit(cache=True, inline="always")
@@ -179,13 +191,13 @@ def _cells_lb(w, eps):
 
 
 @njit(cache=True)
-def _build_window(cells, coords, n, wx0, wx1, wy0, wy1):
-    """The cells ``[wx0, wx1] x [wy0, wy1]`` not proven free: flags ``F`` (nx, ny) uint8 and
-    their summed-area table ``S`` (nx + 1, ny + 1) int32, ``S[a, b]`` counting them over
-    ``[wx0, wx0 + a) x [wy0, wy0 + b)``."""
+def _build_window(cells, coords, n, wx0, wx1, wy0, wy1, F, S):
+    """The cells ``[wx0, wx1] x [wy0, wy1]`` not proven free: flags ``F[a ny + b]`` (uint8) and
+    their summed-area table ``S[a (ny + 1) + b]`` (int32) counting them over
+    ``[wx0, wx0 + a) x [wy0, wy0 + b)`` (``F``, ``S`` flat, large enough)."""
     nx = wx1 - wx0 + 1
     ny = wy1 - wy0 + 1
-    F = np.ones((nx, ny), np.uint8)  # not in a tile: unknown
+    F[: nx * ny] = 1  # not in a tile: unknown
     for t in range(n):
         ox = coords[t, 0] * TILE - wx0
         oy = coords[t, 1] * TILE - wy0
@@ -195,51 +207,61 @@ def _build_window(cells, coords, n, wx0, wx1, wy0, wy1):
         b1 = min(TILE, ny - oy)
         for a in range(a0, a1):
             for b in range(b0, b1):
-                F[ox + a, oy + b] = np.uint8(1) - (cells[t, a, b] & EMPTY)
-    S = np.empty((nx + 1, ny + 1), np.int32)
-    S[0, :] = 0
+                F[(ox + a) * ny + oy + b] = np.uint8(1) - (cells[t, a, b] & EMPTY)
+    m = ny + 1
+    S[:m] = 0
     for a in range(nx):
         run = np.int32(0)
-        S[a + 1, 0] = 0
+        S[(a + 1) * m] = 0
         for b in range(ny):
-            run += np.int32(F[a, b])
-            S[a + 1, b + 1] = S[a, b + 1] + run
-    return F, S
+            run += np.int32(F[a * ny + b])
+            S[(a + 1) * m + b + 1] = S[a * m + b + 1] + run
 
 
 @njit(cache=True)
-def _node_sensor(tl, th, mx, my, myaw, off):
+def _node_sensor(tl, th, mx, my, myaw):
     """The sensor offset and heading of the heading interval ``[tl, th]`` as :func:`sensor_box`
-    computes them, in ``off`` (8,): ``(ox, oxh, oy, oyh, stl, sth)``, then the sensor offset of
-    the heading ``mid(tl, th)`` in floating point (for witnesses)."""
+    computes them, ``(ox, oxh, oy, oyh, stl, sth)``, then the sensor offset of the heading
+    ``mid(tl, th)`` in floating point (for witnesses)."""
     cl, ch = cos(tl, th)
     sl, sh = sin(tl, th)
     ax, bx = mul(cl, ch, mx, mx)
     cx, dx = mul(sl, sh, my, my)
-    off[0], off[1] = sub(ax, bx, cx, dx)
+    ox, oxh = sub(ax, bx, cx, dx)
     ay, by = mul(sl, sh, mx, mx)
     cy, dy = mul(cl, ch, my, my)
-    off[2], off[3] = add(ay, by, cy, dy)
-    off[4], off[5] = add(tl, th, myaw, myaw)
+    oy, oyh = add(ay, by, cy, dy)
+    stl, sth = add(tl, th, myaw, myaw)
     tc = 0.5 * (tl + th)
     c, s = math.cos(tc), math.sin(tc)
-    off[6] = c * mx - s * my
-    off[7] = s * mx + c * my
+    return ox, oxh, oy, oyh, stl, sth, c * mx - s * my, s * mx + c * my
 
 
 @njit(cache=True)
-def _node_witness(tl, th, rmid, rh, uc, us, out):
-    """Witness offsets from the sensor, ``out`` (B, 4): ``r (cos, sin)(mid(tl, th) + myaw + α_i)``
+def _set_node(nf, ni, i, tl, th, mx, my, myaw):
+    """Node ``i``: heading interval ``[tl, th]``, no children, no pool row yet."""
+    nf[i, 0] = tl
+    nf[i, 1] = th
+    o = _node_sensor(tl, th, mx, my, myaw)
+    for d in range(8):
+        nf[i, 2 + d] = o[d]
+    ni[i, 0] = -1
+    ni[i, 1] = -1
+
+
+@njit(cache=True)
+def _node_witness(tl, th, rmid, rh, uc, us, wit, row):
+    """Witness offsets from the sensor, ``wit[row]`` (B, 4): ``r (cos, sin)(mid(tl, th) + myaw + α_i)``
     for ``r`` = ``rmid`` and ``rh`` (``uc, us``: cos, sin of ``myaw + α_i``), floating point."""
     tc = 0.5 * (tl + th)
     c, s = math.cos(tc), math.sin(tc)
     for j in range(uc.shape[0]):
         ex = c * uc[j] - s * us[j]
         ey = s * uc[j] + c * us[j]
-        out[j, 0] = rmid[j] * ex
-        out[j, 1] = rmid[j] * ey
-        out[j, 2] = rh[j] * ex
-        out[j, 3] = rh[j] * ey
+        wit[row, j, 0] = rmid[j] * ex
+        wit[row, j, 1] = rmid[j] * ey
+        wit[row, j, 2] = rh[j] * ex
+        wit[row, j, 3] = rh[j] * ey
 
 
 @njit(cache=True, inline="always")
@@ -275,80 +297,173 @@ def _witness_cell(ux, uy, mu, cx0, cx1, cy0, cy1):
 
 
 @njit(cache=True)
-def _free_count(keys, slots, cells, eps, F, S, built, wx0, wx1, wy0, wy1, cx0, cx1, cy0, cy1, wit, dof, dst, row,
-                nb, rl, rh, ang, r_alpha, stl, sth, sxl, sxh, syl, syh, scx, scy, wn, mu, inv_eps, skip, q):
-    """How many of the ``nb`` beams have a free endpoint region from the sensor box
-    ``[sxl, sxh] x [syl, syh]`` (heading ``[stl, sth]``), stopping past ``q``: the loop of
-    :func:`excluded_beams` with witnesses first (sensor position ``(scx, scy)``, when ``wn``),
-    the node's endpoint offsets (row ``row`` of ``wit`` / ``dof`` / ``dst``, the latter two
-    filled on first use) and the window ``F`` / ``S`` (when ``built``). A function of its own:
-    its loop makes no array references (no reference counting per beam)."""
-    n = 0
-    for k in range(nb):
-        st = dst[row, k]
-        if st == 2:
+def _level(cur, cur_n, cur_b, nxt, nxt_n, nxt_b, n_cur, cap, store, hull, nf, ni, n_nodes, wit, dof, dst, n_rows,
+           keys, slots, cells, eps, F, S, built, wx0, wx1, wy0, wy1, cx0, cx1, cy0, cy1, rl, rh, rmid, ang, uc, us,
+           r_alpha, mx, my, myaw, q, min_xy, min_th, reach, skip, witness, mu):
+    """One level of the breadth-first set inversion of :func:`contract_kernel_reference`: tests
+    the ``n_cur`` boxes of ``cur`` (their nodes in ``cur_n``), writes the halves of those to
+    split into ``nxt`` / ``nxt_n``, the kept ones into ``hull``. Returns ``(n_nxt, kept,
+    n_nodes, n_rows)``. The caller has made room for ``2 n_cur`` more nodes and ``n_cur`` more
+    pool rows. Witnessed beams: ``cur_b[j, 0]`` says whether box ``j`` has its parent's (bits
+    ``cur_b[j, 1:]``); with ``store``, each box records those of its own centre for its
+    halves in ``nxt_b``."""
+    nb = rl.shape[0]
+    ny = wy1 - wy0 + 1
+    m = ny + 1
+    inv_eps = 1.0 / eps
+    n_nxt = 0
+    kept = 0
+    nw = (nb + 63) >> 6
+    for j in range(n_cur):
+        nd = cur_n[j]
+        b0, b1, b2, b3, b4, b5 = cur[j, 0], cur[j, 1], cur[j, 2], cur[j, 3], cur[j, 4], cur[j, 5]
+        has = cur_b[j, 0] != 0
+        if store:
+            for w in range(nw + 1):
+                nxt_b[n_nxt, w] = 0
+        sxl, sxh = add(b0, b1, nf[nd, 2], nf[nd, 3])
+        syl, syh = add(b2, b3, nf[nd, 4], nf[nd, 5])
+        # the beams' count of free regions, as excluded_beams (stops past q)
+        n = 0
+        if nb > 0 and not (skip and _cells_lb(sxh - sxl, eps) * _cells_lb(syh - syl, eps) > MAX_REGION_CELLS):
+            # (else every region of this box spans too many cells: none is free)
+            row = ni[nd, 1]
+            if row < 0:
+                row = n_rows
+                ni[nd, 1] = row
+                n_rows += 1
+                for k in range(nb):
+                    dst[row, k] = 0
+                if witness:
+                    _node_witness(nf[nd, 0], nf[nd, 1], rmid, rh, uc, us, wit, row)
+            wn = witness and (r_alpha >= 1e-12 or nf[nd, 1] - nf[nd, 0] >= 1e-9)
+            if store and wn:
+                nxt_b[n_nxt, 0] = 1
+            stl = nf[nd, 6]
+            sth = nf[nd, 7]
+            scx = 0.5 * (b0 + b1) + nf[nd, 8]
+            scy = 0.5 * (b2 + b3) + nf[nd, 9]
+            for k in range(nb):
+                if has and (cur_b[j, 1 + (k >> 6)] >> np.uint64(k & 63)) & np.uint64(1):
+                    continue  # witnessed from the parent's centre
+                st = dst[row, k]
+                if st == 2:
+                    continue
+                if wn:
+                    c, ix, iy = _witness_cell((scx + wit[row, k, 0]) * inv_eps, (scy + wit[row, k, 1]) * inv_eps,
+                                              mu, cx0, cx1, cy0, cy1)
+                    if not (c == 1 or (c == 0 and built and ix >= wx0 and ix <= wx1 and iy >= wy0 and iy <= wy1
+                                       and F[(ix - wx0) * ny + iy - wy0] != 0)):
+                        c, ix, iy = _witness_cell((scx + wit[row, k, 2]) * inv_eps,
+                                                  (scy + wit[row, k, 3]) * inv_eps, mu, cx0, cx1, cy0, cy1)
+                    if c == 1 or (c == 0 and built and ix >= wx0 and ix <= wx1 and iy >= wy0 and iy <= wy1
+                                  and F[(ix - wx0) * ny + iy - wy0] != 0):
+                        if store:
+                            nxt_b[n_nxt, 1 + (k >> 6)] |= np.uint64(1) << np.uint64(k & 63)
+                        continue
+                if st == 0:
+                    dxl, dxh, dyl, dyh = _beam_offset(stl, sth, rl[k], rh[k], ang[k], r_alpha)
+                    dof[row, k, 0] = dxl
+                    dof[row, k, 1] = dxh
+                    dof[row, k, 2] = dyl
+                    dof[row, k, 3] = dyh
+                    if skip and _cells_lb(dxh - dxl, eps) * _cells_lb(dyh - dyl, eps) > MAX_REGION_CELLS:
+                        dst[row, k] = 2  # never free for a box of this heading interval
+                        continue
+                    dst[row, k] = 1
+                xl, xh = add(sxl, sxh, dof[row, k, 0], dof[row, k, 1])
+                yl, yh = add(syl, syh, dof[row, k, 2], dof[row, k, 3])
+                if not (abs(xl) < math.inf and abs(xh) < math.inf and abs(yl) < math.inf and abs(yh) < math.inf):
+                    free = _region_free(keys, slots, cells, eps, xl, xh, yl, yh)
+                else:
+                    ix0 = math.floor(down(xl / eps))
+                    ix1 = math.floor(up(xh / eps))
+                    iy0 = math.floor(down(yl / eps))
+                    iy1 = math.floor(up(yh / eps))
+                    if (ix1 - ix0 + 1) * (iy1 - iy0 + 1) > MAX_REGION_CELLS:
+                        free = False
+                    elif built and ix0 >= wx0 and ix1 <= wx1 and iy0 >= wy0 and iy1 <= wy1:
+                        ax0 = (ix0 - wx0) * m
+                        ax1 = (ix1 - wx0 + 1) * m
+                        ay0 = iy0 - wy0
+                        ay1 = iy1 - wy0 + 1
+                        free = S[ax1 + ay1] - S[ax0 + ay1] - S[ax1 + ay0] + S[ax0 + ay0] == 0
+                    elif ix0 < cx0 or ix1 > cx1 or iy0 < cy0 or iy1 > cy1:
+                        free = False  # a cell in no tile: unknown
+                    else:
+                        free = _region_free(keys, slots, cells, eps, xl, xh, yl, yh)
+                if free:
+                    n += 1
+                    if n > q:
+                        break
+        if n > q:
             continue
-        if wn:
-            c, ix, iy = _witness_cell((scx + wit[row, k, 0]) * inv_eps, (scy + wit[row, k, 1]) * inv_eps, mu,
-                                      cx0, cx1, cy0, cy1)
-            if c == 1 or (c == 0 and built and ix >= wx0 and ix <= wx1 and iy >= wy0 and iy <= wy1
-                          and F[ix - wx0, iy - wy0] != 0):
-                continue
-            c, ix, iy = _witness_cell((scx + wit[row, k, 2]) * inv_eps, (scy + wit[row, k, 3]) * inv_eps, mu,
-                                      cx0, cx1, cy0, cy1)
-            if c == 1 or (c == 0 and built and ix >= wx0 and ix <= wx1 and iy >= wy0 and iy <= wy1
-                          and F[ix - wx0, iy - wy0] != 0):
-                continue
-        if st == 0:
-            dxl, dxh, dyl, dyh = _beam_offset(stl, sth, rl[k], rh[k], ang[k], r_alpha)
-            dof[row, k, 0] = dxl
-            dof[row, k, 1] = dxh
-            dof[row, k, 2] = dyl
-            dof[row, k, 3] = dyh
-            if skip and _cells_lb(dxh - dxl, eps) * _cells_lb(dyh - dyl, eps) > MAX_REGION_CELLS:
-                dst[row, k] = 2  # never free for a box of this heading interval
-                continue
-            dst[row, k] = 1
-        xl, xh = add(sxl, sxh, dof[row, k, 0], dof[row, k, 1])
-        yl, yh = add(syl, syh, dof[row, k, 2], dof[row, k, 3])
-        if not (abs(xl) < math.inf and abs(xh) < math.inf and abs(yl) < math.inf and abs(yh) < math.inf):
-            free = _region_free(keys, slots, cells, eps, xl, xh, yl, yh)
+        wx = b1 - b0
+        wy = b3 - b2
+        wt = (b5 - b4) * reach
+        if (wx <= min_xy and wy <= min_xy and b5 - b4 <= min_th) or n_nxt + 2 > cap:
+            kept += 1
+            for d in range(6):
+                hull[d] = min(hull[d], cur[j, d]) if d % 2 == 0 else max(hull[d], cur[j, d])
+            continue
+        d = 0 if (wx >= wy and wx >= wt) else (1 if wy >= wt else 2)
+        mid = 0.5 * (cur[j, 2 * d] + cur[j, 2 * d + 1])
+        for e in range(6):
+            nxt[n_nxt, e] = cur[j, e]
+            nxt[n_nxt + 1, e] = cur[j, e]
+        nxt[n_nxt, 2 * d + 1] = mid
+        nxt[n_nxt + 1, 2 * d] = mid
+        if not store or (d == 2 and r_alpha < 1e-12):
+            nxt_b[n_nxt, 0] = 0  # (a θ split moves the witness direction to the halves' edge)
+        for w in range(nw + 1):
+            nxt_b[n_nxt + 1, w] = nxt_b[n_nxt, w]
+        if d == 2:  # the two halves of the heading interval, made once per node
+            if ni[nd, 0] < 0:
+                _set_node(nf, ni, n_nodes, b4, mid, mx, my, myaw)
+                _set_node(nf, ni, n_nodes + 1, mid, b5, mx, my, myaw)
+                ni[nd, 0] = n_nodes
+                n_nodes += 2
+            nxt_n[n_nxt] = ni[nd, 0]
+            nxt_n[n_nxt + 1] = ni[nd, 0] + 1
         else:
-            ix0 = math.floor(down(xl / eps))
-            ix1 = math.floor(up(xh / eps))
-            iy0 = math.floor(down(yl / eps))
-            iy1 = math.floor(up(yh / eps))
-            if (ix1 - ix0 + 1) * (iy1 - iy0 + 1) > MAX_REGION_CELLS:
-                free = False
-            elif built and ix0 >= wx0 and ix1 <= wx1 and iy0 >= wy0 and iy1 <= wy1:
-                ax0 = ix0 - wx0
-                ax1 = ix1 - wx0 + 1
-                ay0 = iy0 - wy0
-                ay1 = iy1 - wy0 + 1
-                free = S[ax1, ay1] - S[ax0, ay1] - S[ax1, ay0] + S[ax0, ay0] == 0
-            elif ix0 < cx0 or ix1 > cx1 or iy0 < cy0 or iy1 > cy1:
-                free = False  # a cell in no tile: unknown
-            else:
-                free = _region_free(keys, slots, cells, eps, xl, xh, yl, yh)
-        if free:
-            n += 1
-            if n > q:
-                break
-    return n
+            nxt_n[n_nxt] = nd
+            nxt_n[n_nxt + 1] = nd
+        n_nxt += 2
+    return n_nxt, kept, n_nodes, n_rows
+
+
+@njit(cache=True)
+def _box_free_possible(cur, cur_n, n_cur, nf, eps, skip):
+    """Whether some box of the level escapes the box-level skip (its beams get tested)."""
+    if not skip:
+        return True
+    for j in range(n_cur):
+        nd = cur_n[j]
+        sxl, sxh = add(cur[j, 0], cur[j, 1], nf[nd, 2], nf[nd, 3])
+        syl, syh = add(cur[j, 2], cur[j, 3], nf[nd, 4], nf[nd, 5])
+        if _cells_lb(sxh - sxl, eps) * _cells_lb(syh - syl, eps) <= MAX_REGION_CELLS:
+            return True
+    return False
 
 
 @njit(cache=True)
 def contract_kernel(keys, slots, cells, coords, n_tiles, eps, ranges, valid, a0, inc, box, mx, my, myaw, r_abs,
-                    r_rel, r_alpha, q, stride, min_xy, min_th, reach, max_boxes, out, max_window=MAX_WINDOW_CELLS):
+                    r_rel, r_alpha, q, stride, min_xy, min_th, reach, max_boxes, out, max_window, ws_box, ws_n,
+                    ws_nf, ws_ni, wit, dof, dst, F, S, bits):
     """:func:`contract_kernel_reference` (same arguments plus the tiles' ``coords`` and count),
     same results, faster (see the comment above). ``max_window``: cells of the dense window at
-    most (0: none, every region looked up in the tiles; for tests)."""
+    most (0: none, every region looked up in the tiles; for tests). Workspace: ``ws_box``
+    (2, max_boxes + 2, 6), ``ws_n`` (2, max_boxes + 2) int64, ``ws_nf`` (2 max_boxes + 3,
+    _NF), ``ws_ni`` (2 max_boxes + 3, 2) int64; pools ``wit``, ``dof`` (R, B', 4), ``dst``
+    (R, B') int8, window ``F`` (uint8), ``S`` (int32) and witness bits (2, C, W) uint64, any
+    sizes (regrown here).
+
+    Returns ``(kept, tested, wit, dof, dst, F, S, bits)`` (the last six possibly regrown)."""
     # the beams tested, and what does not depend on the sub-box
     nb = 0
     for i in range(0, ranges.shape[0], stride):
         if valid[i]:
             nb += 1
-    nbc = max(nb, 1)
     rl = np.empty(nb)
     rh = np.empty(nb)
     rmid = np.empty(nb)
@@ -374,9 +489,8 @@ def contract_kernel(keys, slots, cells, coords, n_tiles, eps, ranges, valid, a0,
     skip = ext < _SKIP_MAX and eps > _SKIP_EPS
     mu = 1e-9 * (ext + 1.0) / eps
     # (a witness's direction is within ~1e-15 rad of a direction of the beam's cone: a node's
-    # witnesses need r_alpha or the node's heading width to exceed that; see wn below)
+    # witnesses need r_alpha or the node's heading width to exceed that; see wn in _level)
     witness = skip and mu < 1e-3 and amax < 10.0 and abs(box[4]) < 100.0 and abs(box[5]) < 100.0
-    inv_eps = 1.0 / eps
     cx0, cx1, cy0, cy1 = 0, -1, 0, -1  # the tiles' bounding box (cells)
     if n_tiles > 0:
         cx0, cx1, cy0, cy1 = coords[0, 0], coords[0, 0], coords[0, 1], coords[0, 1]
@@ -396,34 +510,28 @@ def contract_kernel(keys, slots, cells, coords, n_tiles, eps, ranges, valid, a0,
         if wx1 < wx0 or wy1 < wy0 or (wx1 - wx0 + 1) * (wy1 - wy0 + 1) > max_window:
             wx0, wx1, wy0, wy1 = 0, -1, 0, -1
     has_window = wx1 >= wx0
-    F = np.zeros((1, 1), np.uint8)
-    S = np.zeros((1, 1), np.int32)
     built = False
 
-    # heading nodes: (tl, th), children, sensor offsets, and a row of beam data on first use
-    ncap = 64
-    node_th = np.empty((ncap, 2))
-    node_ch = np.full(ncap, -1, np.int64)
-    node_off = np.empty((ncap, 8))
-    node_row = np.full(ncap, -1, np.int64)
-    node_th[0, 0] = box[4]
-    node_th[0, 1] = box[5]
-    _node_sensor(box[4], box[5], mx, my, myaw, node_off[0])
+    nf, ni = ws_nf, ws_ni  # heading nodes
+    _set_node(nf, ni, 0, box[4], box[5], mx, my, myaw)
     n_nodes = 1
-    pcap = 4
-    wit = np.empty((pcap, nbc, 4))  # witness offsets
-    dof = np.empty((pcap, nbc, 4))  # endpoint offsets (interval)
-    dst = np.zeros((pcap, nbc), np.int8)  # 0: offset not computed, 1: computed, 2: never free
     n_rows = 0
+    if dst.shape[1] < nb:  # pool rows too short for this scan: new pools
+        wit = np.empty((wit.shape[0], nb, 4))
+        dof = np.empty((wit.shape[0], nb, 4))
+        dst = np.empty((wit.shape[0], nb), np.int8)
 
     cap = max_boxes + 2
-    cur = np.empty((cap, 6))
-    nxt = np.empty((cap, 6))
-    cur_n = np.empty(cap, np.int64)
-    nxt_n = np.empty(cap, np.int64)
+    cur, nxt = ws_box[0], ws_box[1]
+    cur_n, nxt_n = ws_n[0], ws_n[1]
+    if bits.shape[1] < cap + 1 or bits.shape[2] < ((nb + 63) >> 6) + 1:
+        bits = np.empty((2, cap + 1, ((nb + 63) >> 6) + 1), np.uint64)
+    cur_b, nxt_b = bits[0], bits[1]
     for d in range(6):
         cur[0, d] = box[d]
     cur_n[0] = 0
+    cur_b[0, 0] = 0
+    depth = 0
     n_cur = 1
     tested = 0
     kept = 0
@@ -437,97 +545,55 @@ def contract_kernel(keys, slots, cells, coords, n_tiles, eps, ranges, valid, a0,
                 for d in range(6):
                     hull[d] = min(hull[d], cur[j, d]) if d % 2 == 0 else max(hull[d], cur[j, d])
             break
-        n_nxt = 0
-        for j in range(n_cur):
-            b = cur[j]
-            nd = cur_n[j]
-            tested += 1
-            sxl, sxh = add(b[0], b[1], node_off[nd, 0], node_off[nd, 1])
-            syl, syh = add(b[2], b[3], node_off[nd, 2], node_off[nd, 3])
-            # the beams' count of free regions (stops past q)
-            n = 0
-            if nb > 0 and not (skip and _cells_lb(sxh - sxl, eps) * _cells_lb(syh - syl, eps) > MAX_REGION_CELLS):
-                # (else every region of this box spans too many cells: none is free)
-                if has_window and not built:
-                    F, S = _build_window(cells, coords, n_tiles, wx0, wx1, wy0, wy1)
-                    built = True
-                row = node_row[nd]
-                if row < 0:
-                    if n_rows == pcap:
-                        pcap *= 2
-                        w2 = np.empty((pcap, nbc, 4))
-                        w2[:n_rows] = wit[:n_rows]
-                        wit = w2
-                        o2 = np.empty((pcap, nbc, 4))
-                        o2[:n_rows] = dof[:n_rows]
-                        dof = o2
-                        s2 = np.zeros((pcap, nbc), np.int8)
-                        s2[:n_rows] = dst[:n_rows]
-                        dst = s2
-                    row = n_rows
-                    node_row[nd] = row
-                    n_rows += 1
-                    if witness:  # (filled whether or not wn: cheap)
-                        _node_witness(node_th[nd, 0], node_th[nd, 1], rmid, rh, uc, us, wit[row])
-                wn = witness and (r_alpha >= 1e-12 or node_th[nd, 1] - node_th[nd, 0] >= 1e-9)
-                n = _free_count(keys, slots, cells, eps, F, S, built, wx0, wx1, wy0, wy1, cx0, cx1, cy0, cy1, wit,
-                                dof, dst, row, nb, rl, rh, ang, r_alpha, node_off[nd, 4], node_off[nd, 5],
-                                sxl, sxh, syl, syh, 0.5 * (b[0] + b[1]) + node_off[nd, 6],
-                                0.5 * (b[2] + b[3]) + node_off[nd, 7], wn, mu, inv_eps, skip, q)
-            if n > q:
-                continue
-            wx = b[1] - b[0]
-            wy = b[3] - b[2]
-            wt = (b[5] - b[4]) * reach
-            if (wx <= min_xy and wy <= min_xy and b[5] - b[4] <= min_th) or n_nxt + 2 > cap:
-                kept += 1
-                for d in range(6):
-                    hull[d] = min(hull[d], b[d]) if d % 2 == 0 else max(hull[d], b[d])
-                continue
-            d = 0 if (wx >= wy and wx >= wt) else (1 if wy >= wt else 2)
-            mid = 0.5 * (b[2 * d] + b[2 * d + 1])
-            for e in range(6):
-                nxt[n_nxt, e] = b[e]
-                nxt[n_nxt + 1, e] = b[e]
-            nxt[n_nxt, 2 * d + 1] = mid
-            nxt[n_nxt + 1, 2 * d] = mid
-            if d == 2:  # the two halves of the heading interval
-                if node_ch[nd] < 0:
-                    if n_nodes + 2 > ncap:
-                        ncap *= 2
-                        t2 = np.empty((ncap, 2))
-                        t2[:n_nodes] = node_th[:n_nodes]
-                        node_th = t2
-                        f2 = np.empty((ncap, 8))
-                        f2[:n_nodes] = node_off[:n_nodes]
-                        node_off = f2
-                        c2 = np.full(ncap, -1, np.int64)
-                        c2[:n_nodes] = node_ch[:n_nodes]
-                        node_ch = c2
-                        r2 = np.full(ncap, -1, np.int64)
-                        r2[:n_nodes] = node_row[:n_nodes]
-                        node_row = r2
-                    node_th[n_nodes, 0] = b[4]
-                    node_th[n_nodes, 1] = mid
-                    node_th[n_nodes + 1, 0] = mid
-                    node_th[n_nodes + 1, 1] = b[5]
-                    _node_sensor(b[4], mid, mx, my, myaw, node_off[n_nodes])
-                    _node_sensor(mid, b[5], mx, my, myaw, node_off[n_nodes + 1])
-                    node_ch[nd] = n_nodes
-                    n_nodes += 2
-                nxt_n[n_nxt] = node_ch[nd]
-                nxt_n[n_nxt + 1] = node_ch[nd] + 1
-            else:
-                nxt_n[n_nxt] = nd
-                nxt_n[n_nxt + 1] = nd
-            n_nxt += 2
+        if n_rows + n_cur > wit.shape[0]:  # room for this level's new pool rows
+            rows = max(2 * wit.shape[0], n_rows + n_cur)
+            w2 = np.empty((rows, dst.shape[1], 4))
+            w2[:n_rows] = wit[:n_rows]
+            o2 = np.empty((rows, dst.shape[1], 4))
+            o2[:n_rows] = dof[:n_rows]
+            s2 = np.empty((rows, dst.shape[1]), np.int8)
+            s2[:n_rows] = dst[:n_rows]
+            wit, dof, dst = w2, o2, s2
+        if has_window and not built and _box_free_possible(cur, cur_n, n_cur, nf, eps, skip):
+            nx, ny = wx1 - wx0 + 1, wy1 - wy0 + 1
+            if F.shape[0] < nx * ny:
+                F = np.empty(nx * ny, np.uint8)
+            if S.shape[0] < (nx + 1) * (ny + 1):
+                S = np.empty((nx + 1) * (ny + 1), np.int32)
+            _build_window(cells, coords, n_tiles, wx0, wx1, wy0, wy1, F, S)
+            built = True
+        n_nxt, k, n_nodes, n_rows = _level(cur, cur_n, cur_b, nxt, nxt_n, nxt_b, n_cur, cap, depth % 2 == 0, hull,
+                                           nf, ni, n_nodes, wit, dof, dst, n_rows, keys, slots, cells, eps, F, S,
+                                           built, wx0, wx1, wy0, wy1, cx0, cx1, cy0, cy1, rl, rh, rmid, ang, uc, us,
+                                           r_alpha, mx, my, myaw, q, min_xy, min_th, reach, skip, witness, mu)
+        tested += n_cur
+        kept += k
+        depth += 1
         cur, nxt = nxt, cur
         cur_n, nxt_n = nxt_n, cur_n
+        cur_b, nxt_b = nxt_b, cur_b
         n_cur = n_nxt
     if kept > 0:
         for d in range(6):
             out[d] = hull[d]
-    return kept, tested
+    return kept, tested, wit, dof, dst, F, S, bits
+
+
+_WS = threading.local()
+
+
+def _workspace(max_boxes: int):
+    """This thread's workspace for :func:`contract_kernel` (box and node arrays sized for
+    ``max_boxes``; pools and window as the last call left them)."""
+    ws = getattr(_WS, "ws", None)
+    cap = max_boxes + 2
+    if ws is None or ws["box"].shape[1] < cap:
+        ws = {"box": np.empty((2, cap, 6)), "n": np.empty((2, cap), np.int64),
+              "nf": np.empty((2 * max_boxes + 3, _NF)), "ni": np.empty((2 * max_boxes + 3, 2), np.int64),
+              "wit": np.empty((8, 1, 4)), "dof": np.empty((8, 1, 4)), "dst": np.empty((8, 1), np.int8),
+              "F": np.empty(1, np.uint8), "S": np.empty(1, np.int32), "bits": np.empty((2, 1, 1), np.uint64)}
+        _WS.ws = ws
+    return ws
 
 
 def contract_pose(tmap, scans, k: int, robot_box, bounds, *, q: int = 0, stride: int = 1, min_xy: float = 0.02,
@@ -556,7 +622,11 @@ def contract_pose(tmap, scans, k: int, robot_box, bounds, *, q: int = 0, stride:
     if reference:
         kept, tested = contract_kernel_reference(keys, slots, cells, *args)
     else:
-        kept, tested = contract_kernel(keys, slots, cells, coords, int(n), *args, int(window_cells))
+        ws = _workspace(int(max_boxes))
+        kept, tested, *pools = contract_kernel(keys, slots, cells, coords, int(n), *args, int(window_cells),
+                                               ws["box"], ws["n"], ws["nf"], ws["ni"], ws["wit"], ws["dof"],
+                                               ws["dst"], ws["F"], ws["S"], ws["bits"])
+        ws["wit"], ws["dof"], ws["dst"], ws["F"], ws["S"], ws["bits"] = pools
     return out, int(kept), int(tested)
 
 
