@@ -21,9 +21,12 @@ import click
 @click.option("--stamp-tol", type=float, default=None, show_default="0.0001",
               help="--relations: a relation end falls on a pose box when their stamps differ by at most "
                    "this [s] and no other pose stamp is that close.")
+@click.option("--max-hops", type=click.IntRange(min=1), default=None, show_default="8",
+              help="--relations: relative pose enclosures of the result (keyframes runs) composed at most "
+                   "along a chain between the two poses of a relation.")
 @click.option("--force", is_flag=True, help="Overwrite existing output files.")
 def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, map_pgm: Path | None,
-            relations: Path | None, stamp_tol: float | None, force: bool) -> None:
+            relations: Path | None, stamp_tol: float | None, max_hops: int | None, force: bool) -> None:
     """Report on a result: bounds used, empty intersections, convergence, containment.
 
     \b
@@ -43,17 +46,20 @@ def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, ma
 
     if stamp_tol is not None and relations is None:
         raise IvslamError("--stamp-tol applies to --relations only")
+    if max_hops is not None and relations is None:
+        raise IvslamError("--max-hops applies to --relations only")
     res = read_result(result)
     rep = compute_report(res)
     rel_check = None
     if relations is not None:
-        from ivslam_cli.report.relations import DEFAULT_TOL, check_relations, read_relations
+        from ivslam_cli.report.relations import DEFAULT_MAX_HOPS, DEFAULT_TOL, check_relations, read_relations
 
         if res.poses is None:
             raise IvslamError(f"has no pose enclosures ({res.mode} mode): nothing to check --relations against",
                               result)
         rel_check = check_relations(res.poses, read_relations(relations),
-                                    DEFAULT_TOL if stamp_tol is None else stamp_tol)
+                                    DEFAULT_TOL if stamp_tol is None else stamp_tol, relative=res.relative,
+                                    max_hops=DEFAULT_MAX_HOPS if max_hops is None else max_hops)
     if tum is not None:
         if res.poses is None:
             raise IvslamError(f"has no pose enclosures ({res.mode} mode): nothing to export to --tum", result)

@@ -10,7 +10,9 @@ non_empty), ``containment`` (kind → fraction, only kinds checkable against the
 ``q``, ``assumption``, ``stopped``, ``outliers_injected``, ``input``, ``config``, ``map`` (lidar;
 with ``map.logodds`` when the result has the log-odds baseline: ``guaranteed`` (false), ``scans``,
 ``beams``, ``model``, ``cells`` occupied/free/unknown and ``disagreement``: ``empty_occupied`` (a),
-``unknown_occupied``, ``occupied_outside_obstacle`` (b = a + unknown_occupied), ``obstacle_free`` (c)).
+``unknown_occupied``, ``occupied_outside_obstacle`` (b = a + unknown_occupied), ``obstacle_free`` (c)),
+``relative`` (when the result holds relative pose enclosures: ``count``, ``definition``, ``width``
+x/y/theta median and max).
 NaN becomes null, ±inf the strings "inf"/"-inf".
 """
 
@@ -89,6 +91,12 @@ def report_dict(rep: Report) -> dict[str, Any]:
         },
         "dropped": [{"stream": d.stream, "count": d.count, "reason": d.reason} for d in p.dropped],
     }
+    if r.relative is not None:
+        wr = (r.relative.box[..., 1] - r.relative.box[..., 0]).reshape(-1, 3)
+        out["relative"] = {"count": len(r.relative), "definition": r.relative.definition, "width": {
+            k: {"median": float(np.median(wr[:, d])) if wr.size else None,
+                "max": float(np.max(wr[:, d])) if wr.size else None}
+            for d, k in enumerate(("x", "y", "theta"))}}
     if r.grid is not None:
         out["map"] = {
             "origin": [float(x) for x in r.grid.origin],

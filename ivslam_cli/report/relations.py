@@ -25,6 +25,26 @@ sound and tighter enclosure than one rotation by the whole interval), and each o
 the length). The truth is inside when ``dx ∈ [Δx]``, ``dy ∈ [Δy]`` and ``dyaw + 2πn ∈ [Δθ]``
 for some integer ``n``. For a sound run every checked relation is inside.
 
+**Relative enclosures.** A result of a keyframes run also holds relative pose enclosures
+(``Result.relative``: pose row b in the robot frame of pose row a, see
+:class:`~ivslam_cli.results.model.RelativePoses`), which do not carry the drift of the global
+boxes. For a relation on rows (a, b) the check then uses the intersection of what the two
+global boxes allow with what the relative enclosures give, both sound:
+
+- *relative*: an enclosure of (a, b) itself (several: all of them met);
+- *inverted*: an enclosure of (b, a), inverted: ``(−R(−θ) t, −θ)`` for every ``(t, θ)`` in it,
+  computed as the relative pose of the origin in its frame (same heading slices);
+- *chained*: the shortest path a → k₁ → … → b of at most ``max_hops`` relative enclosures
+  (each used as given or inverted), composed: ``p ⊕ r = (t_p + R(θ_p) t_r, θ_p + θ_r)``, with
+  outward rounding and ``[θ_p]`` sliced as above; ``|R(θ_p) t_r| = |t_r|`` bounds the rotated part.
+
+The heading intervals are met as angles (modulo 2π, in the narrower branch). Each checked
+relation records its source (``global`` when no relative enclosure reaches it) and the number
+of relative enclosures composed (``hops``, 0 for global). The report counts the relations per
+source and gives, per source, the widths of the enclosures checked beside those of what the two
+global boxes alone allow on the same relations (JSON: ``used_relative``, ``by_source``,
+``relative_enclosures``, ``max_hops``; ``source`` and ``hops`` per listed relation).
+
 **How tight.** Widths of ``[Δx]``, ``[Δy]`` (m), ``[Δθ]`` (rad), median and max over the
 checked relations, and the larger of the x/y widths as a multiple of the relation's length
 ``|(dx, dy)|``. Two independent boxes lose the correlation between the two poses, so these
@@ -43,11 +63,14 @@ from numba import njit
 
 from ivslam_cli.errors import IvslamError, LogError
 from ivslam_cli.interval import arith as K
+from ivslam_cli.interval.angles import angle_meet_narrow
 from ivslam_cli.interval.rounding import ensure_round_to_nearest, up
-from ivslam_cli.results.model import Poses, box_is_empty
+from ivslam_cli.results.model import Poses, RelativePoses, box_is_empty
 
 DEFAULT_TOL = 1e-4  # s
 DEFAULT_SLICES = 16
+DEFAULT_MAX_HOPS = 8  # relative enclosures composed at most along a chain
+SOURCES = ("global", "relative", "inverted", "chained")  # codes 0..3 of RelationsCheck.source
 FAILURES_LISTED = 20
 
 
@@ -161,6 +184,188 @@ def relative_enclosure(box1: np.ndarray, box2: np.ndarray, slices: int = DEFAULT
     return out
 
 
+@njit(cache=True)
+def _invert_one(b, slices, out):
+    """``out`` ⊇ the inverse ``(−R(−θ) t, −θ)`` of every pose ``(t, θ)`` of box ``b`` (each
+    ``(3, 2)``): the relative pose of the origin in the frame of ``b``."""
+    _rel_one(b, np.zeros((3, 2)), slices, out)
+
+
+@njit(cache=True)
+def _compose_one(p, r, slices, out):
+    """``out`` ⊇ ``p ⊕ r = (t_p + R(θ_p) t_r, θ_p + θ_r)`` for every pose of box ``p`` and every
+    relative pose (in ``p``'s frame) of box ``r`` (each ``(3, 2)``); ``[θ_p]`` sliced."""
+    tl, th = K.add(p[2, 0], p[2, 1], r[2, 0], r[2, 1])
+    out[2, 0], out[2, 1] = tl, th
+    ok = tl <= th
+    for d in range(3):
+        ok = ok and p[d, 0] <= p[d, 1] and r[d, 0] <= r[d, 1]
+    if not ok:
+        for d in range(3):
+            out[d, 0], out[d, 1] = K.EMPTY_LO, K.EMPTY_HI
+        return
+    mx = max(abs(r[0, 0]), abs(r[0, 1]))
+    my = max(abs(r[1, 0]), abs(r[1, 1]))
+    rho = up(math.sqrt(up(up(mx * mx) + up(my * my))))
+    a_lo, a_hi = p[2, 0], p[2, 1]
+    m = slices
+    if not (a_hi - a_lo < 1e3) or m < 1:
+        m = 1
+    xl, xh, yl, yh = math.inf, -math.inf, math.inf, -math.inf
+    prev = a_lo
+    for j in range(m):
+        nxt = a_hi if j == m - 1 else a_lo + (a_hi - a_lo) * ((j + 1) / m)
+        if nxt < prev:
+            nxt = prev
+        cl, ch = K.cos(prev, nxt)
+        sl, sh = K.sin(prev, nxt)
+        # R(θ) t_r = (c·x − s·y, s·x + c·y)
+        p1l, p1h = K.mul(cl, ch, r[0, 0], r[0, 1])
+        p2l, p2h = K.mul(sl, sh, r[1, 0], r[1, 1])
+        ql, qh = K.sub(p1l, p1h, p2l, p2h)
+        p3l, p3h = K.mul(sl, sh, r[0, 0], r[0, 1])
+        p4l, p4h = K.mul(cl, ch, r[1, 0], r[1, 1])
+        wl, wh = K.add(p3l, p3h, p4l, p4h)
+        xl, xh = min(xl, ql), max(xh, qh)
+        yl, yh = min(yl, wl), max(yh, wh)
+        prev = nxt
+    out[0, 0], out[0, 1] = K.add(p[0, 0], p[0, 1], max(xl, -rho), min(xh, rho))
+    out[1, 0], out[1, 1] = K.add(p[1, 0], p[1, 1], max(yl, -rho), min(yh, rho))
+
+
+@njit(cache=True)
+def _meet_one(a, b, out):
+    """``out`` = ``a ∩ b`` for two enclosures of one relative pose (headings met modulo 2π in
+    the narrower branch); empty (``[+inf, −inf]`` everywhere) when they do not meet."""
+    out[0, 0], out[0, 1] = max(a[0, 0], b[0, 0]), min(a[0, 1], b[0, 1])
+    out[1, 0], out[1, 1] = max(a[1, 0], b[1, 0]), min(a[1, 1], b[1, 1])
+    out[2, 0], out[2, 1] = angle_meet_narrow(a[2, 0], a[2, 1], b[2, 0], b[2, 1])
+    if not (out[0, 0] <= out[0, 1] and out[1, 0] <= out[1, 1] and out[2, 0] <= out[2, 1]):
+        for d in range(3):
+            out[d, 0], out[d, 1] = K.EMPTY_LO, K.EMPTY_HI
+
+
+@njit(cache=True)
+def _invert_all(b, slices, out):
+    for i in range(b.shape[0]):
+        _invert_one(b[i], slices, out[i])
+
+
+@njit(cache=True)
+def _compose_all(p, r, slices, out):
+    for i in range(p.shape[0]):
+        _compose_one(p[i], r[i], slices, out[i])
+
+
+@njit(cache=True)
+def _meet_all(a, b, out):
+    for i in range(a.shape[0]):
+        _meet_one(a[i], b[i], out[i])
+
+
+def invert_enclosure(box: np.ndarray, slices: int = DEFAULT_SLICES) -> np.ndarray:
+    """``(N, 3, 2)`` enclosures of the inverses ``(−R(−θ) t, −θ)`` of the poses in ``box``."""
+    ensure_round_to_nearest()
+    b = np.ascontiguousarray(box, np.float64).reshape(-1, 3, 2)
+    out = np.empty_like(b)
+    _invert_all(b, int(slices), out)
+    return out
+
+
+def compose_enclosure(p: np.ndarray, r: np.ndarray, slices: int = DEFAULT_SLICES) -> np.ndarray:
+    """``(N, 3, 2)`` enclosures of ``p ⊕ r``: the relative pose ``r`` (in ``p``'s frame) in the
+    frame ``p`` is given in."""
+    ensure_round_to_nearest()
+    a = np.ascontiguousarray(p, np.float64).reshape(-1, 3, 2)
+    b = np.ascontiguousarray(r, np.float64).reshape(-1, 3, 2)
+    if a.shape != b.shape:
+        raise ValueError("p and r must have the same shape")
+    out = np.empty_like(a)
+    _compose_all(a, b, int(slices), out)
+    return out
+
+
+def meet_enclosures(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``(N, 3, 2)``: ``a ∩ b`` row by row (headings modulo 2π); empty rows where they do not meet."""
+    a = np.ascontiguousarray(a, np.float64).reshape(-1, 3, 2)
+    b = np.ascontiguousarray(b, np.float64).reshape(-1, 3, 2)
+    if a.shape != b.shape:
+        raise ValueError("a and b must have the same shape")
+    out = np.empty_like(a)
+    _meet_all(a, b, out)
+    return out
+
+
+def _relative_graph(rp: RelativePoses, slices: int) -> dict[int, dict[int, list[np.ndarray]]]:
+    """``g[a][b]``: enclosures of pose row b in the frame of row a (given, and inverted)."""
+    inv = invert_enclosure(rp.box, slices)
+    g: dict[int, dict[int, list]] = {}
+    for r, (a, b) in enumerate(np.asarray(rp.pairs, np.int64).tolist()):
+        if a == b:
+            continue
+        g.setdefault(a, {}).setdefault(b, []).append((rp.box[r], 0))
+        g.setdefault(b, {}).setdefault(a, []).append((inv[r], 1))
+    return g
+
+
+def _meet_list(encs: list[np.ndarray]) -> np.ndarray:
+    out = np.array(encs[0], np.float64)
+    for e in encs[1:]:
+        out = meet_enclosures(out, e)[0]
+    return out
+
+
+def chain_enclosures(rp: RelativePoses, a: np.ndarray, b: np.ndarray, max_hops: int = DEFAULT_MAX_HOPS,
+                     slices: int = DEFAULT_SLICES) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per pair of pose rows ``(a[i], b[i])``: the enclosure of row b in the frame of row a from
+    the relative enclosures ``rp`` (see the module docstring), its source code (index into
+    :data:`SOURCES`; 0 = none: the row is unbounded) and the number of enclosures composed.
+
+    One hop: all enclosures of (a, b) and the inverted ones of (b, a), met. More: the first
+    shortest path found (breadth first, at most ``max_hops``), the enclosures of each hop met,
+    composed along it."""
+    ensure_round_to_nearest()
+    n = int(np.asarray(a).shape[0])
+    enc = np.empty((n, 3, 2))
+    enc[..., 0], enc[..., 1] = -np.inf, np.inf
+    src = np.zeros(n, np.int8)
+    hops = np.zeros(n, np.int64)
+    if len(rp) == 0 or n == 0:
+        return enc, src, hops
+    g = _relative_graph(rp, slices)
+    for i, (s, t) in enumerate(zip(np.asarray(a).tolist(), np.asarray(b).tolist())):
+        if s not in g or s == t:
+            continue
+        if t in g[s]:  # one hop: given (a, b) and inverted (b, a) met
+            enc[i] = _meet_list([e for e, _ in g[s][t]])
+            kinds = {k for _, k in g[s][t]}
+            src[i], hops[i] = (1 if 0 in kinds else 2), 1
+            continue
+        parent = {s: s}
+        frontier = [s]
+        for _ in range(max_hops):
+            nxt = []
+            for u in frontier:
+                for v in g.get(u, ()):
+                    if v not in parent:
+                        parent[v] = u
+                        nxt.append(v)
+            if t in parent or not nxt:
+                break
+            frontier = nxt
+        if t not in parent:
+            continue
+        path = [t]
+        while path[-1] != s:
+            path.append(parent[path[-1]])
+        path.reverse()
+        cur = _meet_list([e for e, _ in g[path[0]][path[1]]])
+        for u, v in zip(path[1:-1], path[2:]):
+            cur = compose_enclosure(cur, _meet_list([e for e, _ in g[u][v]]), slices)[0]
+        enc[i], src[i], hops[i] = cur, 3, len(path) - 1
+    return enc, src, hops
+
+
 # ---------------------------------------------------------------- matching and the check
 def match_stamps(stamps: np.ndarray, t: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
     """Index of the one pose stamp within ``tol`` of each ``t`` (−1 if none) and a mask of the
@@ -193,6 +398,12 @@ class RelationsCheck:
     enclosure: np.ndarray  # (M, 3, 2)
     inside: np.ndarray  # (M,) bool
     failures: list[str] = field(default_factory=list)
+    #: (M,) index into SOURCES: 0 = the two global boxes only, else met with relative enclosures
+    source: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int8))
+    hops: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # (M,) relative enclosures composed
+    global_enclosure: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 2)))  # (M, 3, 2) from the boxes
+    max_hops: int = DEFAULT_MAX_HOPS
+    relative_available: int = 0  # relative enclosures in the result
 
     @property
     def checked(self) -> int:
@@ -206,18 +417,22 @@ class RelationsCheck:
     def sound(self) -> bool:
         return self.contained == self.checked
 
-    def widths(self) -> np.ndarray:
-        """(M, 3) widths of [Δx], [Δy], [Δθ] (NaN for empty enclosures)."""
-        w = self.enclosure[..., 1] - self.enclosure[..., 0]
-        return np.where(box_is_empty(self.enclosure)[:, None], np.nan, w)
+    def widths(self, enclosure: np.ndarray | None = None) -> np.ndarray:
+        """(M, 3) widths of [Δx], [Δy], [Δθ] of the enclosures checked (or of ``enclosure``),
+        NaN for empty ones."""
+        e = self.enclosure if enclosure is None else enclosure
+        w = e[..., 1] - e[..., 0]
+        return np.where(box_is_empty(e)[:, None], np.nan, w)
 
     def length(self) -> np.ndarray:
         return np.hypot(self.truth[:, 0], self.truth[:, 1])
 
 
 def check_relations(poses: Poses, rel: Relations, tol: float = DEFAULT_TOL,
-                    slices: int = DEFAULT_SLICES) -> RelationsCheck:
-    """Match the relations to the pose enclosures and check the truth against what they allow."""
+                    slices: int = DEFAULT_SLICES, relative: RelativePoses | None = None,
+                    max_hops: int = DEFAULT_MAX_HOPS) -> RelationsCheck:
+    """Match the relations to the pose enclosures and check the truth against what they allow
+    (the two global boxes, met with the ``relative`` enclosures that reach the relation)."""
     from ivslam_cli.report.core import angle_in
 
     if not (tol >= 0 and math.isfinite(tol)):
@@ -233,7 +448,13 @@ def check_relations(poses: Poses, rel: Relations, tol: float = DEFAULT_TOL,
     both = on1 & on2 & ~same
     idx = np.flatnonzero(both)
     a, b = k1[idx], k2[idx]
-    enc = relative_enclosure(poses.box[a], poses.box[b], slices)
+    enc_g = relative_enclosure(poses.box[a], poses.box[b], slices)
+    enc, src, hops = enc_g, np.zeros(idx.size, np.int8), np.zeros(idx.size, np.int64)
+    if relative is not None and len(relative):
+        enc_r, src, hops = chain_enclosures(relative, a, b, max_hops, slices)
+        enc = enc_g.copy()
+        on = np.flatnonzero(src > 0)
+        enc[on] = meet_enclosures(enc_g[on], enc_r[on])
     truth = rel.rel[idx]
     with np.errstate(invalid="ignore"):
         ok_xy = np.all((enc[:, :2, 0] <= truth[:, :2]) & (truth[:, :2] <= enc[:, :2, 1]), axis=1)
@@ -241,13 +462,14 @@ def check_relations(poses: Poses, rel: Relations, tol: float = DEFAULT_TOL,
     fails = [f"relation {int(i) + 1} (t1={rel.t1[i]:.6f}, t2={rel.t2[i]:.6f}; poses {int(p)}, {int(q)}): "
              f"true ({truth[j, 0]:.4g}, {truth[j, 1]:.4g}, {truth[j, 2]:.4g}) not in "
              f"[{enc[j, 0, 0]:.4g}, {enc[j, 0, 1]:.4g}] x [{enc[j, 1, 0]:.4g}, {enc[j, 1, 1]:.4g}] x "
-             f"[{enc[j, 2, 0]:.4g}, {enc[j, 2, 1]:.4g}]"
+             f"[{enc[j, 2, 0]:.4g}, {enc[j, 2, 1]:.4g}] ({SOURCES[src[j]]})"
              for j, (i, p, q) in enumerate(zip(idx, a, b)) if not ok[j]]
     return RelationsCheck(
         path=rel.path, tol=float(tol), slices=int(slices), total=len(rel), both=int(both.sum()),
         one_end=int(np.count_nonzero(on1 ^ on2)), ambiguous=int(np.count_nonzero(amb1 | amb2)),
         same_pose=int(same.sum()), index=idx.astype(np.int64), k1=a.astype(np.int64), k2=b.astype(np.int64),
-        truth=truth, enclosure=enc, inside=np.asarray(ok, bool), failures=fails)
+        truth=truth, enclosure=enc, inside=np.asarray(ok, bool), failures=fails, source=src, hops=hops,
+        global_enclosure=enc_g, max_hops=int(max_hops), relative_available=0 if relative is None else len(relative))
 
 
 # ---------------------------------------------------------------- rendering
@@ -281,8 +503,25 @@ def relations_dict(rc: RelationsCheck) -> dict[str, Any]:
     return _clean(_relations_dict(rc))
 
 
+def _width3(w: np.ndarray) -> dict[str, Any]:
+    return {"x": _stat(w[:, 0]), "y": _stat(w[:, 1]), "theta": _stat(w[:, 2])}
+
+
+def _by_source(rc: RelationsCheck) -> dict[str, Any]:
+    """Counts per source and, per source, median/max widths of the enclosures checked and of
+    what the two global boxes alone allow on the same relations."""
+    src, w, wg = rc.source, rc.widths(), rc.widths(rc.global_enclosure)
+    out: dict[str, Any] = {}
+    for code, name in enumerate(SOURCES):
+        on = src == code
+        if on.any() or code <= 1:
+            out[name] = {"count": int(on.sum()), "width": _width3(w[on]), "global_boxes_width": _width3(wg[on])}
+    return out
+
+
 def _relations_dict(rc: RelationsCheck) -> dict[str, Any]:
     w = rc.widths()
+    src, hops = rc.source, rc.hops
     return {
         "file": rc.path,
         "stamp_tol_s": rc.tol,
@@ -295,20 +534,31 @@ def _relations_dict(rc: RelationsCheck) -> dict[str, Any]:
         "inside": rc.contained,
         "soundness": "ok" if rc.sound else "SOUNDNESS FAILURE",
         "sound": rc.sound,
-        "width": {"x": _stat(w[:, 0]), "y": _stat(w[:, 1]), "theta": _stat(w[:, 2])},
+        "width": _width3(w),
+        "relative_enclosures": rc.relative_available,
+        "max_hops": rc.max_hops,
+        "used_relative": int(np.count_nonzero(src > 0)),
+        "by_source": _by_source(rc),
         "width_over_length": _stat(_ratio(rc)),
         "length": _stat(rc.length()),
         "failures": rc.failures,
         "list": [
             {"line_index": int(i), "pose1": int(p), "pose2": int(q), "truth": [float(v) for v in t],
-             "enclosure": [[float(e[d, 0]), float(e[d, 1])] for d in range(3)], "inside": bool(o)}
-            for i, p, q, t, e, o in zip(rc.index, rc.k1, rc.k2, rc.truth, rc.enclosure, rc.inside)
+             "enclosure": [[float(e[d, 0]), float(e[d, 1])] for d in range(3)], "inside": bool(o),
+             "source": SOURCES[int(c)], "hops": int(h)}
+            for i, p, q, t, e, o, c, h in zip(rc.index, rc.k1, rc.k2, rc.truth, rc.enclosure, rc.inside, src, hops)
         ],
     }
 
 
 def _g(x: float | None) -> str:
     return "n/a" if x is None else f"{x:.4g}"
+
+
+def _w3(w: dict[str, Any]) -> str:
+    return (f"x median {_g(w['x']['median'])}, max {_g(w['x']['max'])} m; "
+            f"y median {_g(w['y']['median'])}, max {_g(w['y']['max'])} m; "
+            f"θ median {_g(w['theta']['median'])}, max {_g(w['theta']['max'])} rad")
 
 
 def render_relations_text(rc: RelationsCheck) -> str:
@@ -320,13 +570,25 @@ def render_relations_text(rc: RelationsCheck) -> str:
         f"{rc.same_pose} with both ends on one pose",
     ]
     if rc.checked:
-        out.append(f"  inside:   {rc.contained}/{rc.checked} true relative poses within what the two pose "
-                   f"boxes allow — {d['soundness']}")
-        out.append(f"  widths:   x median {_g(w['x']['median'])}, max {_g(w['x']['max'])} m; "
-                   f"y median {_g(w['y']['median'])}, max {_g(w['y']['max'])} m; "
-                   f"θ median {_g(w['theta']['median'])}, max {_g(w['theta']['max'])} rad")
+        what = "the two pose boxes allow" if not d["used_relative"] else \
+            "the two pose boxes allow, met with the result's relative enclosures where they reach"
+        out.append(f"  inside:   {rc.contained}/{rc.checked} true relative poses within what {what} — "
+                   f"{d['soundness']}")
+        out.append(f"  widths:   {_w3(w)}")
+        if rc.relative_available:
+            bs = d["by_source"]
+            n = {k: v["count"] for k, v in bs.items()}
+            out.append(f"  sources:  {n.get('global', 0)} from the two global boxes only, {d['used_relative']} met with "
+                       f"relative enclosures ({n.get('relative', 0)} direct, {n.get('inverted', 0)} inverted, "
+                       f"{n.get('chained', 0)} chained through keyframes, at most {rc.max_hops} hops; "
+                       f"{rc.relative_available} in the result)")
+            for name, v in bs.items():
+                if v["count"]:
+                    out.append(f"    {name + ':':<9} {_w3(v['width'])}"
+                               + (f"\n{'':14}(two global boxes alone: {_w3(v['global_boxes_width'])})"
+                                  if name != "global" else ""))
         r, ln = d["width_over_length"], d["length"]
-        out.append(f"  relative: larger x/y width / relation length: median {_g(r['median'])}, max {_g(r['max'])} "
+        out.append(f"  per length: larger x/y width / relation length: median {_g(r['median'])}, max {_g(r['max'])} "
                    f"(lengths median {_g(ln['median'])}, max {_g(ln['max'])} m)")
         for f in rc.failures[:FAILURES_LISTED]:
             out.append(f"  outside:  {f}")

@@ -96,6 +96,11 @@ def render_text(rep: Report, source: str = "") -> str:
         add("final widths:")
         for kind, w in rep.final_width.items():
             add(f"  {kind:<13}{w.count} enclosures: {_ws(w)}")
+    if r.relative is not None:
+        wr = (r.relative.box[..., 1] - r.relative.box[..., 0]).reshape(-1, 3)
+        med = np.median(wr, axis=0) if wr.size else np.full(3, np.nan)
+        add(f"  relative     {len(r.relative)} enclosures (a pose in the frame of a keyframe's): median x "
+            f"{_g(float(med[0]))}, y {_g(float(med[1]))} m, θ {_g(float(med[2]))} rad")
 
     add("")
     if not rep.containment:

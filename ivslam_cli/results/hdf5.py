@@ -31,6 +31,7 @@ from ivslam_cli.results.model import (
     PairSubpavings,
     Poses,
     Rejections,
+    RelativePoses,
     Result,
     ResultProvenance,
     WidthHistory,
@@ -81,6 +82,11 @@ def _write(f: h5py.File, r: Result) -> None:
         g = f.create_group("poses")
         _put(g, "stamp", r.poses.stamp, np.float64)
         _put(g, "box", r.poses.box, np.float64)
+    if r.relative is not None:
+        g = f.create_group("relative")
+        g.attrs["definition"] = r.relative.definition
+        _put(g, "pairs", np.asarray(r.relative.pairs).reshape(-1, 2), np.int64)
+        _put(g, "box", np.asarray(r.relative.box).reshape(-1, 3, 2), np.float64)
     if r.landmarks is not None:
         g = f.create_group("landmarks")
         _put(g, "id", r.landmarks.id, np.int64)
@@ -241,6 +247,10 @@ def _read(f: h5py.File) -> Result:
     if "poses" in f:
         g = f["poses"]
         r.poses = Poses(stamp=_get(g, "stamp", np.float64), box=_get(g, "box", np.float64))
+    if "relative" in f:  # optional (lidar with keyframes; results written before it existed have none)
+        g = f["relative"]
+        r.relative = RelativePoses(pairs=_get(g, "pairs", np.int64), box=_get(g, "box", np.float64),
+                                   definition=str(_attr(g, "definition")))
     if "landmarks" in f:
         g = f["landmarks"]
         ref = int(_attr(g, "reference_id")) if bool(_attr(g, "has_reference")) else None

@@ -88,6 +88,29 @@ class Poses:
         return int(self.stamp.shape[0])
 
 
+RELATIVE_DEFINITION = (
+    "box[r] holds the robot pose at pose row pairs[r, 1] expressed in the robot frame of the pose at row "
+    "pairs[r, 0]: (x, y) = R(-theta_a) (p_b - p_a) [m], theta = theta_b - theta_a [rad, modulo 2 pi]"
+)
+
+
+@dataclass
+class RelativePoses:
+    """Relative pose enclosures (lidar mode with keyframes): ``box[r]`` holds (x, y, θ) of the
+    robot at pose row ``pairs[r, 1]`` expressed in the robot frame at pose row ``pairs[r, 0]``
+    (rows of ``Result.poses``): ``R(−θ_a)(p_b − p_a)`` and ``θ_b − θ_a`` (θ on the real line,
+    the true difference modulo 2π is in it). An outer approximation like the pose boxes, and
+    usually far tighter than what the two global boxes allow (those accumulate drift).
+    """
+
+    pairs: np.ndarray  # (R, 2) int64
+    box: np.ndarray  # (R, 3, 2) float64
+    definition: str = RELATIVE_DEFINITION
+
+    def __len__(self) -> int:
+        return int(self.pairs.shape[0])
+
+
 @dataclass
 class Landmarks:
     """Landmark boxes: ``box[l]`` holds (x, y) of landmark ``id[l]``.
@@ -249,6 +272,7 @@ class Result:
     pairs: PairSubpavings | None = None
     grid: MapGrid | None = None
     logodds: LogOddsGrid | None = None  # lidar: the probabilistic baseline (not guaranteed)
+    relative: RelativePoses | None = None  # lidar with keyframes: pose of one row in another's frame
     consistency: Consistency = field(default_factory=Consistency)
     truth: GroundTruth | None = None
     stats: dict[str, float | int | str] = field(default_factory=dict)
@@ -269,6 +293,15 @@ def _validate(r: Result) -> None:
         n = len(r.poses)
         _check(r.poses.stamp.shape == (n,), "poses.stamp must be (N,)")
         _check(r.poses.box.shape == (n, 3, 2), "poses.box must be (N, 3, 2)")
+    if r.relative is not None:
+        rp = r.relative
+        m = len(rp)
+        _check(r.poses is not None, "relative needs the poses (its pairs are pose rows)")
+        _check(rp.pairs.shape == (m, 2) and rp.pairs.dtype.kind == "i", "relative.pairs must be (R, 2) int")
+        _check(rp.box.shape == (m, 3, 2), "relative.box must be (R, 3, 2)")
+        n = len(r.poses)
+        _check(bool(np.all((rp.pairs >= 0) & (rp.pairs < n))), "relative.pairs must be pose rows in [0, N)")
+        _check(bool(np.all(rp.box[..., 0] <= rp.box[..., 1])), "relative.box must have lo <= hi (no NaN, not empty)")
     if r.landmarks is not None:
         n = len(r.landmarks)
         _check(r.landmarks.id.shape == (n,), "landmarks.id must be (L,)")

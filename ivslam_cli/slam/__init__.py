@@ -6,10 +6,12 @@ import time
 from collections.abc import Sequence
 from dataclasses import replace
 
+import numpy as np
+
 from ivslam_cli.config import Config
 from ivslam_cli.errors import InconsistentData, IvslamError
 from ivslam_cli.logs.model import LogData, Observations
-from ivslam_cli.results.model import Result
+from ivslam_cli.results.model import RelativePoses, Result
 from ivslam_cli.results.provenance import make_provenance
 
 
@@ -28,6 +30,16 @@ def _result(mode: str, log: LogData, cfg: Config, argv, out, **parts) -> Result:
     prov.dropped = list(prov.dropped) + list(out.dropped)
     return Result(mode=mode, provenance=prov, runtime_s=0.0, consistency=out.consistency, truth=log.truth,
                   stats=out.stats, **parts)
+
+
+def relative_poses(rel) -> RelativePoses | None:
+    """``LidarOutput.relative`` = ``(pairs (R, 2), flat boxes (R, 6))`` as :class:`RelativePoses`
+    (None stays None)."""
+    if rel is None:
+        return None
+    pairs, boxes = rel
+    return RelativePoses(pairs=np.ascontiguousarray(pairs, np.int64).reshape(-1, 2),
+                         box=np.ascontiguousarray(boxes, np.float64).reshape(-1, 3, 2))
 
 
 def run_pipeline(log: LogData, cfg: Config, mode: str, argv: Sequence[str] | None = None) -> Result:
@@ -70,7 +82,8 @@ def run_pipeline(log: LogData, cfg: Config, mode: str, argv: Sequence[str] | Non
 
         out = run_lidar(log, cfg)
         # the probabilistic baseline (not guaranteed) from the same scans at the box centres
-        result = _result(mode, log, cfg, argv, out, poses=out.poses, grid=out.grid, logodds=logodds_of(out))
+        result = _result(mode, log, cfg, argv, out, poses=out.poses, grid=out.grid, logodds=logodds_of(out),
+                         relative=relative_poses(out.relative))
     else:
         raise IvslamError(f"unknown --mode {mode} (available: pairs, landmarks, lidar)")
     ev = result.consistency.empty_events
