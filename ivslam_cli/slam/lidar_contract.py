@@ -149,9 +149,12 @@ def contract_kernel_reference(keys, slots, cells, eps, ranges, valid, a0, inc, b
 #   endpoint offset ``[r] (cos, sin)(θ_s + α_i ± r_α)``, with the reference's own operations;
 # - witnesses: a beam is not free as soon as one real point of its endpoint region lies in a
 #   cell not proven free, for that cell is among the ones the reference enumerates (its cell
-#   range holds every cell meeting the region). Two such points are tried first: from the
-#   sensor pose of the box's centre, at ranges mid(r) and sup(r) along the beam's nominal
-#   direction; they are computed in floating point and used only when their cell is certain
+#   range holds every cell meeting the region). The region of a box holds ``s + r (cos, sin)(φ)``
+#   for every sensor position ``s`` of its sensor box, ``r`` in ``[r]`` and ``φ`` in the
+#   reference's angle interval, which holds ``σ + α_i`` (real sum) for every float ``σ`` in the
+#   sensor heading interval. Two points are tried first: ``s`` the sensor position of the box's
+#   centre, ``σ = fl(mid θ + myaw)``, ``r`` = mid(r) and sup(r); they are computed in floating
+#   point (a rotation of ``(cos, sin)(α_i)`` by ``σ``) and used only when their cell is certain
 #   (farther than ``mu`` cells from the cell's edges, far beyond the rounding error);
 # - otherwise the region's cells are tested in O(1) by a summed-area table of "not proven free"
 #   over a dense window of the map (around the reach of the root box, within the tiles'
@@ -161,10 +164,11 @@ def contract_kernel_reference(keys, slots, cells, eps, ranges, valid, a0, inc, b
 #   MAX_REGION_CELLS cells is never free for a box of its node, and a box whose sensor box alone
 #   does is free for no beam (the one-cell margin of ``_cells_lb`` absorbs every rounding error
 #   while coordinates stay below ``_SKIP_MAX`` and the cell side above ``_SKIP_EPS``);
-# - a box's centre lies in both its halves (on their common face): the beams witnessed from a
-#   box's centre are witnessed for its halves without a test. Boxes of even depth test every
-#   beam from their centre and hand the witnessed ones down; boxes of odd depth skip those
-#   (a θ split hands them down only when r_α covers the witness direction's rounding);
+# - a box's centre lies in both its halves (on their common face), and in further descendants
+#   as long as the splits stay on its faces: the beams witnessed from a pose (the "origin")
+#   are witnessed for every box holding that pose, without a test. A box holding the origin
+#   it was handed skips those beams and hands the same set down; any other box tests every
+#   beam from its own centre and hands that set down;
 # - beams are tested in any order: only "more than q free" is used.
 #
 # Speed: the arrays live in a per-thread workspace kept between calls (a call allocates nothing
@@ -250,11 +254,12 @@ def _set_node(nf, ni, i, tl, th, mx, my, myaw):
 
 
 @njit(cache=True)
-def _node_witness(tl, th, rmid, rh, uc, us, wit, row):
-    """Witness offsets from the sensor, ``wit[row]`` (B, 4): ``r (cos, sin)(mid(tl, th) + myaw + α_i)``
-    for ``r`` = ``rmid`` and ``rh`` (``uc, us``: cos, sin of ``myaw + α_i``), floating point."""
-    tc = 0.5 * (tl + th)
-    c, s = math.cos(tc), math.sin(tc)
+def _node_witness(tl, th, myaw, rmid, rh, uc, us, wit, row):
+    """Witness offsets from the sensor, ``wit[row]`` (B, 4): ``r (cos, sin)(σ + α_i)`` for
+    ``r`` = ``rmid`` and ``rh``, ``σ = fl(mid(tl, th) + myaw)`` (``uc, us``: cos, sin of
+    ``α_i``), floating point."""
+    sg = 0.5 * (tl + th) + myaw
+    c, s = math.cos(sg), math.sin(sg)
     for j in range(uc.shape[0]):
         ex = c * uc[j] - s * us[j]
         ey = s * uc[j] + c * us[j]
@@ -297,16 +302,16 @@ def _witness_cell(ux, uy, mu, cx0, cx1, cy0, cy1):
 
 
 @njit(cache=True)
-def _level(cur, cur_n, cur_b, nxt, nxt_n, nxt_b, n_cur, cap, store, hull, nf, ni, n_nodes, wit, dof, dst, n_rows,
-           keys, slots, cells, eps, F, S, built, wx0, wx1, wy0, wy1, cx0, cx1, cy0, cy1, rl, rh, rmid, ang, uc, us,
-           r_alpha, mx, my, myaw, q, min_xy, min_th, reach, skip, witness, mu):
+def _level(cur, cur_n, cur_b, cur_o, nxt, nxt_n, nxt_b, nxt_o, n_cur, cap, hull, nf, ni, n_nodes, wit, dof, dst,
+           n_rows, keys, slots, cells, eps, F, S, built, wx0, wx1, wy0, wy1, cx0, cx1, cy0, cy1, rl, rh, rmid, ang,
+           uc, us, r_alpha, mx, my, myaw, q, min_xy, min_th, reach, skip, witness, mu):
     """One level of the breadth-first set inversion of :func:`contract_kernel_reference`: tests
     the ``n_cur`` boxes of ``cur`` (their nodes in ``cur_n``), writes the halves of those to
     split into ``nxt`` / ``nxt_n``, the kept ones into ``hull``. Returns ``(n_nxt, kept,
     n_nodes, n_rows)``. The caller has made room for ``2 n_cur`` more nodes and ``n_cur`` more
-    pool rows. Witnessed beams: ``cur_b[j, 0]`` says whether box ``j`` has its parent's (bits
-    ``cur_b[j, 1:]``); with ``store``, each box records those of its own centre for its
-    halves in ``nxt_b``."""
+    pool rows. Witnessed beams handed down: ``cur_b[j, 0]`` says whether box ``j`` has a set
+    (bits ``cur_b[j, 1:]``) witnessed from the pose ``cur_o[j]``; the sets for the halves go to
+    ``nxt_b`` / ``nxt_o``."""
     nb = rl.shape[0]
     ny = wy1 - wy0 + 1
     m = ny + 1
@@ -317,10 +322,21 @@ def _level(cur, cur_n, cur_b, nxt, nxt_n, nxt_b, n_cur, cap, store, hull, nf, ni
     for j in range(n_cur):
         nd = cur_n[j]
         b0, b1, b2, b3, b4, b5 = cur[j, 0], cur[j, 1], cur[j, 2], cur[j, 3], cur[j, 4], cur[j, 5]
-        has = cur_b[j, 0] != 0
-        if store:
+        # the origin's set if this box holds the origin, else a new one from this box's centre
+        has = (cur_b[j, 0] != 0 and b0 <= cur_o[j, 0] <= b1 and b2 <= cur_o[j, 1] <= b3
+               and b4 <= cur_o[j, 2] <= b5)
+        if has:
+            for w in range(nw + 1):
+                nxt_b[n_nxt, w] = cur_b[j, w]
+            for w in range(3):
+                nxt_o[n_nxt, w] = cur_o[j, w]
+        else:
             for w in range(nw + 1):
                 nxt_b[n_nxt, w] = 0
+            nxt_o[n_nxt, 0] = 0.5 * (b0 + b1)
+            nxt_o[n_nxt, 1] = 0.5 * (b2 + b3)
+            nxt_o[n_nxt, 2] = 0.5 * (b4 + b5)
+        store = not has
         sxl, sxh = add(b0, b1, nf[nd, 2], nf[nd, 3])
         syl, syh = add(b2, b3, nf[nd, 4], nf[nd, 5])
         # the beams' count of free regions, as excluded_beams (stops past q)
@@ -335,9 +351,8 @@ def _level(cur, cur_n, cur_b, nxt, nxt_n, nxt_b, n_cur, cap, store, hull, nf, ni
                 for k in range(nb):
                     dst[row, k] = 0
                 if witness:
-                    _node_witness(nf[nd, 0], nf[nd, 1], rmid, rh, uc, us, wit, row)
-            wn = witness and (r_alpha >= 1e-12 or nf[nd, 1] - nf[nd, 0] >= 1e-9)
-            if store and wn:
+                    _node_witness(nf[nd, 0], nf[nd, 1], myaw, rmid, rh, uc, us, wit, row)
+            if store and witness:
                 nxt_b[n_nxt, 0] = 1
             stl = nf[nd, 6]
             sth = nf[nd, 7]
@@ -345,11 +360,11 @@ def _level(cur, cur_n, cur_b, nxt, nxt_n, nxt_b, n_cur, cap, store, hull, nf, ni
             scy = 0.5 * (b2 + b3) + nf[nd, 9]
             for k in range(nb):
                 if has and (cur_b[j, 1 + (k >> 6)] >> np.uint64(k & 63)) & np.uint64(1):
-                    continue  # witnessed from the parent's centre
+                    continue  # witnessed from the origin
                 st = dst[row, k]
                 if st == 2:
                     continue
-                if wn:
+                if witness:
                     c, ix, iy = _witness_cell((scx + wit[row, k, 0]) * inv_eps, (scy + wit[row, k, 1]) * inv_eps,
                                               mu, cx0, cx1, cy0, cy1)
                     if not (c == 1 or (c == 0 and built and ix >= wx0 and ix <= wx1 and iy >= wy0 and iy <= wy1
@@ -413,10 +428,10 @@ def _level(cur, cur_n, cur_b, nxt, nxt_n, nxt_b, n_cur, cap, store, hull, nf, ni
             nxt[n_nxt + 1, e] = cur[j, e]
         nxt[n_nxt, 2 * d + 1] = mid
         nxt[n_nxt + 1, 2 * d] = mid
-        if not store or (d == 2 and r_alpha < 1e-12):
-            nxt_b[n_nxt, 0] = 0  # (a θ split moves the witness direction to the halves' edge)
         for w in range(nw + 1):
             nxt_b[n_nxt + 1, w] = nxt_b[n_nxt, w]
+        for w in range(3):
+            nxt_o[n_nxt + 1, w] = nxt_o[n_nxt, w]
         if d == 2:  # the two halves of the heading interval, made once per node
             if ni[nd, 0] < 0:
                 _set_node(nf, ni, n_nodes, b4, mid, mx, my, myaw)
@@ -449,11 +464,11 @@ def _box_free_possible(cur, cur_n, n_cur, nf, eps, skip):
 @njit(cache=True)
 def contract_kernel(keys, slots, cells, coords, n_tiles, eps, ranges, valid, a0, inc, box, mx, my, myaw, r_abs,
                     r_rel, r_alpha, q, stride, min_xy, min_th, reach, max_boxes, out, max_window, ws_box, ws_n,
-                    ws_nf, ws_ni, wit, dof, dst, F, S, bits):
+                    ws_o, ws_nf, ws_ni, wit, dof, dst, F, S, bits):
     """:func:`contract_kernel_reference` (same arguments plus the tiles' ``coords`` and count),
     same results, faster (see the comment above). ``max_window``: cells of the dense window at
     most (0: none, every region looked up in the tiles; for tests). Workspace: ``ws_box``
-    (2, max_boxes + 2, 6), ``ws_n`` (2, max_boxes + 2) int64, ``ws_nf`` (2 max_boxes + 3,
+    (2, max_boxes + 2, 6), ``ws_n`` (2, max_boxes + 2) int64, ``ws_o`` (2, max_boxes + 3, 3), ``ws_nf`` (2 max_boxes + 3,
     _NF), ``ws_ni`` (2 max_boxes + 3, 2) int64; pools ``wit``, ``dof`` (R, B', 4), ``dst``
     (R, B') int8, window ``F`` (uint8), ``S`` (int32) and witness bits (2, C, W) uint64, any
     sizes (regrown here).
@@ -472,25 +487,20 @@ def contract_kernel(keys, slots, cells, coords, n_tiles, eps, ranges, valid, a0,
     us = np.empty(nb)
     j = 0
     rmax = 0.0
-    amax = abs(myaw)
     for i in range(0, ranges.shape[0], stride):
         if valid[i]:
             rl[j], rh[j] = range_bounds(float(ranges[i]), r_abs, r_rel)
             rmid[j] = 0.5 * (rl[j] + rh[j]) if rl[j] <= rh[j] else math.nan
             ang[j] = a0 + i * inc
-            u = myaw + ang[j]
-            uc[j] = math.cos(u)
-            us[j] = math.sin(u)
+            uc[j] = math.cos(ang[j])
+            us[j] = math.sin(ang[j])
             rmax = max(rmax, rh[j]) if rh[j] == rh[j] else math.inf
-            amax = max(amax, abs(ang[j])) if ang[j] == ang[j] else math.inf
             j += 1
     # the guard of the skip rules and witnesses, and the window around the root box's reach
     ext = max(abs(box[0]), abs(box[1]), abs(box[2]), abs(box[3])) + abs(mx) + abs(my) + rmax
     skip = ext < _SKIP_MAX and eps > _SKIP_EPS
     mu = 1e-9 * (ext + 1.0) / eps
-    # (a witness's direction is within ~1e-15 rad of a direction of the beam's cone: a node's
-    # witnesses need r_alpha or the node's heading width to exceed that; see wn in _level)
-    witness = skip and mu < 1e-3 and amax < 10.0 and abs(box[4]) < 100.0 and abs(box[5]) < 100.0
+    witness = skip and mu < 1e-3
     cx0, cx1, cy0, cy1 = 0, -1, 0, -1  # the tiles' bounding box (cells)
     if n_tiles > 0:
         cx0, cx1, cy0, cy1 = coords[0, 0], coords[0, 0], coords[0, 1], coords[0, 1]
@@ -527,11 +537,11 @@ def contract_kernel(keys, slots, cells, coords, n_tiles, eps, ranges, valid, a0,
     if bits.shape[1] < cap + 1 or bits.shape[2] < ((nb + 63) >> 6) + 1:
         bits = np.empty((2, cap + 1, ((nb + 63) >> 6) + 1), np.uint64)
     cur_b, nxt_b = bits[0], bits[1]
+    cur_o, nxt_o = ws_o[0], ws_o[1]
     for d in range(6):
         cur[0, d] = box[d]
     cur_n[0] = 0
     cur_b[0, 0] = 0
-    depth = 0
     n_cur = 1
     tested = 0
     kept = 0
@@ -562,16 +572,16 @@ def contract_kernel(keys, slots, cells, coords, n_tiles, eps, ranges, valid, a0,
                 S = np.empty((nx + 1) * (ny + 1), np.int32)
             _build_window(cells, coords, n_tiles, wx0, wx1, wy0, wy1, F, S)
             built = True
-        n_nxt, k, n_nodes, n_rows = _level(cur, cur_n, cur_b, nxt, nxt_n, nxt_b, n_cur, cap, depth % 2 == 0, hull,
-                                           nf, ni, n_nodes, wit, dof, dst, n_rows, keys, slots, cells, eps, F, S,
-                                           built, wx0, wx1, wy0, wy1, cx0, cx1, cy0, cy1, rl, rh, rmid, ang, uc, us,
+        n_nxt, k, n_nodes, n_rows = _level(cur, cur_n, cur_b, cur_o, nxt, nxt_n, nxt_b, nxt_o, n_cur, cap, hull, nf,
+                                           ni, n_nodes, wit, dof, dst, n_rows, keys, slots, cells, eps, F, S, built,
+                                           wx0, wx1, wy0, wy1, cx0, cx1, cy0, cy1, rl, rh, rmid, ang, uc, us,
                                            r_alpha, mx, my, myaw, q, min_xy, min_th, reach, skip, witness, mu)
         tested += n_cur
         kept += k
-        depth += 1
         cur, nxt = nxt, cur
         cur_n, nxt_n = nxt_n, cur_n
         cur_b, nxt_b = nxt_b, cur_b
+        cur_o, nxt_o = nxt_o, cur_o
         n_cur = n_nxt
     if kept > 0:
         for d in range(6):
@@ -588,7 +598,7 @@ def _workspace(max_boxes: int):
     ws = getattr(_WS, "ws", None)
     cap = max_boxes + 2
     if ws is None or ws["box"].shape[1] < cap:
-        ws = {"box": np.empty((2, cap, 6)), "n": np.empty((2, cap), np.int64),
+        ws = {"box": np.empty((2, cap, 6)), "n": np.empty((2, cap), np.int64), "o": np.empty((2, cap + 1, 3)),
               "nf": np.empty((2 * max_boxes + 3, _NF)), "ni": np.empty((2 * max_boxes + 3, 2), np.int64),
               "wit": np.empty((8, 1, 4)), "dof": np.empty((8, 1, 4)), "dst": np.empty((8, 1), np.int8),
               "F": np.empty(1, np.uint8), "S": np.empty(1, np.int32), "bits": np.empty((2, 1, 1), np.uint64)}
@@ -624,7 +634,7 @@ def contract_pose(tmap, scans, k: int, robot_box, bounds, *, q: int = 0, stride:
     else:
         ws = _workspace(int(max_boxes))
         kept, tested, *pools = contract_kernel(keys, slots, cells, coords, int(n), *args, int(window_cells),
-                                               ws["box"], ws["n"], ws["nf"], ws["ni"], ws["wit"], ws["dof"],
+                                               ws["box"], ws["n"], ws["o"], ws["nf"], ws["ni"], ws["wit"], ws["dof"],
                                                ws["dst"], ws["F"], ws["S"], ws["bits"])
         ws["wit"], ws["dof"], ws["dst"], ws["F"], ws["S"], ws["bits"] = pools
     return out, int(kept), int(tested)
