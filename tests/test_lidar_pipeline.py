@@ -303,3 +303,17 @@ def test_real_datasets_end_to_end(tmp_path, rel, config, mapped_min):
         assert s["empty_cells"] > 0
     assert s["old_beams"] + s["new_beams"] == s["valid_beams_mapped"] > 0
     assert len(res.consistency.empty_events) == 0
+
+
+def test_keyframes_without_map_contraction_and_zero_areas():
+    """lidar.keyframes works with lidar.contract off (the assumption says which ran); an empty
+    obstacle set has area 0, not a rounded-up subnormal."""
+    log, out = run_sim(4, "corridor", overrides={"lidar.keyframes": True, "lidar.contract": False,
+                                                   "lidar.keyframe_distance": 0.3, "lidar.match_boxes": 200})
+    assert_truth_kept(log, out)
+    assert out.stats["keyframes_matched"] >= 1 and out.stats["scans_contracted"] == 0
+    text = out.consistency.assumption
+    assert "keyframe scans" in text and "against the map" not in text
+    from ivslam_cli.paving.tiles import TileMap
+
+    assert TileMap(0.05).area("obstacle", upward=True) == 0.0

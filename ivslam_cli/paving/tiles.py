@@ -296,6 +296,8 @@ class TileMap:
         from the side asked for (outer sets up, inner sets down).
         """
         k = float(self.counts()[state])
+        if k == 0.0:
+            return 0.0  # exactly (rounding 0 up would report a subnormal area)
         a = k * self.eps * self.eps
         return float(up(up(a)) if upward else max(0.0, down(down(a))))
 

@@ -301,6 +301,7 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
     stride = int(cfg["lidar.contract_stride"])
     max_cw = float(cfg["lidar.contract_max_width"])
     use_kf = bool(cfg["lidar.keyframes"])
+    do_map_contract = bool(cfg["lidar.contract"])
     m_budget = int(cfg["lidar.match_boxes"])
     m_stride = int(cfg["lidar.match_stride"])
     unmatched = 0
@@ -360,7 +361,7 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
                 rel_boxes.append(rel.copy())
         wide = max_cw > 0 and max(box[1] - box[0], box[3] - box[2]) > max_cw
         too_wide += int(wide)
-        if tmap.n_tiles > 0 and np.all(np.isfinite(box)) and not wide:
+        if do_map_contract and tmap.n_tiles > 0 and np.all(np.isfinite(box)) and not wide:
             out, kept, nt = contract_pose(tmap, scans, int(used[j]), box, bounds, q=q, stride=stride,
                                           max_boxes=budget)
             tested += nt
@@ -481,7 +482,7 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
     tmap = TileMap(float(cfg["lidar.eps"]))
     max_w = float(cfg["lidar.max_pose_width"])
     tracking = None
-    if not cfg["lidar.poses_known"] and cfg["lidar.contract"]:
+    if not cfg["lidar.poses_known"] and (cfg["lidar.contract"] or cfg["lidar.keyframes"]):
         pred, res, narrow, tracking = track_and_map(log, cfg, scans, bounds, tmap)
         t1 = time.perf_counter()
         widths = _box_width(pred.boxes)
@@ -561,8 +562,14 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
               "no free space proven from them (an obstacle can hide between beams; see lidar.fill_gaps); ")
            if np.any(np.asarray(scans.angle_increment, float) > 2.0 * bounds.bearing) else "")
         + ("no pose contraction (the boxes are the prediction)" if tracking is None else
-           f"the world static but for at most q = {cfg['lidar.q_beams']} beams per scan (pose boxes contracted "
-           "against the map: a pose is excluded when more than q beam ends of its scan fall in proven-free cells)")
+           f"the world static but for at most q = {cfg['lidar.q_beams']} beams per scan ("
+           + "; ".join(([] if not cfg["lidar.contract"] else
+                        ["pose boxes contracted against the map: a pose is excluded when more than q beam ends of "
+                         "its scan fall in proven-free cells"])
+                       + ([] if not cfg["lidar.keyframes"] else
+                          ["relative poses matched against keyframe scans: one is excluded when more than q beam "
+                           "ends of either scan fall in the other's proven free space"]))
+           + ")")
         + (f"; {int((~narrow).sum())} scan(s) with pose boxes wider than {max_w:g} m not mapped" if (~narrow).any() else "")
     )
     if len(events):
