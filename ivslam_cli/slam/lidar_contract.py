@@ -184,6 +184,11 @@ _SKIP_MAX = 1e6
 _SKIP_EPS = 1e-5
 # node columns (float): tl, th, then _node_sensor's 8 values; (int): first child, pool row
 _NF = 10
+# trailing zeros of a power of two 2^i: _DEBRUIJN[(2^i * _DEBRUIJN_MUL mod 2^64) >> 58] = i
+_DEBRUIJN_MUL = np.uint64(0x03F79D71B4CB0A89)
+_DEBRUIJN = np.zeros(64, np.int64)
+for _i in range(64):
+    _DEBRUIJN[(((1 << _i) * int(_DEBRUIJN_MUL)) & (2**64 - 1)) >> 58] = _i
 
 
 @njit(cache=True, inline="always")
@@ -197,8 +202,9 @@ def _cells_lb(w, eps):
 @njit(cache=True)
 def _build_window(cells, coords, n, wx0, wx1, wy0, wy1, F, S):
     """The cells ``[wx0, wx1] x [wy0, wy1]`` not proven free: flags ``F[a ny + b]`` (uint8) and
-    their summed-area table ``S[a (ny + 1) + b]`` (int32) counting them over
-    ``[wx0, wx0 + a) x [wy0, wy0 + b)`` (``F``, ``S`` flat, large enough)."""
+    their summed-area table ``S[a (ny + 1) + b]`` counting them over ``[wx0, wx0 + a) x
+    [wy0, wy0 + b)`` modulo 2^16 (uint16: a rectangle's count, at most MAX_REGION_CELLS, is its
+    four corners' alternating sum modulo 2^16) (``F``, ``S`` flat, large enough)."""
     nx = wx1 - wx0 + 1
     ny = wy1 - wy0 + 1
     F[: nx * ny] = 1  # not in a tile: unknown
@@ -215,11 +221,11 @@ def _build_window(cells, coords, n, wx0, wx1, wy0, wy1, F, S):
     m = ny + 1
     S[:m] = 0
     for a in range(nx):
-        run = np.int32(0)
+        run = 0
         S[(a + 1) * m] = 0
         for b in range(ny):
-            run += np.int32(F[a * ny + b])
-            S[(a + 1) * m + b + 1] = S[a * m + b + 1] + run
+            run += F[a * ny + b]
+            S[(a + 1) * m + b + 1] = (S[a * m + b + 1] + run) & 0xFFFF
 
 
 @njit(cache=True)
@@ -358,9 +364,20 @@ def _level(cur, cur_n, cur_b, cur_o, nxt, nxt_n, nxt_b, nxt_o, n_cur, cap, hull,
             sth = nf[nd, 7]
             scx = 0.5 * (b0 + b1) + nf[nd, 8]
             scy = 0.5 * (b2 + b3) + nf[nd, 9]
-            for k in range(nb):
-                if has and (cur_b[j, 1 + (k >> 6)] >> np.uint64(k & 63)) & np.uint64(1):
-                    continue  # witnessed from the origin
+            hx = b1 - 0.5 * (b0 + b1)  # the corners: centre ± (hx, hy), floats of the box
+            hy = b3 - 0.5 * (b2 + b3)
+            k = -1
+            while True:
+                k += 1
+                if has:  # to the next beam not witnessed from the origin
+                    while k < nb:
+                        word = ~cur_b[j, 1 + (k >> 6)] >> np.uint64(k & 63)
+                        if word != 0:
+                            k += _DEBRUIJN[((word & (~word + np.uint64(1))) * _DEBRUIJN_MUL) >> np.uint64(58)]
+                            break
+                        k = ((k >> 6) + 1) << 6
+                if k >= nb:
+                    break
                 st = dst[row, k]
                 if st == 2:
                     continue
@@ -375,6 +392,16 @@ def _level(cur, cur_n, cur_b, cur_o, nxt, nxt_n, nxt_b, nxt_o, n_cur, cap, hull,
                                   and F[(ix - wx0) * ny + iy - wy0] != 0):
                         if store:
                             nxt_b[n_nxt, 1 + (k >> 6)] |= np.uint64(1) << np.uint64(k & 63)
+                        continue
+                    # the far end seen from the box's corner farthest along the beam (a pose of
+                    # the box, not its centre: not handed down)
+                    ex = wit[row, k, 2]
+                    ey = wit[row, k, 3]
+                    c, ix, iy = _witness_cell((scx + (hx if ex >= 0.0 else -hx) + ex) * inv_eps,
+                                              (scy + (hy if ey >= 0.0 else -hy) + ey) * inv_eps, mu, cx0, cx1, cy0,
+                                              cy1)
+                    if c == 1 or (c == 0 and built and ix >= wx0 and ix <= wx1 and iy >= wy0 and iy <= wy1
+                                  and F[(ix - wx0) * ny + iy - wy0] != 0):
                         continue
                 if st == 0:
                     dxl, dxh, dyl, dyh = _beam_offset(stl, sth, rl[k], rh[k], ang[k], r_alpha)
@@ -402,7 +429,7 @@ def _level(cur, cur_n, cur_b, cur_o, nxt, nxt_n, nxt_b, nxt_o, n_cur, cap, hull,
                         ax1 = (ix1 - wx0 + 1) * m
                         ay0 = iy0 - wy0
                         ay1 = iy1 - wy0 + 1
-                        free = S[ax1 + ay1] - S[ax0 + ay1] - S[ax1 + ay0] + S[ax0 + ay0] == 0
+                        free = (S[ax1 + ay1] - S[ax0 + ay1] - S[ax1 + ay0] + S[ax0 + ay0]) & 0xFFFF == 0
                     elif ix0 < cx0 or ix1 > cx1 or iy0 < cy0 or iy1 > cy1:
                         free = False  # a cell in no tile: unknown
                     else:
@@ -470,7 +497,7 @@ def contract_kernel(keys, slots, cells, coords, n_tiles, eps, ranges, valid, a0,
     most (0: none, every region looked up in the tiles; for tests). Workspace: ``ws_box``
     (2, max_boxes + 2, 6), ``ws_n`` (2, max_boxes + 2) int64, ``ws_o`` (2, max_boxes + 3, 3), ``ws_nf`` (2 max_boxes + 3,
     _NF), ``ws_ni`` (2 max_boxes + 3, 2) int64; pools ``wit``, ``dof`` (R, B', 4), ``dst``
-    (R, B') int8, window ``F`` (uint8), ``S`` (int32) and witness bits (2, C, W) uint64, any
+    (R, B') int8, window ``F`` (uint8), ``S`` (uint16) and witness bits (2, C, W) uint64, any
     sizes (regrown here).
 
     Returns ``(kept, tested, wit, dof, dst, F, S, bits)`` (the last six possibly regrown)."""
@@ -510,13 +537,36 @@ def contract_kernel(keys, slots, cells, coords, n_tiles, eps, ranges, valid, a0,
             cy0 = min(cy0, coords[t, 1])
             cy1 = max(cy1, coords[t, 1])
         cx0, cx1, cy0, cy1 = cx0 * TILE, cx1 * TILE + TILE - 1, cy0 * TILE, cy1 * TILE + TILE - 1
+    # the window: the endpoints from the root box's centre, grown by how far a pose of the box,
+    # a range of [r] and a direction of the cone can move them (a region outside it is looked
+    # up in the tiles: an estimate suffices), within the tiles' bounding box
     wx0, wx1, wy0, wy1 = 0, -1, 0, -1
-    if skip and n_tiles > 0:
-        rsb = sensor_box(box[0], box[1], box[2], box[3], box[4], box[5], mx, my, myaw)
-        wx0 = max(cx0, math.floor((rsb[0] - rmax) / eps) - 2)
-        wx1 = min(cx1, math.floor((rsb[1] + rmax) / eps) + 2)
-        wy0 = max(cy0, math.floor((rsb[2] - rmax) / eps) - 2)
-        wy1 = min(cy1, math.floor((rsb[3] + rmax) / eps) + 2)
+    if skip and n_tiles > 0 and nb > 0:
+        tc = 0.5 * (box[4] + box[5])
+        sg = tc + myaw
+        cs, sn = math.cos(sg), math.sin(sg)
+        sx = 0.5 * (box[0] + box[1]) + math.cos(tc) * mx - math.sin(tc) * my
+        sy = 0.5 * (box[2] + box[3]) + math.sin(tc) * mx + math.cos(tc) * my
+        ex0, ex1, ey0, ey1 = sx, sx, sy, sy
+        dr = 0.0
+        for j in range(nb):
+            px = sx + rh[j] * (cs * uc[j] - sn * us[j])
+            py = sy + rh[j] * (sn * uc[j] + cs * us[j])
+            ex0, ex1, ey0, ey1 = min(ex0, px), max(ex1, px), min(ey0, py), max(ey1, py)
+            dr = max(dr, rh[j] - rl[j])
+        grow = (0.5 * (box[1] - box[0]) + 0.5 * (box[3] - box[2]) + dr
+                + (abs(mx) + abs(my) + rmax) * (0.5 * (box[5] - box[4]) + r_alpha) + 2.0 * eps)
+        if grow < rmax:
+            wx0 = max(cx0, math.floor((ex0 - grow) / eps))
+            wx1 = min(cx1, math.floor((ex1 + grow) / eps))
+            wy0 = max(cy0, math.floor((ey0 - grow) / eps))
+            wy1 = min(cy1, math.floor((ey1 + grow) / eps))
+        else:
+            rsb = sensor_box(box[0], box[1], box[2], box[3], box[4], box[5], mx, my, myaw)
+            wx0 = max(cx0, math.floor((rsb[0] - rmax) / eps) - 2)
+            wx1 = min(cx1, math.floor((rsb[1] + rmax) / eps) + 2)
+            wy0 = max(cy0, math.floor((rsb[2] - rmax) / eps) - 2)
+            wy1 = min(cy1, math.floor((rsb[3] + rmax) / eps) + 2)
         if wx1 < wx0 or wy1 < wy0 or (wx1 - wx0 + 1) * (wy1 - wy0 + 1) > max_window:
             wx0, wx1, wy0, wy1 = 0, -1, 0, -1
     has_window = wx1 >= wx0
@@ -569,7 +619,7 @@ def contract_kernel(keys, slots, cells, coords, n_tiles, eps, ranges, valid, a0,
             if F.shape[0] < nx * ny:
                 F = np.empty(nx * ny, np.uint8)
             if S.shape[0] < (nx + 1) * (ny + 1):
-                S = np.empty((nx + 1) * (ny + 1), np.int32)
+                S = np.empty((nx + 1) * (ny + 1), np.uint16)
             _build_window(cells, coords, n_tiles, wx0, wx1, wy0, wy1, F, S)
             built = True
         n_nxt, k, n_nodes, n_rows = _level(cur, cur_n, cur_b, cur_o, nxt, nxt_n, nxt_b, nxt_o, n_cur, cap, hull, nf,
@@ -601,7 +651,7 @@ def _workspace(max_boxes: int):
         ws = {"box": np.empty((2, cap, 6)), "n": np.empty((2, cap), np.int64), "o": np.empty((2, cap + 1, 3)),
               "nf": np.empty((2 * max_boxes + 3, _NF)), "ni": np.empty((2 * max_boxes + 3, 2), np.int64),
               "wit": np.empty((8, 1, 4)), "dof": np.empty((8, 1, 4)), "dst": np.empty((8, 1), np.int8),
-              "F": np.empty(1, np.uint8), "S": np.empty(1, np.int32), "bits": np.empty((2, 1, 1), np.uint64)}
+              "F": np.empty(1, np.uint8), "S": np.empty(1, np.uint16), "bits": np.empty((2, 1, 1), np.uint64)}
         _WS.ws = ws
     return ws
 
