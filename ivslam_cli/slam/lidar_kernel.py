@@ -458,7 +458,7 @@ def inclusion_new(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel,
 #     cell's largest range against the free ranges of beams in every cell's window), or proven
 #     all-P_OBSTACLE^k at once (_inner's certificate) instead of being refined to single cells;
 #   - a cell's reference window is computed from fast bearings when every index is farther from
-#     a rounding boundary than the error allows (_geom4), else exactly as the reference.
+#     a rounding boundary than the error allows (_geom1), else exactly as the reference.
 # Blocks that are not simple (around the sensor box, the back of the scan) use the reference's
 # own block test. update_log / scan_cells / traverse / apply are the fast path; the *_reference
 # functions are the oracle of tests/test_lidar_map.py.
@@ -613,10 +613,18 @@ def _classify(T, lg, o_lo, o_hi, e_lo, e_hi, cover, r_lo, r_hi, st):
 
 
 @njit(cache=True, _nrt=False)
-def _cell(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, T, lg, st):
+def _cell(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, T, lg, st, err=-1.0):
     """The reference's leaf test of cell ``(ix, iy)`` (same float expressions): ``(code, o_lo,
-    o_hi, r_lo, r_hi)``, code as :func:`_classify` (0 also beyond every beam)."""
+    o_hi, r_lo, r_hi)``, code as :func:`_classify` (0 also beyond every beam). With ``err >=
+    0`` (the margin of :func:`_geom1`), the window from fast bearings when they decide it."""
     pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
+    if err >= 0.0:
+        r_lo, r_hi, o_lo, o_hi, e_lo, e_hi, cover, state = _geom1(
+            ix, iy, eps, pxl, pxh, pyl, pyh, thl, thh, a0, h, nb, mid, lo_edge, hi_edge, err, 1.0 / inc)
+        if r_lo > rmax:
+            return 0, 0, -1, r_lo, r_hi
+        if state == 0:
+            return _classify(T, lg, o_lo, o_hi, e_lo, e_hi, cover, r_lo, r_hi, st), o_lo, o_hi, r_lo, r_hi
     x0 = down(ix * eps)
     x1 = up((ix + 1) * eps)
     y0 = down(iy * eps)
@@ -636,11 +644,10 @@ def _cell(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, T, lg, 
 
 
 @njit(cache=True, inline="always")
-def _geom4(ix, iy, eps, box, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc, R, W):
-    """The reference's range interval and window of the four cells ``(ix + (q & 1), iy + (q >>
-    1))``, computed one after the other (no decision in between, so that the processor
-    overlaps them): ``R[q] = (r_lo, r_hi)``, ``W[q] = (o_lo, o_hi, e_lo, e_hi, cover, state)``,
-    state 0 = window decided, -1 = undecided (then use :func:`_cell`).
+def _geom1(cx, cy, eps, pxl, pxh, pyl, pyh, thl, thh, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc):
+    """The reference's range interval and window of cell ``(cx, cy)``: ``(r_lo, r_hi, o_lo,
+    o_hi, e_lo, e_hi, cover, state)``, state 0 = window decided, -1 = undecided (then use
+    :func:`_cell`).
 
     The bearings come from :func:`box_bearings_fast`; the reference's window is ``floor /
     ceil`` of ``(bearing -/+ theta -/+ h - a0) / inc`` after a shift by ``2 pi m``: when the
@@ -648,55 +655,45 @@ def _geom4(ix, iy, eps, box, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc, R, 
     the reference's chain) from an integer, the floor / ceil are those of the exact value, and
     so are the branch and the "other branch" test when farther than ``err`` from their limits.
     """
-    pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
-    for q in range(4):
-        cx = ix + (q & 1)
-        cy = iy + (q >> 1)
-        dxl, dxh = dn(dn(cx * eps) - pxh), upf(upf((cx + 1) * eps) - pxl)
-        dyl, dyh = dn(dn(cy * eps) - pyh), upf(upf((cy + 1) * eps) - pyl)
-        r_lo, r_hi = box_ranges_fin(dxl, dxh, dyl, dyh)
-        R[q, 0] = r_lo
-        R[q, 1] = r_hi
-        bl, bh, full = box_bearings_fast(dxl, dxh, dyl, dyh)
-        state = 0
-        if full:
-            W[q, 0], W[q, 1], W[q, 2], W[q, 3], W[q, 4], W[q, 5] = 0, nb - 1, 0, -1, 0, 0
-            continue
-        pl = bl - thh
-        ph = bh - thl
-        c = 0.5 * (pl + ph) - mid
-        if not (-3.0 < c < 3.0):  # the reference's branch m = round(c / 2 pi) = +-1
-            if 3.3 < c < 9.2:
-                pl -= 2.0 * math.pi
-                ph -= 2.0 * math.pi
-            elif -9.2 < c < -3.3:
-                pl += 2.0 * math.pi
-                ph += 2.0 * math.pi
-            else:
-                state = -1
-        u_lo = (pl - h - a0) * inv_inc
-        u_hi = (ph + h - a0) * inv_inc
-        if not (ph - pl < 5.9 and -1e5 < u_lo and u_hi < 1e5):
-            W[q, 5] = -1
-            continue
-        d = err * inv_inc + 1e-9
-        f_lo = math.floor(u_lo - d)
-        f_hi = math.ceil(u_hi + d)
-        if f_lo != math.floor(u_lo + d) or f_hi != math.ceil(u_hi - d):
+    dxl, dxh = dn(dn(cx * eps) - pxh), upf(upf((cx + 1) * eps) - pxl)
+    dyl, dyh = dn(dn(cy * eps) - pyh), upf(upf((cy + 1) * eps) - pyl)
+    r_lo, r_hi = box_ranges_fin(dxl, dxh, dyl, dyh)
+    bl, bh, full = box_bearings_fast(dxl, dxh, dyl, dyh)
+    if full:
+        return r_lo, r_hi, 0, nb - 1, 0, -1, False, 0
+    state = 0
+    pl = bl - thh
+    ph = bh - thl
+    c = 0.5 * (pl + ph) - mid
+    if not (-3.0 < c < 3.0):  # the reference's branch m = round(c / 2 pi) = +-1
+        if 3.3 < c < 9.2:
+            pl -= 2.0 * math.pi
+            ph -= 2.0 * math.pi
+        elif -9.2 < c < -3.3:
+            pl += 2.0 * math.pi
+            ph += 2.0 * math.pi
+        else:
             state = -1
-        e_lo = int(f_lo)
-        e_hi = int(f_hi)
-        o_lo = max(e_lo, 0)
-        o_hi = min(e_hi, nb - 1)
-        g1 = pl + 2.0 * math.pi - hi_edge  # the reference widens to the whole scan when <= 0
-        g2 = ph - 2.0 * math.pi - lo_edge  # ... or when >= 0
-        if g1 <= -err or g2 >= err:
-            o_lo, o_hi = 0, nb - 1
-        elif g1 <= err or g2 >= -err:
-            state = -1
-        W[q, 0], W[q, 1], W[q, 2], W[q, 3] = o_lo, o_hi, e_lo, e_hi
-        W[q, 4] = 1 if (e_lo >= 0 and e_hi <= nb - 1) else 0
-        W[q, 5] = state
+    u_lo = (pl - h - a0) * inv_inc
+    u_hi = (ph + h - a0) * inv_inc
+    if not (ph - pl < 5.9 and -1e5 < u_lo and u_hi < 1e5):
+        return r_lo, r_hi, 0, -1, 0, -1, False, -1
+    d = err * inv_inc + 1e-9
+    f_lo = math.floor(u_lo - d)
+    f_hi = math.ceil(u_hi + d)
+    if f_lo != math.floor(u_lo + d) or f_hi != math.ceil(u_hi - d):
+        state = -1
+    e_lo = int(f_lo)
+    e_hi = int(f_hi)
+    o_lo = max(e_lo, 0)
+    o_hi = min(e_hi, nb - 1)
+    g1 = pl + 2.0 * math.pi - hi_edge  # the reference widens to the whole scan when <= 0
+    g2 = ph - 2.0 * math.pi - lo_edge  # ... or when >= 0
+    if g1 <= -err or g2 >= err:
+        o_lo, o_hi = 0, nb - 1
+    elif g1 <= err or g2 >= -err:
+        state = -1
+    return r_lo, r_hi, o_lo, o_hi, e_lo, e_hi, e_lo >= 0 and e_hi <= nb - 1, state
 
 
 @njit(cache=True, inline="always")
@@ -765,7 +762,8 @@ def _inner_consts(box, inc):
 
 
 @njit(cache=True, inline="always")
-def _inner(x0, x1, y0, y1, eps, box, a0, h, mid, cx, cy, wx, wy, rc, amg, inv_inc, lev, LC):
+def _inner(x0, x1, y0, y1, eps, pxl, pxh, pyl, pyh, thl, thh, a0, h, mid, cx, cy, wx, wy, rc, amg, inv_inc,
+           lw, lrb, lc, lrbc):
     """What holds for *every* cell inside ``[x0, x1] x [y0, y1]`` (real geometry, margins far
     above every rounding): ``(i_lo, i_hi, k_lo, k_hi)``.
 
@@ -790,13 +788,12 @@ def _inner(x0, x1, y0, y1, eps, box, a0, h, mid, cx, cy, wx, wy, rc, amg, inv_in
       ``k_hi`` bounds every cell's largest range from below. A beam with ``lo <= k_hi`` and
       ``hi >= k_lo`` meets the range interval of every cell.
     """
-    pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
     bx = 0.5 * (x0 + x1)
     by = 0.5 * (y0 + y1)
     wbx = upf(max(upf(bx - x0), upf(x1 - bx)))  # a super-box of the block, centred on b
     wby = upf(max(upf(by - y0), upf(y1 - by)))
-    if wbx <= LC[lev, 0] and wby <= LC[lev, 0]:  # the level's bounds (see _level_consts)
-        rb = LC[lev, 1]
+    if wbx <= lw and wby <= lw:  # the level's bounds ``LC[lev]`` (see _level_consts)
+        rb = lrb
     else:
         rb = upf(math.sqrt(upf(upf(wbx * wbx) + upf(wby * wby))))
     # the range interval common to the block
@@ -811,8 +808,8 @@ def _inner(x0, x1, y0, y1, eps, box, a0, h, mid, cx, cy, wx, wy, rc, amg, inv_in
     hy = max(upf(by - upf(y0 + 0.5 * eps)), upf(dn(y1 - 0.5 * eps) - by))
     hx = upf(max(hx, 0.0) + 1e-12 * (1.0 + abs(bx)))
     hy = upf(max(hy, 0.0) + 1e-12 * (1.0 + abs(by)))
-    if hx <= LC[lev, 2] and hy <= LC[lev, 2]:
-        rbc = LC[lev, 3]
+    if hx <= lc and hy <= lc:
+        rbc = lrbc
     else:
         rbc = upf(math.sqrt(upf(upf(hx * hx) + upf(hy * hy))))
     # a cell reaches eps / 2 nearer / farther than its centre (straight to the nearest / from the
@@ -929,8 +926,6 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     sl = np.empty(4 * _LEVELS + 4, dtype=np.int64)
     sx = np.empty(4 * _LEVELS + 4, dtype=np.int64)
     sy = np.empty(4 * _LEVELS + 4, dtype=np.int64)
-    R4 = np.empty((4, 2))
-    W4 = np.empty((4, 6), dtype=np.int64)
     cap_blk = blk.shape[0]
     cap_mblk = mblk.shape[0]
     cap_cand = cand.shape[0]
@@ -995,8 +990,9 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                     if not obs and not freep:
                         continue
                     if LC[lev, 2] < iw_min + 0.5 * eps:
-                        u_lo, u_hi, k_lo, k_hi = _inner(x0, x1, y0, y1, eps, box, a0, h, mid, icx, icy, iwx,
-                                                        iwy, irc, amg, inv_inc, lev, LC)
+                        u_lo, u_hi, k_lo, k_hi = _inner(x0, x1, y0, y1, eps, pxl, pxh, pyl, pyh, thl, thh, a0, h,
+                                                        mid, icx, icy, iwx, iwy, irc, amg, inv_inc, LC[lev, 0],
+                                                        LC[lev, 1], LC[lev, 2], LC[lev, 3])
                     else:  # cells too far apart for a bearing common to all of them
                         u_lo, u_hi = 0, -1
                     if u_lo <= u_hi:
@@ -1029,7 +1025,7 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                                     if _unmeasured(cells, t, a, b):
                                         code, c_lo, c_hi, q_lo, q_hi = _cell(
                                             tx * TILE + a, ty * TILE + b, eps, box, a0, inc, h, nb, rmax,
-                                            mid, lo_edge, hi_edge, T, lg, stats)
+                                            mid, lo_edge, hi_edge, T, lg, stats, err)
                                         _scan_new(T, c_lo, c_hi, q_lo, q_hi, new, stats)
                             continue
                 if not obs and not freep:
@@ -1043,18 +1039,23 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                         sp += 1
                     continue
                 # the four cells: geometry of all four, then the reference's leaf decisions
-                _geom4(ix, iy, eps, box, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc, R4, W4)
+                G4 = (_geom1(ix, iy, eps, pxl, pxh, pyl, pyh, thl, thh, a0, h, nb, mid, lo_edge, hi_edge, err,
+                             inv_inc),
+                      _geom1(ix + 1, iy, eps, pxl, pxh, pyl, pyh, thl, thh, a0, h, nb, mid, lo_edge, hi_edge,
+                             err, inv_inc),
+                      _geom1(ix, iy + 1, eps, pxl, pxh, pyl, pyh, thl, thh, a0, h, nb, mid, lo_edge, hi_edge,
+                             err, inv_inc),
+                      _geom1(ix + 1, iy + 1, eps, pxl, pxh, pyl, pyh, thl, thh, a0, h, nb, mid, lo_edge,
+                             hi_edge, err, inv_inc))
                 for q in range(4):
                     nodes += 1
                     cx_ = ix + (q & 1)
                     cy_ = iy + (q >> 1)
-                    r_lo, r_hi = R4[q, 0], R4[q, 1]
+                    r_lo, r_hi, o_lo, o_hi, ce_lo, ce_hi, c_cover, state = G4[q]
                     if r_lo > rmax:
                         continue
-                    if W4[q, 5] == 0:
-                        o_lo, o_hi = W4[q, 0], W4[q, 1]
-                        code = _classify(T, lg, o_lo, o_hi, W4[q, 2], W4[q, 3], W4[q, 4] == 1, r_lo, r_hi,
-                                         stats)
+                    if state == 0:
+                        code = _classify(T, lg, o_lo, o_hi, ce_lo, ce_hi, c_cover, r_lo, r_hi, stats)
                     else:
                         code, o_lo, o_hi, r_lo, r_hi = _cell(cx_, cy_, eps, box, a0, inc, h, nb, rmax, mid,
                                                              lo_edge, hi_edge, T, lg, stats)
@@ -1125,6 +1126,7 @@ def _write(cells, ti, n_blk, blk, n_mblk, mblk, n_cand, cand, cand_f, new, valid
     lo_edge = down(a0 - h)
     hi_edge = up(up(a_end + h))
     pxl, pxh, pyl, pyh = box[0], box[1], box[2], box[3]
+    err = ATAN_ERR + 1e-12 * (8.0 + abs(box[4]) + abs(box[5]))  # as traverse's
     for k in range(n_blk):
         t = ti[blk[k, 3]]
         s = 1 << blk[k, 2]
@@ -1161,7 +1163,7 @@ def _write(cells, ti, n_blk, blk, n_mblk, mblk, n_cand, cand, cand_f, new, valid
                     cells[t, a, b] |= OBST_OLD  # no new beam of a wider window meets the cell
                     continue
                 code, o_lo, o_hi, r_lo, r_hi = _cell(cx, cy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge,
-                                                     hi_edge, T, lg, st)
+                                                     hi_edge, T, lg, st, err)
                 cells[t, a, b] |= _flags(o_lo, o_hi, r_lo, r_hi, new, valid, T, cnt_new, cnt_valid,
                                          new_idx)
     for k in range(n_cand):
