@@ -20,6 +20,13 @@ Guarantee: if the true pose is in the box, the world is static but for at most `
 of the scan, and the map's P_EMPTY is sound (built from pose boxes that held the truth), the
 true pose stays in the result. Every bound is rounded outward; cells are enumerated
 generously (a region's cells include every cell it may touch).
+
+Two implementations: :func:`contract_kernel_reference` (each beam's region of each sub-box
+looked up cell by cell in the tiles: the definition) and :func:`contract_kernel`, the fast path
+:func:`contract_pose` runs (witness points, a summed-area table over a dense window, work
+shared between sub-boxes: see the comment before it), with the same kept count, hull and
+tested count. Their equality is tested on random maps and scans (``tests/test_lidar_contract``)
+and checked by ``bench/bench_lidar_contract.py``.
 """
 
 from __future__ import annotations
@@ -57,8 +64,8 @@ def _region_free(keys, slots, cells, eps, xl, xh, yl, yh):
 
 @njit(cache=True)
 def excluded_beams(keys, slots, cells, eps, ranges, valid, a0, inc, sb, r_abs, r_rel, r_alpha, stride, q):
-    """Number of beams (every ``stride``-th valid one) whose endpoint region from the sensor box
-    ``sb`` lies in proven-free cells; stops counting past ``q``."""
+    """Number of beams (every ``stride``-th beam, those valid) whose endpoint region from the
+    sensor box ``sb`` lies in proven-free cells; stops counting past ``q``."""
     n = 0
     for i in range(0, ranges.shape[0], stride):
         if not valid[i]:
@@ -148,27 +155,29 @@ def contract_kernel_reference(keys, slots, cells, eps, ranges, valid, a0, inc, b
 #   two halves are made once) the sensor offset of the mount and, on first use, each beam's
 #   endpoint offset ``[r] (cos, sin)(θ_s + α_i ± r_α)``, with the reference's own operations;
 # - witnesses: a beam is not free as soon as one real point of its endpoint region lies in a
-#   cell not proven free, for that cell is among the ones the reference enumerates (its cell
-#   range holds every cell meeting the region). The region of a box holds ``s + r (cos, sin)(φ)``
-#   for every sensor position ``s`` of its sensor box, ``r`` in ``[r]`` and ``φ`` in the
-#   reference's angle interval, which holds ``σ + α_i`` (real sum) for every float ``σ`` in the
-#   sensor heading interval. Two points are tried first: ``s`` the sensor position of the box's
-#   centre, ``σ = fl(mid θ + myaw)``, ``r`` = mid(r) and sup(r); they are computed in floating
-#   point (a rotation of ``(cos, sin)(α_i)`` by ``σ``) and used only when their cell is certain
-#   (farther than ``mu`` cells from the cell's edges, far beyond the rounding error);
-# - otherwise the region's cells are tested in O(1) by a summed-area table of "not proven free"
-#   over a dense window of the map (around the reach of the root box, within the tiles'
-#   bounding box), built once per call when a first box needs it; a region outside the window
-#   is looked up in the tiles as before (outside the tiles' bounding box: unknown, not free);
-# - skips that cannot change a count: a beam whose endpoint offset alone spans more than
-#   MAX_REGION_CELLS cells is never free for a box of its node, and a box whose sensor box alone
-#   does is free for no beam (the one-cell margin of ``_cells_lb`` absorbs every rounding error
-#   while coordinates stay below ``_SKIP_MAX`` and the cell side above ``_SKIP_EPS``);
+#   cell not proven free, for that cell is among those the reference enumerates (its cell
+#   range holds the cell of every point of the region). The region of a box holds
+#   ``s + r (cos, sin)(φ)`` for every sensor position ``s`` of a pose of the box, ``r`` in
+#   ``[r]`` and ``φ`` in the reference's angle interval, which holds ``σ + α_i`` (real sum)
+#   for every float ``σ`` in the sensor heading interval, here ``σ = fl(mid θ + myaw)``. The
+#   points tried: from the box's centre at ranges mid(r) and sup(r), then from the box's
+#   corner farthest along the beam at sup(r). They are computed in floating point (a
+#   rotation of ``(cos, sin)(α_i)`` by ``σ``) and used only when their cell is certain:
+#   farther than ``mu`` cells from the cell's edges, far beyond the rounding error;
 # - a box's centre lies in both its halves (on their common face), and in further descendants
 #   as long as the splits stay on its faces: the beams witnessed from a pose (the "origin")
 #   are witnessed for every box holding that pose, without a test. A box holding the origin
 #   it was handed skips those beams and hands the same set down; any other box tests every
-#   beam from its own centre and hands that set down;
+#   beam from its own centre and hands that set down (corner witnesses are not handed down);
+# - otherwise the region's cells are tested in O(1) by a summed-area table of "not proven free"
+#   over a dense window of the map (the extent of the endpoints from the root box, grown by
+#   how far the box's poses, ranges and cone move them, within the tiles' bounding box),
+#   built once per call when a first box needs it; a region not inside the window is looked
+#   up in the tiles as the reference does (outside the tiles' bounding box: unknown, not free);
+# - skips that cannot change a count: a beam whose endpoint offset alone spans more than
+#   MAX_REGION_CELLS cells is never free for a box of its node, and a box whose sensor box alone
+#   does is free for no beam (the one-cell margin of ``_cells_lb`` absorbs every rounding error
+#   while coordinates stay below ``_SKIP_MAX`` and the cell side above ``_SKIP_EPS``);
 # - beams are tested in any order: only "more than q free" is used.
 #
 # Speed: the arrays live in a per-thread workspace kept between calls (a call allocates nothing
