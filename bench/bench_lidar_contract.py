@@ -214,10 +214,14 @@ def main(argv: list[str] | None = None) -> int:
             ok = ok and good and us < TARGET_US
         else:
             scans, bounds, calls, times, widths = _pipeline_case(args.every)
-            print(f"\npipeline: exp1's track-and-map pass, {times.size} calls in {times.sum():.2f} s "
-                  f"({1e6 * times.mean():,.0f} us/scan mean, {1e6 * np.median(times):,.0f} median; boxes "
+            if times.size == 0:
+                print("\npipeline: exp1's track-and-map pass made no contraction call")
+                continue
+            print(f"\npipeline: exp1's track-and-map pass, {times.size} calls in {times.sum():.3f} s "
+                  f"({1e6 * times.mean():,.0f} us/call mean, {1e6 * np.median(times):,.0f} median, "
+                  f"{1e6 * times.max():,.0f} max, the first loading the compiled kernels; boxes "
                   f"{np.median(widths):.2f} m median, {np.percentile(widths, 10):.2f}-{np.percentile(widths, 90):.2f}"
-                  f" m 10-90 %; first call includes compilation); every {args.every}-th call replayed:")
+                  f" m 10-90 %); every {args.every}-th call replayed:")
             good, _ = _report(case, calls, scans, bounds, args.repeat, args.no_reference)
             ok = ok and good
     print(f"\nload average at the end {os.getloadavg()[0]:.2f}")

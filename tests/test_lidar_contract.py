@@ -176,3 +176,16 @@ def test_fast_path_equals_reference_on_an_empty_map_and_no_beams():
     none = replace(scans, valid=np.zeros_like(scans.valid))
     out, kept, tested = _both(tmap, none, len(scans) - 1, box, bounds, q=0, stride=2, max_boxes=64)
     assert kept > 0 and np.array_equal(out, box)
+
+
+def test_bench_lidar_contract_runs_and_checks(capsys):
+    """The benchmark's simulated case on a short log: the fast path against the reference (same
+    kept, hull and tested for every scan) and the truth inside every contracted box, both
+    reported OK (the timing verdict is the benchmark's business)."""
+    from bench import bench_lidar_contract as B
+
+    B.main(["--case", "sim", "--map-scans", "15", "--scans", "4", "--repeat", "1"])
+    out = capsys.readouterr().out
+    assert "same kept, hull and tested for every scan: OK" in out
+    assert "truth inside the contracted box: 4 of 4: OK" in out
+    assert "load average" in out and "us/scan" in out
