@@ -724,6 +724,26 @@ def _window_block(bl, bh, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, e
     return max(e_lo, 0), min(e_hi, nb - 1), e_lo, e_hi, cover, simple
 
 
+@njit(cache=True, inline="always")
+def _node_geom(ix, iy, s, eps, pxl, pxh, pyl, pyh, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err):
+    """A block's corners (rounded outward), range interval and fast outer window
+    (:func:`_window_block`): ``(x0, x1, y0, y1, r_lo, r_hi, o_lo, o_hi, e_lo, e_hi, cover, simple)``
+    (``simple`` False: use the reference's block test)."""
+    x0 = dn(ix * eps)
+    x1 = upf((ix + s) * eps)
+    y0 = dn(iy * eps)
+    y1 = upf((iy + s) * eps)
+    dxl, dxh = dn(x0 - pxh), upf(x1 - pxl)
+    dyl, dyh = dn(y0 - pyh), upf(y1 - pyl)
+    r_lo, r_hi = box_ranges_fin(dxl, dxh, dyl, dyh)
+    bl, bh, full = box_bearings_fast(dxl, dxh, dyl, dyh)
+    if not full and bh - bl < 3.0:
+        o_lo, o_hi, e_lo, e_hi, cover, simple = _window_block(bl, bh, thl, thh, a0, inv_inc, h, nb, mid, lo_edge,
+                                                              hi_edge, err)
+        return x0, x1, y0, y1, r_lo, r_hi, o_lo, o_hi, e_lo, e_hi, cover, simple
+    return x0, x1, y0, y1, r_lo, r_hi, 0, nb - 1, 0, -1, False, False
+
+
 @njit(cache=True)
 def _level_consts(eps):
     """Per quadtree level ``lev`` (blocks of ``2^lev`` cells): ``(w, |(w, w)|, c, |(c, c)|)``
@@ -923,9 +943,13 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     tx1 = int(math.floor(up(up(pxh + rmax) / side))) + 1
     ty0 = int(math.floor(down(down(pyl - rmax) / side))) - 1
     ty1 = int(math.floor(up(up(pyh + rmax) / side))) + 1
+    # the stack of blocks to visit: (level, x, y) in the tile, with their geometry (computed
+    # for the four children of a block together, so that the processor overlaps them)
     sl = np.empty(4 * _LEVELS + 4, dtype=np.int64)
     sx = np.empty(4 * _LEVELS + 4, dtype=np.int64)
     sy = np.empty(4 * _LEVELS + 4, dtype=np.int64)
+    sf = np.empty((4 * _LEVELS + 4, 6))
+    sw = np.empty((4 * _LEVELS + 4, 6), dtype=np.int64)
     cap_blk = blk.shape[0]
     cap_mblk = mblk.shape[0]
     cap_cand = cand.shape[0]
@@ -936,7 +960,11 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
         for ty in range(ty0, ty1 + 1):
             t = find(keys, slots, tx, ty)
             slot = -1
+            g = _node_geom(tx * TILE, ty * TILE, TILE, eps, pxl, pxh, pyl, pyh, thl, thh, a0, inv_inc, h, nb,
+                           mid, lo_edge, hi_edge, err)
             sl[0], sx[0], sy[0] = _LEVELS, 0, 0
+            sf[0, 0], sf[0, 1], sf[0, 2], sf[0, 3], sf[0, 4], sf[0, 5] = g[0], g[1], g[2], g[3], g[4], g[5]
+            sw[0, 0], sw[0, 1], sw[0, 2], sw[0, 3], sw[0, 4], sw[0, 5] = g[6], g[7], g[8], g[9], g[10], g[11]
             sp = 1
             while sp > 0:
                 sp -= 1
@@ -945,22 +973,16 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                 ix = tx * TILE + lx
                 iy = ty * TILE + ly
                 s = 1 << lev
-                x0 = dn(ix * eps)
-                x1 = upf((ix + s) * eps)
-                y0 = dn(iy * eps)
-                y1 = upf((iy + s) * eps)
-                dxl, dxh = dn(x0 - pxh), upf(x1 - pxl)
-                dyl, dyh = dn(y0 - pyh), upf(y1 - pyl)
-                r_lo, r_hi = box_ranges_fin(dxl, dxh, dyl, dyh)
+                x0, x1, y0, y1, r_lo, r_hi = sf[sp, 0], sf[sp, 1], sf[sp, 2], sf[sp, 3], sf[sp, 4], sf[sp, 5]
                 if r_lo > rmax:
                     continue
-                bl, bh, full = box_bearings_fast(dxl, dxh, dyl, dyh)
-                simple = False
-                if not full and bh - bl < 3.0:
-                    o_lo, o_hi, e_lo, e_hi, cover, simple = _window_block(
-                        bl, bh, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err)
+                o_lo, o_hi, e_lo, e_hi = sw[sp, 0], sw[sp, 1], sw[sp, 2], sw[sp, 3]
+                cover = sw[sp, 4] != 0
+                simple = sw[sp, 5] != 0
                 if not simple:
                     # the reference's block test (around the sensor box, the back of the scan)
+                    dxl, dxh = dn(x0 - pxh), upf(x1 - pxl)
+                    dyl, dyh = dn(y0 - pyh), upf(y1 - pyl)
                     bl, bh, full = box_bearings(dxl, dxh, dyl, dyh)
                     if full:
                         o_lo, o_hi, e_lo, e_hi, cover = 0, nb - 1, 0, -1, False
@@ -1032,10 +1054,22 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                     continue
                 if lev > 1:
                     half = s >> 1
+                    G = (_node_geom(ix, iy, half, eps, pxl, pxh, pyl, pyh, thl, thh, a0, inv_inc, h, nb, mid,
+                                    lo_edge, hi_edge, err),
+                         _node_geom(ix + half, iy, half, eps, pxl, pxh, pyl, pyh, thl, thh, a0, inv_inc, h, nb,
+                                    mid, lo_edge, hi_edge, err),
+                         _node_geom(ix, iy + half, half, eps, pxl, pxh, pyl, pyh, thl, thh, a0, inv_inc, h, nb,
+                                    mid, lo_edge, hi_edge, err),
+                         _node_geom(ix + half, iy + half, half, eps, pxl, pxh, pyl, pyh, thl, thh, a0, inv_inc,
+                                    h, nb, mid, lo_edge, hi_edge, err))
                     for q in range(4):
+                        g = G[q]
                         sl[sp] = lev - 1
                         sx[sp] = lx + (half if (q & 1) else 0)
                         sy[sp] = ly + (half if (q & 2) else 0)
+                        sf[sp, 0], sf[sp, 1], sf[sp, 2], sf[sp, 3], sf[sp, 4], sf[sp, 5] = g[0], g[1], g[2], g[3], g[4], g[5]
+                        sw[sp, 0], sw[sp, 1], sw[sp, 2], sw[sp, 3] = g[6], g[7], g[8], g[9]
+                        sw[sp, 4], sw[sp, 5] = g[10], g[11]
                         sp += 1
                     continue
                 # the four cells: geometry of all four, then the reference's leaf decisions
