@@ -503,11 +503,11 @@ def contract_kernel(keys, slots, cells, coords, n_tiles, eps, ranges, valid, a0,
                     ws_o, ws_nf, ws_ni, wit, dof, dst, F, S, bits):
     """:func:`contract_kernel_reference` (same arguments plus the tiles' ``coords`` and count),
     same results, faster (see the comment above). ``max_window``: cells of the dense window at
-    most (0: none, every region looked up in the tiles; for tests). Workspace: ``ws_box``
-    (2, max_boxes + 2, 6), ``ws_n`` (2, max_boxes + 2) int64, ``ws_o`` (2, max_boxes + 3, 3), ``ws_nf`` (2 max_boxes + 3,
-    _NF), ``ws_ni`` (2 max_boxes + 3, 2) int64; pools ``wit``, ``dof`` (R, B', 4), ``dst``
-    (R, B') int8, window ``F`` (uint8), ``S`` (uint16) and witness bits (2, C, W) uint64, any
-    sizes (regrown here).
+    most (0: none, every region looked up in the tiles; for tests). Workspace (see
+    :func:`_workspace`): ``ws_box`` (2, max_boxes + 2, 6), ``ws_n`` (2, max_boxes + 2) int64,
+    ``ws_o`` (2, max_boxes + 3, 3), ``ws_nf`` (2 max_boxes + 3, _NF), ``ws_ni`` (2 max_boxes + 3,
+    2) int64; pools ``wit``, ``dof`` (R, B', 4), ``dst`` (R, B') int8, window ``F`` (uint8),
+    ``S`` (uint16) and witness bits (2, C, W) uint64 of any sizes (regrown here).
 
     Returns ``(kept, tested, wit, dof, dst, F, S, bits)`` (the last six possibly regrown)."""
     # the beams tested, and what does not depend on the sub-box
