@@ -114,7 +114,7 @@ KEYS: tuple[Key, ...] = (
     Key("lidar", "contract", True, "bool", "contract each scan's pose box against the map built so far (set inversion in pose space; dead-reckoning runs only)"),
     Key("lidar", "q_beams", 5, "int", "pose contraction: beams of a scan allowed to end in proven-free cells (moving people, glass, beams the static-world model does not explain)"),
     Key("lidar", "contract_boxes", 1024, "int", "pose contraction: sub-boxes tested per scan at most (the set inversion's budget)"),
-    Key("lidar", "contract_stride", 2, "int", "pose contraction: every n-th valid beam is tested"),
+    Key("lidar", "contract_stride", 2, "int", "pose contraction: every n-th beam is tested (invalid ones skipped)"),
     Key("lidar", "contract_max_width", 2.0, "float", "pose contraction is tried only on boxes at most this wide in x and y (a wider box is beyond what contract_boxes sub-boxes resolve: the test would cost the budget and contract nothing); 0: always tried", "m", 0.0),
     Key("lidar", "keyframes", False, "bool", "interval scan matching (opt-in; it pays where the odometry is worse than the range bounds over keyframe_distance): each scan's pose relative to the last keyframe scan is dead-reckoned in the keyframe's frame; when the robot is keyframe_distance or keyframe_turn away it is contracted against the keyframe scan (continuous free space of both scans), the global box meets keyframe box ⊕ relative box, and the scan becomes the next keyframe"),
     Key("lidar", "keyframe_distance", 1.0, "float", "a scan is matched and becomes the next keyframe when the robot is this far from the last keyframe", "m", 0.0),
