@@ -613,18 +613,18 @@ def _classify(T, lg, o_lo, o_hi, e_lo, e_hi, cover, r_lo, r_hi, st):
 
 
 @njit(cache=True, _nrt=False)
-def _cell(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, T, lg, st, err=-1.0):
-    """The reference's leaf test of cell ``(ix, iy)`` (same float expressions): ``(code, o_lo,
-    o_hi, r_lo, r_hi)``, code as :func:`_classify` (0 also beyond every beam). With ``err >=
-    0`` (the margin of :func:`_geom1`), the window from fast bearings when they decide it."""
+def _cell_window(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err=-1.0):
+    """The reference's window and range interval of cell ``(ix, iy)`` (same float expressions):
+    ``(o_lo, o_hi, e_lo, e_hi, cover, r_lo, r_hi)``, the window empty beyond every beam. With
+    ``err >= 0`` (the margin of :func:`_geom1`), from fast bearings when they decide it."""
     pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
     if err >= 0.0:
         r_lo, r_hi, o_lo, o_hi, e_lo, e_hi, cover, state = _geom1(
             ix, iy, eps, pxl, pxh, pyl, pyh, thl, thh, a0, h, nb, mid, lo_edge, hi_edge, err, 1.0 / inc)
         if r_lo > rmax:
-            return 0, 0, -1, r_lo, r_hi
+            return 0, -1, 0, -1, False, r_lo, r_hi
         if state == 0:
-            return _classify(T, lg, o_lo, o_hi, e_lo, e_hi, cover, r_lo, r_hi, st), o_lo, o_hi, r_lo, r_hi
+            return o_lo, o_hi, e_lo, e_hi, cover, r_lo, r_hi
     x0 = down(ix * eps)
     x1 = up((ix + 1) * eps)
     y0 = down(iy * eps)
@@ -633,13 +633,21 @@ def _cell(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, T, lg, 
     dyl, dyh = down(y0 - pyh), up(y1 - pyl)
     r_lo, r_hi = box_ranges(dxl, dxh, dyl, dyh)
     if r_lo > rmax:
-        return 0, 0, -1, r_lo, r_hi
+        return 0, -1, 0, -1, False, r_lo, r_hi
     bl, bh, full = box_bearings(dxl, dxh, dyl, dyh)
     if full:
-        o_lo, o_hi, e_lo, e_hi, cover = 0, nb - 1, 0, -1, False
-    else:
-        o_lo, o_hi, e_lo, e_hi, cover = _window_fast(down(bl - thh), up(bh - thl), a0, inc, h, nb,
-                                                     mid, lo_edge, hi_edge)
+        return 0, nb - 1, 0, -1, False, r_lo, r_hi
+    o_lo, o_hi, e_lo, e_hi, cover = _window_fast(down(bl - thh), up(bh - thl), a0, inc, h, nb, mid, lo_edge,
+                                                 hi_edge)
+    return o_lo, o_hi, e_lo, e_hi, cover, r_lo, r_hi
+
+
+@njit(cache=True, _nrt=False)
+def _cell(ix, iy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, T, lg, st, err=-1.0):
+    """The reference's leaf test of cell ``(ix, iy)`` (:func:`_cell_window`, then
+    :func:`_classify`): ``(code, o_lo, o_hi, r_lo, r_hi)``, code 0 also beyond every beam."""
+    o_lo, o_hi, e_lo, e_hi, cover, r_lo, r_hi = _cell_window(ix, iy, eps, box, a0, inc, h, nb, rmax, mid,
+                                                             lo_edge, hi_edge, err)
     return _classify(T, lg, o_lo, o_hi, e_lo, e_hi, cover, r_lo, r_hi, st), o_lo, o_hi, r_lo, r_hi
 
 
@@ -1045,9 +1053,9 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                             for a in range(lx, lx + s):
                                 for b in range(ly, ly + s):
                                     if _unmeasured(cells, t, a, b):
-                                        code, c_lo, c_hi, q_lo, q_hi = _cell(
+                                        c_lo, c_hi, _, _, _, q_lo, q_hi = _cell_window(
                                             tx * TILE + a, ty * TILE + b, eps, box, a0, inc, h, nb, rmax,
-                                            mid, lo_edge, hi_edge, T, lg, stats, err)
+                                            mid, lo_edge, hi_edge, err)
                                         _scan_new(T, c_lo, c_hi, q_lo, q_hi, new, stats)
                             continue
                 if not obs and not freep:
@@ -1196,8 +1204,8 @@ def _write(cells, ti, n_blk, blk, n_mblk, mblk, n_cand, cand, cand_f, new, valid
                 if not _new_meets(w_lo, w_hi, r_lo, r_hi, T, cnt_new, new_idx):
                     cells[t, a, b] |= OBST_OLD  # no new beam of a wider window meets the cell
                     continue
-                code, o_lo, o_hi, r_lo, r_hi = _cell(cx, cy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge,
-                                                     hi_edge, T, lg, st, err)
+                o_lo, o_hi, _, _, _, r_lo, r_hi = _cell_window(cx, cy, eps, box, a0, inc, h, nb, rmax, mid, lo_edge,
+                                                               hi_edge, err)
                 cells[t, a, b] |= _flags(o_lo, o_hi, r_lo, r_hi, new, valid, T, cnt_new, cnt_valid,
                                          new_idx)
     for k in range(n_cand):
