@@ -69,30 +69,6 @@ def sensor_boxes_of(b, rows, mx, my, myaw):
     return out
 
 
-@njit(cache=True, inline="always")
-def box_ranges(dxl, dxh, dyl, dyh):
-    """``[min, max]`` of ``|v|`` over the box ``[dx] x [dy]``, rounded outward."""
-    if dxl > 0.0:
-        mx = dxl
-    elif dxh < 0.0:
-        mx = -dxh
-    else:
-        mx = 0.0
-    if dyl > 0.0:
-        my = dyl
-    elif dyh < 0.0:
-        my = -dyh
-    else:
-        my = 0.0
-    lo = 0.0
-    if mx > 0.0 or my > 0.0:
-        lo = max(0.0, down(math.sqrt(down(down(mx * mx) + down(my * my)))))
-    Mx = max(-dxl, dxh)
-    My = max(-dyl, dyh)
-    hi = up(math.sqrt(up(up(Mx * Mx) + up(My * My))))
-    return lo, hi
-
-
 # down / up of ivslam_cli.interval.rounding without their NaN test: the same values for every
 # finite argument whose step does not overflow (|c| < 1e300). For the fast paths, on
 # coordinates and ranges of a map (callers check the magnitudes or fall back).
@@ -114,8 +90,9 @@ def upf(c):
 
 
 @njit(cache=True, inline="always")
-def box_ranges_fin(dxl, dxh, dyl, dyh):
-    """:func:`box_ranges` (the same values) for a finite box with ``|bounds| < FIN_MAX``."""
+def _box_ranges(dxl, dxh, dyl, dyh, fin):
+    """``[min, max]`` of ``|v|`` over the box ``[dx] x [dy]``, rounded outward (``fin``: by
+    :func:`dn` / :func:`upf`, the same values for a finite box below ``FIN_MAX``)."""
     if dxl > 0.0:
         mx = dxl
     elif dxh < 0.0:
@@ -128,13 +105,28 @@ def box_ranges_fin(dxl, dxh, dyl, dyh):
         my = -dyh
     else:
         my = 0.0
-    lo = 0.0
-    if mx > 0.0 or my > 0.0:
-        lo = max(0.0, dn(math.sqrt(dn(dn(mx * mx) + dn(my * my)))))
     Mx = max(-dxl, dxh)
     My = max(-dyl, dyh)
-    hi = upf(math.sqrt(upf(upf(Mx * Mx) + upf(My * My))))
-    return lo, hi
+    lo = 0.0
+    if fin:
+        if mx > 0.0 or my > 0.0:
+            lo = max(0.0, dn(math.sqrt(dn(dn(mx * mx) + dn(my * my)))))
+        return lo, upf(math.sqrt(upf(upf(Mx * Mx) + upf(My * My))))
+    if mx > 0.0 or my > 0.0:
+        lo = max(0.0, down(math.sqrt(down(down(mx * mx) + down(my * my)))))
+    return lo, up(math.sqrt(up(up(Mx * Mx) + up(My * My))))
+
+
+@njit(cache=True, inline="always")
+def box_ranges(dxl, dxh, dyl, dyh):
+    """``[min, max]`` of ``|v|`` over the box ``[dx] x [dy]``, rounded outward."""
+    return _box_ranges(dxl, dxh, dyl, dyh, False)
+
+
+@njit(cache=True, inline="always")
+def box_ranges_fin(dxl, dxh, dyl, dyh):
+    """:func:`box_ranges` (the same values) for a finite box with ``|bounds| < FIN_MAX``."""
+    return _box_ranges(dxl, dxh, dyl, dyh, True)
 
 
 @njit(cache=True)
@@ -250,6 +242,13 @@ def beam_window(pl, ph, a0, inc, h, nb):
     if m != 0.0:
         sl, sh = mul(m, m, TWO_PI_LO, TWO_PI_HI)
         pl, ph = down(pl - sh), up(ph - sl)
+    return window_in_branch(pl, ph, a0, inc, h, nb, down(a0 - h), up(up(a_end + h)))
+
+
+@njit(cache=True, inline="always")
+def window_in_branch(pl, ph, a0, inc, h, nb, lo_edge, hi_edge):
+    """:func:`beam_window` of bearings ``[pl, ph]`` already in the branch of the scan (``lo_edge
+    = down(a0 - h)``, ``hi_edge = up(up(a_end + h))``, the scan's cones)."""
     ul = down(down(down(pl - h) - a0) / inc)
     uh = up(up(up(ph + h) - a0) / inc)
     if not (-1e9 < ul and uh < 1e9):
@@ -260,8 +259,6 @@ def beam_window(pl, ph, a0, inc, h, nb):
     o_lo = max(e_lo, 0)
     o_hi = min(e_hi, nb - 1)
     # another branch meeting the scan's cones (wide bearing sets only): all beams, outer
-    lo_edge = down(a0 - h)
-    hi_edge = up(up(a_end + h))
     if down(pl + TWO_PI_LO) <= hi_edge or up(ph - TWO_PI_LO) >= lo_edge:
         o_lo, o_hi = 0, nb - 1
     return o_lo, o_hi, e_lo, e_hi, cover
@@ -276,4 +273,5 @@ def range_bounds(z, r_abs, r_rel):
 
 
 __all__ = ["ATAN_ERR", "FIN_MAX", "INF", "atan2_fast", "beam_window", "box_bearings", "box_bearings_fast",
-           "box_ranges", "box_ranges_fin", "dn", "range_bounds", "sensor_box", "sensor_boxes_of", "upf"]
+           "box_ranges", "box_ranges_fin", "dn", "range_bounds", "sensor_box", "sensor_boxes_of", "upf",
+           "window_in_branch"]

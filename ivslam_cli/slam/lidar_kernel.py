@@ -36,9 +36,13 @@ expression):
   that none can be proven empty, fast bearings whose error is checked before they decide an
   index, an O(1) "does a beam of this window meet this range" test).
 
-Hot helpers that never allocate are compiled with ``_nrt=False``: numba would otherwise
-increment and decrement the reference count of every array argument on each call (atomic
-operations that cost more than the geometry).
+Hot helpers are inlined (``inline="always"``: a call with a dozen array arguments costs more
+than their geometry) and take scalars where they can (an array made in the caller and passed to
+an inlined helper gets its reference count changed, atomically, on every use). The few that
+stay calls (the rare exact cell tests, the writes) and never allocate are compiled with
+numba's private ``_nrt=False`` option: without it numba increments and decrements the reference
+count of every array argument on each call, which made the bench log ~25 % slower (measured
+when the others were inlined); a numba upgrade that drops the option breaks them at compile time.
 """
 
 from __future__ import annotations
@@ -48,7 +52,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ivslam_cli.interval.rounding import INF, TWO_PI_HI, TWO_PI_LO, down, up
+from ivslam_cli.interval.rounding import INF, down, up
 from ivslam_cli.paving.tiles import (
     EMPTY,
     OBST_NEW,
@@ -71,6 +75,7 @@ from ivslam_cli.slam.lidar_geometry import (
     dn,
     range_bounds,
     upf,
+    window_in_branch,
 )
 
 _LEVELS = TILE_SHIFT  # quadtree levels per tile (64 = 2^6 cells)
@@ -143,6 +148,27 @@ def beam_tables(ranges, valid, r_abs, r_rel, cos_gap, t_free, t_lo, t_hi, t_fmax
     return rmax
 
 
+@njit(cache=True)
+def _cos_gap(r_alpha, inc, fill):
+    """Factor of the free ranges. Cones that do not touch (``r_alpha < inc / 2``): the gap
+    between two beams is filled (free range times ``cos(inc / 2)``) only under the stated
+    assumption ``fill``; else no free space (a negative factor proves nothing free)."""
+    if r_alpha >= 0.5 * inc:
+        return 1.0
+    if fill:
+        return max(0.0, down(down(math.cos(0.5 * inc)) - 1e-16))
+    return -1.0
+
+
+@njit(cache=True)
+def _tile_range(pxl, pxh, pyl, pyh, rmax, eps):
+    """Tiles ``[tx0, tx1] x [ty0, ty1]`` holding every point within ``rmax`` of the box (one
+    tile of margin)."""
+    side = TILE * eps
+    return (int(math.floor(down(down(pxl - rmax) / side))) - 1, int(math.floor(up(up(pxh + rmax) / side))) + 1,
+            int(math.floor(down(down(pyl - rmax) / side))) - 1, int(math.floor(up(up(pyh + rmax) / side))) + 1)
+
+
 # ---------------------------------------------------------------- growable buffers
 @njit(cache=True)
 def _grow_i(a, need):
@@ -173,26 +199,14 @@ def traverse_reference(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r
     """
     nb = ranges.shape[0]
     h = max(r_alpha, 0.5 * inc)
-    # cones that do not touch (r_alpha < inc/2): the gap between two beams is filled (free
-    # range times cos(inc/2)) only under the stated assumption ``fill``; else no free space
-    # (a negative factor proves nothing free)
-    if r_alpha >= 0.5 * inc:
-        cos_gap = 1.0
-    elif fill:
-        cos_gap = max(0.0, down(down(math.cos(0.5 * inc)) - 1e-16))
-    else:
-        cos_gap = -1.0
+    cos_gap = _cos_gap(r_alpha, inc, fill)
     rmax = beam_tables(ranges, valid, r_abs, r_rel, cos_gap, t_free, t_lo, t_hi, t_fmax)
     n_blk = 0
     n_cand = 0
     if rmax == -INF:
         return n_blk, n_cand, blk, cand, cand_f
     pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
-    side = TILE * eps
-    tx0 = int(math.floor(down(down(pxl - rmax) / side))) - 1
-    tx1 = int(math.floor(up(up(pxh + rmax) / side))) + 1
-    ty0 = int(math.floor(down(down(pyl - rmax) / side))) - 1
-    ty1 = int(math.floor(up(up(pyh + rmax) / side))) + 1
+    tx0, tx1, ty0, ty1 = _tile_range(pxl, pxh, pyl, pyh, rmax, eps)
     sl = np.empty(4 * _LEVELS + 4, dtype=np.int64)
     sx = np.empty(4 * _LEVELS + 4, dtype=np.int64)
     sy = np.empty(4 * _LEVELS + 4, dtype=np.int64)
@@ -381,17 +395,9 @@ def scan_cells_reference(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps
     n_blk, n_cand, blk, cand, cand_f = traverse_reference(keys, slots, cells, ranges, valid, a0, inc, box,
                                                 r_abs, r_rel, r_alpha, eps, exact, lg, t_free,
                                                 t_lo, t_hi, t_fmax, new, blk, cand, cand_f, st, fill)
-    ne = st[1]
-    ex = np.empty(ne, dtype=np.int64)
-    ey = np.empty(ne, dtype=np.int64)
-    k = 0
-    for j in range(n_blk):
-        s = 1 << blk[j, 2]
-        for a in range(s):
-            for b in range(s):
-                ex[k] = blk[j, 0] + a
-                ey[k] = blk[j, 1] + b
-                k += 1
+    ex = np.empty(st[1], dtype=np.int64)
+    ey = np.empty(st[1], dtype=np.int64)
+    _block_cells(blk, n_blk, ex, ey, 0)
     return ex, ey, cand[:n_cand, 0].copy(), cand[:n_cand, 1].copy()
 
 
@@ -458,7 +464,10 @@ def inclusion_new(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel,
 #     cell's largest range against the free ranges of beams in every cell's window), or proven
 #     all-P_OBSTACLE^k at once (_inner's certificate) instead of being refined to single cells;
 #   - a cell's reference window is computed from fast bearings when every index is farther from
-#     a rounding boundary than the error allows (_geom1), else exactly as the reference.
+#     a rounding boundary than the error allows (_geom1), else exactly as the reference;
+#   - a window holding a jump is searched by halving (_meets_g), not beam by beam;
+#   - the geometry of the four children of a split block (and of the four cells of a 2 x 2
+#     block) is computed together, so that the processor overlaps their dependency chains.
 # Blocks that are not simple (around the sensor box, the back of the scan) use the reference's
 # own block test. update_log / scan_cells / traverse / apply are the fast path; the *_reference
 # functions are the oracle of tests/test_lidar_map.py.
@@ -580,18 +589,7 @@ def _window_fast(pl, ph, a0, inc, h, nb, mid, lo_edge, hi_edge):
     c = 0.5 * (pl + ph) - mid
     if not (-3.0 < c < 3.0):
         return beam_window(pl, ph, a0, inc, h, nb)
-    ul = down(down(down(pl - h) - a0) / inc)
-    uh = up(up(up(ph + h) - a0) / inc)
-    if not (-1e9 < ul and uh < 1e9):
-        return 0, nb - 1, 0, -1, False
-    e_lo = int(math.floor(ul))
-    e_hi = int(math.ceil(uh))
-    cover = e_lo >= 0 and e_hi <= nb - 1
-    o_lo = max(e_lo, 0)
-    o_hi = min(e_hi, nb - 1)
-    if down(pl + TWO_PI_LO) <= hi_edge or up(ph - TWO_PI_LO) >= lo_edge:
-        o_lo, o_hi = 0, nb - 1
-    return o_lo, o_hi, e_lo, e_hi, cover
+    return window_in_branch(pl, ph, a0, inc, h, nb, lo_edge, hi_edge)
 
 
 @njit(cache=True, inline="always")
@@ -916,15 +914,7 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     """
     nb = ranges.shape[0]
     h = max(r_alpha, 0.5 * inc)
-    # cones that do not touch (r_alpha < inc/2): the gap between two beams is filled (free
-    # range times cos(inc/2)) only under the stated assumption ``fill``; else no free space
-    # (a negative factor proves nothing free)
-    if r_alpha >= 0.5 * inc:
-        cos_gap = 1.0
-    elif fill:
-        cos_gap = max(0.0, down(down(math.cos(0.5 * inc)) - 1e-16))
-    else:
-        cos_gap = -1.0
+    cos_gap = _cos_gap(r_alpha, inc, fill)
     rmax = _fast_tables(ranges, valid, r_abs, r_rel, cos_gap, T)
     n_tl = 0
     n_blk = 0
@@ -946,11 +936,7 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     iw_min = min(iwx, iwy)
     gmin_c = down(gmin + eps)  # narrowest range interval of a cell: see _inner_consts and _inner
     LC = _level_consts(eps)
-    side = TILE * eps
-    tx0 = int(math.floor(down(down(pxl - rmax) / side))) - 1
-    tx1 = int(math.floor(up(up(pxh + rmax) / side))) + 1
-    ty0 = int(math.floor(down(down(pyl - rmax) / side))) - 1
-    ty1 = int(math.floor(up(up(pyh + rmax) / side))) + 1
+    tx0, tx1, ty0, ty1 = _tile_range(pxl, pxh, pyl, pyh, rmax, eps)
     # the stack of blocks to visit: (level, x, y) in the tile, with their geometry (computed
     # for the four children of a block together, so that the processor overlaps them)
     sl = np.empty(4 * _LEVELS + 4, dtype=np.int64)
@@ -1257,6 +1243,31 @@ def _grown(a):
 
 
 @njit(cache=True)
+def _traverse_grown(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, lg, T,
+                    new, tl, blk, mblk, cand, cand_f, st, fill):
+    """:func:`traverse` of one scan, its record buffers grown (and ``new``, ``st`` reset) until
+    they hold the scan: ``(n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f)``."""
+    nb = ranges.shape[0]
+    while True:
+        new[:nb] = False
+        st[:] = 0
+        ok, n_tl, n_blk, n_mblk, n_cand = traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel,
+                                                   r_alpha, eps, exact, lg, T, new, tl, blk, mblk, cand, cand_f,
+                                                   st, fill)
+        if ok:
+            return n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f
+        if n_tl >= tl.shape[0]:
+            tl = _grown(tl)
+        if n_blk >= blk.shape[0]:
+            blk = _grown(blk)
+        if n_mblk >= mblk.shape[0]:
+            mblk = _grown(mblk)
+        if n_cand >= cand.shape[0]:
+            cand = _grown(cand)
+            cand_f = _grown(cand_f)
+
+
+@njit(cache=True)
 def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min, angle_inc,
                boxes, order, r_abs, r_rel, r_alpha, eps, exact, write, is_old, scan_stats, fill=True):
     """Process scans ``order`` (in that order) from sensor boxes ``boxes`` (S, 6): the same map,
@@ -1277,23 +1288,9 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
         nb = b1 - b0
         if nb == 0:
             continue
-        while True:
-            new[:nb] = False
-            st[:] = 0
-            ok, n_tl, n_blk, n_mblk, n_cand = traverse(
-                keys, slots, cells, ranges[b0:b1], valid[b0:b1], angle_min[s], angle_inc[s],
-                boxes[s], r_abs, r_rel, r_alpha, eps, exact, lg, T, new, tl, blk, mblk, cand, cand_f, st, fill)
-            if ok:
-                break
-            if n_tl >= tl.shape[0]:
-                tl = _grown(tl)
-            if n_blk >= blk.shape[0]:
-                blk = _grown(blk)
-            if n_mblk >= mblk.shape[0]:
-                mblk = _grown(mblk)
-            if n_cand >= cand.shape[0]:
-                cand = _grown(cand)
-                cand_f = _grown(cand_f)
+        n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f = _traverse_grown(
+            keys, slots, cells, ranges[b0:b1], valid[b0:b1], angle_min[s], angle_inc[s], boxes[s], r_abs, r_rel,
+            r_alpha, eps, exact, lg, T, new, tl, blk, mblk, cand, cand_f, st, fill)
         n_new = 0
         n_old = 0
         rmax = -INF
@@ -1337,45 +1334,31 @@ def scan_cells(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, f
     cells = np.zeros((1, TILE, TILE), dtype=np.uint8)
     tl, blk, mblk, cand, cand_f = _record_buffers()
     st = np.zeros(4, dtype=np.int64)
-    while True:
-        new[:] = False
-        st[:] = 0
-        ok, n_tl, n_blk, n_mblk, n_cand = traverse(
-            keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, lg,
-            T, new, tl, blk, mblk, cand, cand_f, st, fill)
-        if ok:
-            break
-        if n_tl >= tl.shape[0]:
-            tl = _grown(tl)
-        if n_blk >= blk.shape[0]:
-            blk = _grown(blk)
-        if n_mblk >= mblk.shape[0]:
-            mblk = _grown(mblk)
-        if n_cand >= cand.shape[0]:
-            cand = _grown(cand)
-            cand_f = _grown(cand_f)
+    n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f = _traverse_grown(
+        keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, lg, T, new, tl, blk,
+        mblk, cand, cand_f, st, fill)
     ex = np.empty(st[1], dtype=np.int64)
     ey = np.empty(st[1], dtype=np.int64)
-    k = 0
-    for j in range(n_blk):
-        s = 1 << blk[j, 2]
-        for a in range(s):
-            for b in range(s):
-                ex[k] = blk[j, 0] + a
-                ey[k] = blk[j, 1] + b
-                k += 1
+    _block_cells(blk, n_blk, ex, ey, 0)
     ox = np.empty(st[3], dtype=np.int64)
     oy = np.empty(st[3], dtype=np.int64)
-    k = 0
-    for j in range(n_mblk):
-        s = 1 << mblk[j, 2]
-        for a in range(s):
-            for b in range(s):
-                ox[k] = mblk[j, 0] + a
-                oy[k] = mblk[j, 1] + b
-                k += 1
+    k = _block_cells(mblk, n_mblk, ox, oy, 0)
     for j in range(n_cand):
         ox[k] = cand[j, 0]
         oy[k] = cand[j, 1]
         k += 1
     return ex, ey, ox, oy
+
+
+@njit(cache=True)
+def _block_cells(rec, n_rec, ox, oy, k):
+    """The cells of blocks ``rec[j] = (ix, iy, level, ...)`` (``j < n_rec``) into ``ox, oy`` from
+    index ``k``; returns the next index."""
+    for j in range(n_rec):
+        s = 1 << rec[j, 2]
+        for a in range(s):
+            for b in range(s):
+                ox[k] = rec[j, 0] + a
+                oy[k] = rec[j, 1] + b
+                k += 1
+    return k
