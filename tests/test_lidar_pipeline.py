@@ -120,6 +120,8 @@ def test_keyframe_scan_matching_keeps_the_truth(seed, world):
                                                 "lidar.keyframe_turn": 0.2, "lidar.match_boxes": 300})
     assert_truth_kept(log, out)
     assert out.stats["keyframes"] >= 2 and out.stats["keyframes_matched"] >= 1
+    # sound data: no keyframe match may come out empty (that would be an empty event)
+    assert not any(str(c).startswith("keyframe") for c in out.consistency.empty_events.constraint)
     pairs, boxes = out.relative
     assert pairs.shape[0] > 0
     tr = log.truth
@@ -317,3 +319,22 @@ def test_keyframes_without_map_contraction_and_zero_areas():
     from ivslam_cli.paving.tiles import TileMap
 
     assert TileMap(0.05).area("obstacle", upward=True) == 0.0
+
+
+def test_a_scan_contradicting_its_keyframe_is_an_empty_event():
+    """Scans whose ranges are all halved (the bounds broken) cannot match their keyframe: the
+    run says so as empty events instead of dropping the empty intersection."""
+    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=2, steps=60,
+                             bounds={"range_abs": 0.01, "range_rel": 0.005}))
+    sc = log.scans
+    r = sc.ranges.copy()
+    for k in range(30, 60):
+        r[sc.offsets[k]:sc.offsets[k + 1]] *= 0.5
+    bad = replace(log, scans=replace(sc, ranges=r))
+    cfg = resolve_config(None, {"landmarks.initial_pose_from_truth": True, "lidar.fill_gaps": True,
+                                "lidar.keyframes": True, "lidar.contract": False, "lidar.q_beams": 0,
+                                "lidar.keyframe_distance": 0.2, "lidar.match_boxes": 300}, log_bounds=log.bounds)
+    out = run_lidar(bad, cfg)
+    kinds = [str(c) for c in out.consistency.empty_events.constraint]
+    assert any(c.startswith("keyframe") for c in kinds), kinds
+    assert out.stats["keyframes_unmatched"] + kinds.count("keyframe_meet") >= 1

@@ -239,6 +239,7 @@ class Tracking:
     unmatched: int  # keyframe matches where no relative pose agreed with both scans (box kept)
     rel_pairs: np.ndarray  # (R, 2) rows (keyframe scan, scan) among the used scans
     rel_boxes: np.ndarray  # (R, 6) robot pose of the second in the robot frame of the first
+    kf_empty: list  # (row, kind, keyframe row) of keyframe matches that found no solution (box kept)
 
 
 @dataclass
@@ -306,6 +307,7 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
     m_stride = int(cfg["lidar.match_stride"])
     unmatched = 0
     rel_pairs: list = []
+    kf_empty: list = []  # (row, kind, keyframe row): empty intersections of keyframe matching
     rel_boxes: list = []
     boxes = np.empty((used.size, 6))
     before = np.empty((used.size, 6))
@@ -354,8 +356,11 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
                             box = met[0]
                             relative[j] = True
                             meet_node(P, k, box, rp, rt)
+                        else:  # keyframe box (+) relative box misses the predicted box: a contradiction
+                            kf_empty.append((j, "keyframe_meet", kf.row))
                     else:
                         unmatched += 1
+                        kf_empty.append((j, "keyframe_match", kf.row))
             if np.all(np.isfinite(rel)):
                 rel_pairs.append((kf.row, j))
                 rel_boxes.append(rel.copy())
@@ -396,7 +401,7 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
                                                                forward, smoothed, too_wide, relative, keyframes,
                                                                unmatched,
                                                                np.array(rel_pairs, np.int64).reshape(-1, 2),
-                                                               np.array(rel_boxes, float).reshape(-1, 6))
+                                                               np.array(rel_boxes, float).reshape(-1, 6), kf_empty)
 
 
 def predict_poses(log: LogData, cfg: Config, scans: Scans) -> PosePrediction:
@@ -532,6 +537,13 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
                   f"scan {int(used[j])} (t={float(stamp[j]):.3f} s): every pose of its box puts more than "
                   f"q = {cfg['lidar.q_beams']} beam ends in proven-free cells; its box kept uncontracted")
                  for j in np.flatnonzero(tracking.contradicted)]
+        rows += [(float(stamp[j]), int(used[j]), kind, (int(used[j]), int(used[r])), -1,
+                  f"scan {int(used[j])} (t={float(stamp[j]):.3f} s) vs keyframe scan {int(used[r])}: "
+                  + ("no relative pose puts at most q beam ends of either scan in the other's free space"
+                     if kind == "keyframe_match" else
+                     "the keyframe's box composed with the matched relative box misses the predicted box")
+                  + "; its box kept unmatched")
+                 for j, kind, r in tracking.kf_empty]
         rows.sort(key=lambda r: r[0])
     events = EmptyEvents(
         stamp=np.array([r[0] for r in rows], float), step=np.array([r[1] for r in rows], np.int64),
