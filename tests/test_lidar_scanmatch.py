@@ -59,7 +59,10 @@ def test_the_true_relative_pose_stays_in_the_box(world, seed, tight, j, dk, hxy,
     k = j + dk
     t = _relative(log, j, k)
     lo = t - 2 * np.array([hxy, hxy, hth]) * np.array([fx, fy, ft])
-    box = np.array([lo[0], lo[0] + 2 * hxy, lo[1], lo[1] + 2 * hxy, lo[2], lo[2] + 2 * hth])
+    hi = lo + 2 * np.array([hxy, hxy, hth])
+    lo, hi = np.minimum(lo, t), np.maximum(hi, t)  # rounding must not leave the truth out of the box
+    box = np.array([lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]])
+    assert _inside(box, t)
     out, kept, tested = match_scan(log.scans, j, k, box, _bounds(log), q=q, stride=stride, max_boxes=240)
     assert kept > 0, "the true relative pose was excluded"
     assert _inside(out, t)
