@@ -37,10 +37,10 @@ import threading
 import numpy as np
 from numba import njit
 
-from ivslam_cli.interval.arith import add, cos, mul, sin, sub
+from ivslam_cli.interval.arith import add
 from ivslam_cli.interval.rounding import down, up
 from ivslam_cli.paving.tiles import EMPTY, TILE, cell_flags
-from ivslam_cli.slam.lidar_geometry import range_bounds, sensor_box
+from ivslam_cli.slam.lidar_geometry import beam_offset, range_bounds, sensor_box, sensor_offset
 
 #: an endpoint region over more cells than this is not tested (kept: sound, cheaper)
 MAX_REGION_CELLS = 64
@@ -63,6 +63,22 @@ def _region_free(keys, slots, cells, eps, xl, xh, yl, yh):
 
 
 @njit(cache=True)
+def _empty_hull():
+    """The hull of no box: ``[+inf, -inf]`` on each of the six bounds."""
+    hull = np.empty(6)
+    hull[0::2] = np.inf
+    hull[1::2] = -np.inf
+    return hull
+
+
+@njit(cache=True, inline="always")
+def _join(hull, b):
+    """``hull`` (6,) := the hull of ``hull`` and the box ``b`` (6,)."""
+    for d in range(6):
+        hull[d] = min(hull[d], b[d]) if d % 2 == 0 else max(hull[d], b[d])
+
+
+@njit(cache=True)
 def excluded_beams(keys, slots, cells, eps, ranges, valid, a0, inc, sb, r_abs, r_rel, r_alpha, stride, q):
     """Number of beams (every ``stride``-th beam, those valid) whose endpoint region from the
     sensor box ``sb`` lies in proven-free cells; stops counting past ``q``."""
@@ -71,13 +87,7 @@ def excluded_beams(keys, slots, cells, eps, ranges, valid, a0, inc, sb, r_abs, r
         if not valid[i]:
             continue
         rl, rh = range_bounds(float(ranges[i]), r_abs, r_rel)
-        al, ah = add(sb[4], sb[5], a0 + i * inc, a0 + i * inc)
-        al = down(down(al - r_alpha) - 1e-15 * abs(al))
-        ah = up(up(ah + r_alpha) + 1e-15 * abs(ah))
-        cl, ch = cos(al, ah)
-        sl, sh = sin(al, ah)
-        dxl, dxh = mul(rl, rh, cl, ch)
-        dyl, dyh = mul(rl, rh, sl, sh)
+        dxl, dxh, dyl, dyh = beam_offset(sb[4], sb[5], rl, rh, a0 + i * inc, r_alpha)
         xl, xh = add(sb[0], sb[1], dxl, dxh)
         yl, yh = add(sb[2], sb[3], dyl, dyh)
         if _region_free(keys, slots, cells, eps, xl, xh, yl, yh):
@@ -105,15 +115,12 @@ def contract_kernel_reference(keys, slots, cells, eps, ranges, valid, a0, inc, b
     n_cur = 1
     tested = 0
     kept = 0
-    hull = np.empty(6)
-    hull[0::2] = np.inf
-    hull[1::2] = -np.inf
+    hull = _empty_hull()
     while n_cur > 0:
         if tested + n_cur > max_boxes:  # out of budget: keep this level as it is
             for j in range(n_cur):
-                kept += 1
-                for d in range(6):
-                    hull[d] = min(hull[d], cur[j, d]) if d % 2 == 0 else max(hull[d], cur[j, d])
+                _join(hull, cur[j])
+            kept += n_cur
             break
         n_nxt = 0
         for j in range(n_cur):
@@ -129,8 +136,7 @@ def contract_kernel_reference(keys, slots, cells, eps, ranges, valid, a0, inc, b
             wt = (b[5] - b[4]) * reach
             if (wx <= min_xy and wy <= min_xy and b[5] - b[4] <= min_th) or n_nxt + 2 > cap:
                 kept += 1
-                for d in range(6):
-                    hull[d] = min(hull[d], b[d]) if d % 2 == 0 else max(hull[d], b[d])
+                _join(hull, b)
                 continue
             d = 0 if (wx >= wy and wx >= wt) else (1 if wy >= wt else 2)
             m = 0.5 * (b[2 * d] + b[2 * d + 1])
@@ -242,15 +248,7 @@ def _node_sensor(tl, th, mx, my, myaw):
     """The sensor offset and heading of the heading interval ``[tl, th]`` as :func:`sensor_box`
     computes them, ``(ox, oxh, oy, oyh, stl, sth)``, then the sensor offset of the heading
     ``mid(tl, th)`` in floating point (for witnesses)."""
-    cl, ch = cos(tl, th)
-    sl, sh = sin(tl, th)
-    ax, bx = mul(cl, ch, mx, mx)
-    cx, dx = mul(sl, sh, my, my)
-    ox, oxh = sub(ax, bx, cx, dx)
-    ay, by = mul(sl, sh, mx, mx)
-    cy, dy = mul(cl, ch, my, my)
-    oy, oyh = add(ay, by, cy, dy)
-    stl, sth = add(tl, th, myaw, myaw)
+    ox, oxh, oy, oyh, stl, sth = sensor_offset(tl, th, mx, my, myaw)
     tc = 0.5 * (tl + th)
     c, s = math.cos(tc), math.sin(tc)
     return ox, oxh, oy, oyh, stl, sth, c * mx - s * my, s * mx + c * my
@@ -282,20 +280,6 @@ def _node_witness(tl, th, myaw, rmid, rh, uc, us, wit, row):
         wit[row, j, 1] = rmid[j] * ey
         wit[row, j, 2] = rh[j] * ex
         wit[row, j, 3] = rh[j] * ey
-
-
-@njit(cache=True, inline="always")
-def _beam_offset(stl, sth, rl, rh, ang, r_alpha):
-    """Endpoint offset of one beam from the sensor heading ``[stl, sth]``, as
-    :func:`excluded_beams` computes it: ``(dxl, dxh, dyl, dyh)``."""
-    al, ah = add(stl, sth, ang, ang)
-    al = down(down(al - r_alpha) - 1e-15 * abs(al))
-    ah = up(up(ah + r_alpha) + 1e-15 * abs(ah))
-    cl, ch = cos(al, ah)
-    sl, sh = sin(al, ah)
-    dxl, dxh = mul(rl, rh, cl, ch)
-    dyl, dyh = mul(rl, rh, sl, sh)
-    return dxl, dxh, dyl, dyh
 
 
 @njit(cache=True, inline="always")
@@ -413,7 +397,7 @@ def _level(cur, cur_n, cur_b, cur_o, nxt, nxt_n, nxt_b, nxt_o, n_cur, cap, hull,
                                   and F[(ix - wx0) * ny + iy - wy0] != 0):
                         continue
                 if st == 0:
-                    dxl, dxh, dyl, dyh = _beam_offset(stl, sth, rl[k], rh[k], ang[k], r_alpha)
+                    dxl, dxh, dyl, dyh = beam_offset(stl, sth, rl[k], rh[k], ang[k], r_alpha)
                     dof[row, k, 0] = dxl
                     dof[row, k, 1] = dxh
                     dof[row, k, 2] = dyl
@@ -454,8 +438,7 @@ def _level(cur, cur_n, cur_b, cur_o, nxt, nxt_n, nxt_b, nxt_o, n_cur, cap, hull,
         wt = (b5 - b4) * reach
         if (wx <= min_xy and wy <= min_xy and b5 - b4 <= min_th) or n_nxt + 2 > cap:
             kept += 1
-            for d in range(6):
-                hull[d] = min(hull[d], cur[j, d]) if d % 2 == 0 else max(hull[d], cur[j, d])
+            _join(hull, cur[j])
             continue
         d = 0 if (wx >= wy and wx >= wt) else (1 if wy >= wt else 2)
         mid = 0.5 * (cur[j, 2 * d] + cur[j, 2 * d + 1])
@@ -604,15 +587,12 @@ def contract_kernel(keys, slots, cells, coords, n_tiles, eps, ranges, valid, a0,
     n_cur = 1
     tested = 0
     kept = 0
-    hull = np.empty(6)
-    hull[0::2] = np.inf
-    hull[1::2] = -np.inf
+    hull = _empty_hull()
     while n_cur > 0:
         if tested + n_cur > max_boxes:  # out of budget: keep this level as it is
             for j in range(n_cur):
-                kept += 1
-                for d in range(6):
-                    hull[d] = min(hull[d], cur[j, d]) if d % 2 == 0 else max(hull[d], cur[j, d])
+                _join(hull, cur[j])
+            kept += n_cur
             break
         if n_rows + n_cur > wit.shape[0]:  # room for this level's new pool rows
             rows = max(2 * wit.shape[0], n_rows + n_cur)

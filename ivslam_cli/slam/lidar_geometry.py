@@ -37,12 +37,10 @@ from ivslam_cli.interval.rounding import INF, PI_HI, PI_LO, TWO_PI_HI, TWO_PI_LO
 
 
 @njit(cache=True)
-def sensor_box(xl, xh, yl, yh, tl, th, mx, my, myaw):
-    """Sensor pose box from a robot pose box and the mount ``(mx, my, myaw)``.
-
-    Every sensor pose ``(x + cos θ mx - sin θ my, y + sin θ mx + cos θ my, θ + myaw)`` of a
-    robot pose in the box is inside the returned ``(xl, xh, yl, yh, tl, th)``.
-    """
+def sensor_offset(tl, th, mx, my, myaw):
+    """The mount's offset and heading for the robot headings ``[tl, th]``: every ``(cos θ mx -
+    sin θ my, sin θ mx + cos θ my)`` and ``θ + myaw`` is inside the returned ``(oxl, oxh, oyl,
+    oyh, stl, sth)``."""
     cl, ch = cos(tl, th)
     sl, sh = sin(tl, th)
     ax, bx = mul(cl, ch, mx, mx)
@@ -51,10 +49,36 @@ def sensor_box(xl, xh, yl, yh, tl, th, mx, my, myaw):
     ay, by = mul(sl, sh, mx, mx)
     cy, dy = mul(cl, ch, my, my)
     oy, oyh = add(ay, by, cy, dy)
+    stl, sth = add(tl, th, myaw, myaw)
+    return ox, oxh, oy, oyh, stl, sth
+
+
+@njit(cache=True)
+def sensor_box(xl, xh, yl, yh, tl, th, mx, my, myaw):
+    """Sensor pose box from a robot pose box and the mount ``(mx, my, myaw)``.
+
+    Every sensor pose ``(x + cos θ mx - sin θ my, y + sin θ mx + cos θ my, θ + myaw)`` of a
+    robot pose in the box is inside the returned ``(xl, xh, yl, yh, tl, th)``.
+    """
+    ox, oxh, oy, oyh, stl, sth = sensor_offset(tl, th, mx, my, myaw)
     sxl, sxh = add(xl, xh, ox, oxh)
     syl, syh = add(yl, yh, oy, oyh)
-    stl, sth = add(tl, th, myaw, myaw)
     return sxl, sxh, syl, syh, stl, sth
+
+
+@njit(cache=True, inline="always")
+def beam_offset(stl, sth, rl, rh, ang, r_alpha):
+    """Endpoint offset from the sensor of a beam at angle ``ang`` with ranges ``[rl, rh]``, for
+    every sensor heading in ``[stl, sth]`` and bearing error within ``r_alpha``: ``(dxl, dxh,
+    dyl, dyh)`` (the angle sum widened by 1e-15 relative beyond its outward rounding)."""
+    al, ah = add(stl, sth, ang, ang)
+    al = down(down(al - r_alpha) - 1e-15 * abs(al))
+    ah = up(up(ah + r_alpha) + 1e-15 * abs(ah))
+    cl, ch = cos(al, ah)
+    sl, sh = sin(al, ah)
+    dxl, dxh = mul(rl, rh, cl, ch)
+    dyl, dyh = mul(rl, rh, sl, sh)
+    return dxl, dxh, dyl, dyh
 
 
 @njit(cache=True)
@@ -273,5 +297,5 @@ def range_bounds(z, r_abs, r_rel):
 
 
 __all__ = ["ATAN_ERR", "FIN_MAX", "INF", "atan2_fast", "beam_window", "box_bearings", "box_bearings_fast",
-           "box_ranges", "box_ranges_fin", "dn", "range_bounds", "sensor_box", "sensor_boxes_of", "upf",
+           "beam_offset", "box_ranges", "box_ranges_fin", "dn", "range_bounds", "sensor_box", "sensor_offset", "sensor_boxes_of", "upf",
            "window_in_branch"]

@@ -37,9 +37,9 @@ import math
 import numpy as np
 from numba import njit
 
-from ivslam_cli.interval.arith import add, cos, mul, sin
+from ivslam_cli.interval.arith import add
 from ivslam_cli.interval.rounding import down, up
-from ivslam_cli.slam.lidar_geometry import box_bearings, box_ranges, range_bounds, sensor_box
+from ivslam_cli.slam.lidar_geometry import beam_offset, box_bearings, box_ranges, range_bounds, sensor_box
 
 TWO_PI = 2.0 * math.pi
 #: margin on bearings shifted by whole turns (2π·n in floating point, |n| small)
@@ -85,13 +85,7 @@ def covered_free(f, a0, inc, bl, bh, rho_h):
 def _endpoint(sxl, sxh, syl, syh, stl, sth, z, a, r_abs, r_rel, r_alpha):
     """Endpoint region (box) of a beam of range ``z`` at angle ``a`` from the sensor box."""
     rl, rh = range_bounds(z, r_abs, r_rel)
-    al, ah = add(stl, sth, a, a)
-    al = down(down(al - r_alpha) - 1e-15 * abs(al))
-    ah = up(up(ah + r_alpha) + 1e-15 * abs(ah))
-    cl, ch = cos(al, ah)
-    sl, sh = sin(al, ah)
-    dxl, dxh = mul(rl, rh, cl, ch)
-    dyl, dyh = mul(rl, rh, sl, sh)
+    dxl, dxh, dyl, dyh = beam_offset(stl, sth, rl, rh, a, r_alpha)
     xl, xh = add(sxl, sxh, dxl, dxh)
     yl, yh = add(syl, syh, dyl, dyh)
     return xl, xh, yl, yh
