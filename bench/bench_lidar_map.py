@@ -14,6 +14,18 @@ is the process's peak RSS growth during the timed runs and the map's own arrays.
 The cell-by-cell reference (``lidar_kernel.update_log_reference``) runs on the same log in the
 same process: its time gives the speed-up, and its map, old/new beams and counts must equal
 the fast path's bit for bit (FAIL otherwise), as must the truth check of the simulated log.
+
+Where the time goes (perf, samples mapped onto the cached object code; 1,200 scans, exact
+leaf test, 91-94 % of the target): ``traverse`` 82 %, ``_write`` 8 %, ``_fast_tables`` 4 %,
+the exact cell tests 3 %. Within ``traverse`` the profile is flat (no 64-byte block over 3 %):
+per scan about 4,100 quadtree nodes, 2,000 of them single cells, and 1,400 calls of ``_inner``
+(~20 % of ``traverse``). Measured without gain (within the 3 % noise, the same results): the
+children's ``_inner`` computed together; no ``_inner`` on 2x2 blocks; 2x2 blocks decided as 16
+cells from their 4x4 parent; the hull instead of the exact test on 2x2 blocks;
+``error_model="numpy"``; ``_nrt=False`` on ``traverse``. What is left is the cost of the
+band's boundary at 5 cm (a beam's endpoint region at ±0.2 m / ±3° is 0.4-0.7 m thick): a
+further step needs fewer boundary nodes (a certificate for the 134 of 510 refined 2x2 blocks
+whose four cells all are in P_OBSTACLE^k) or branch-free, vectorised cell geometry.
 """
 
 from __future__ import annotations
