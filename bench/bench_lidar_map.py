@@ -22,11 +22,11 @@ Within ``traverse`` no 64-byte block holds over 3 %; by source line the outward 
 walks ``_meets`` 6 %, ``_inner`` ~20 %. Per scan about 4,100 quadtree nodes, 2,000 of them
 single cells. Measured without gain (within the 3 % noise): the children's ``_inner`` computed
 together; the hull instead of the exact test on 2x2 blocks; ``error_model="numpy"``;
-``_nrt=False`` on ``traverse``; table rows padded to 64 bytes (slower). Measured with gain but
-not kept: per-scan axis tables of the cells' sides and offsets from the sensor box (~4 % on
-``traverse``; passed to the inlined geometry as scalars, an array made in ``traverse`` and
-passed to an inlined helper costs ~20 % in reference counting), and 4x4 blocks decided cell by
-cell (~6 %) — wrong: the reference proves P_EMPTY^k block by block, and a 2x2 block can pass
+``_nrt=False`` on ``traverse``; table rows padded to 64 bytes (slower). Applied: per-scan axis
+tables of the cells' sides and offsets from the sensor box (~4 % on ``traverse``; passed to the
+inlined geometry as scalars: an array made in ``traverse`` and passed to an inlined helper
+costs ~20 % in reference counting). Measured with gain but reverted: 4x4 blocks decided cell
+by cell (~6 %) — wrong: the reference proves P_EMPTY^k block by block, and a 2x2 block can pass
 its test where one of its cells alone fails (a random case of
 ``test_fast_scan_cells_equal_reference`` lost empty cells). What is left is the band's
 boundary at 5 cm (a beam's endpoint region at ±0.2 m / ±3° is 0.4-0.7 m thick). The shared

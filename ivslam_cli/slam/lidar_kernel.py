@@ -661,8 +661,14 @@ def _geom1(cx, cy, eps, pxl, pxh, pyl, pyh, thl, thh, a0, h, nb, mid, lo_edge, h
     the reference's chain) from an integer, the floor / ceil are those of the exact value, and
     so are the branch and the "other branch" test when farther than ``err`` from their limits.
     """
-    dxl, dxh = dn(dn(cx * eps) - pxh), upf(upf((cx + 1) * eps) - pxl)
-    dyl, dyh = dn(dn(cy * eps) - pyh), upf(upf((cy + 1) * eps) - pyl)
+    return _geom1_d(dn(dn(cx * eps) - pxh), upf(upf((cx + 1) * eps) - pxl), dn(dn(cy * eps) - pyh),
+                    upf(upf((cy + 1) * eps) - pyl), thl, thh, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc)
+
+
+@njit(cache=True, inline="always")
+def _geom1_d(dxl, dxh, dyl, dyh, thl, thh, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc):
+    """:func:`_geom1` from the cell's offsets from the sensor box ``[dxl, dxh] x [dyl, dyh]``
+    (:func:`_axis_table`)."""
     r_lo, r_hi = box_ranges_fin(dxl, dxh, dyl, dyh)
     bl, bh, full = box_bearings_fast(dxl, dxh, dyl, dyh)
     if full:
@@ -730,17 +736,29 @@ def _window_block(bl, bh, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, e
     return max(e_lo, 0), min(e_hi, nb - 1), e_lo, e_hi, cover, simple
 
 
+@njit(cache=True)
+def _axis_table(i0, n, eps, pl, ph):
+    """Per grid column (or row) ``i0 + k`` of a scan's tiles, ``k < n``: the cell's sides
+    rounded outward ``(dn(i eps), upf((i + 1) eps))`` and its offsets from the sensor box's
+    ``[pl, ph]`` on that axis, ``(dn(dn(i eps) - ph), upf(upf((i + 1) eps) - pl))`` (the values
+    the blocks and cells of the scan use, computed once)."""
+    A = np.empty((n, 4))
+    for k in range(n):
+        i = i0 + k
+        A[k, 0] = dn(i * eps)
+        A[k, 1] = upf((i + 1) * eps)
+        A[k, 2] = dn(A[k, 0] - ph)
+        A[k, 3] = upf(A[k, 1] - pl)
+    return A
+
+
 @njit(cache=True, inline="always")
-def _node_geom(ix, iy, s, eps, pxl, pxh, pyl, pyh, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err):
+def _node_geom(x0, x1, y0, y1, dxl, dxh, dyl, dyh, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err):
     """A block's corners (rounded outward), range interval and fast outer window
     (:func:`_window_block`): ``(x0, x1, y0, y1, r_lo, r_hi, o_lo, o_hi, e_lo, e_hi, cover, simple)``
-    (``simple`` False: use the reference's block test)."""
-    x0 = dn(ix * eps)
-    x1 = upf((ix + s) * eps)
-    y0 = dn(iy * eps)
-    y1 = upf((iy + s) * eps)
-    dxl, dxh = dn(x0 - pxh), upf(x1 - pxl)
-    dyl, dyh = dn(y0 - pyh), upf(y1 - pyl)
+    (``simple`` False: use the reference's block test). The corners and the offsets from the
+    sensor box come from :func:`_axis_table` (scalars: an array passed to an inlined helper
+    costs reference counting on every call)."""
     r_lo, r_hi = box_ranges_fin(dxl, dxh, dyl, dyh)
     bl, bh, full = box_bearings_fast(dxl, dxh, dyl, dyh)
     if not full and bh - bl < 3.0:
@@ -897,6 +915,8 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
              exact, lg, T, new, tl, blk, mblk, cand, cand_f, stats, fill=True):
     """P_EMPTY^k, P_OBSTACLE^k and the new beams of one scan (fast path; the same cells and
     beams as :func:`traverse_reference`). ``T``: the scan's table (:func:`_fast_tables`).
+    The cells' sides and offsets from the sensor box come from per-axis tables
+    (:func:`_axis_table`: the same roundings, once per column and row).
 
     The map (``keys, slots, cells``) is only read. Outputs, in buffers of fixed size:
     ``tl[j] = (tx, ty, flags)`` the tiles holding records, in traversal order (flags: 1 =
@@ -937,6 +957,10 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     gmin_c = down(gmin + eps)  # narrowest range interval of a cell: see _inner_consts and _inner
     LC = _level_consts(eps)
     tx0, tx1, ty0, ty1 = _tile_range(pxl, pxh, pyl, pyh, rmax, eps)
+    i0 = tx0 * TILE
+    j0 = ty0 * TILE
+    CX = _axis_table(i0, (tx1 - tx0 + 1) * TILE, eps, pxl, pxh)
+    CY = _axis_table(j0, (ty1 - ty0 + 1) * TILE, eps, pyl, pyh)
     # the stack of blocks to visit: (level, x, y) in the tile, with their geometry (computed
     # for the four children of a block together, so that the processor overlaps them)
     sl = np.empty(4 * _LEVELS + 4, dtype=np.int64)
@@ -954,8 +978,12 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
         for ty in range(ty0, ty1 + 1):
             t = find(keys, slots, tx, ty)
             slot = -1
-            g = _node_geom(tx * TILE, ty * TILE, TILE, eps, pxl, pxh, pyl, pyh, thl, thh, a0, inv_inc, h, nb,
-                           mid, lo_edge, hi_edge, err)
+            ca = tx * TILE - i0
+            cc = ty * TILE - j0
+            ce = ca + TILE - 1
+            rb_ = cc + TILE - 1
+            g = _node_geom(CX[ca, 0], CX[ce, 1], CY[cc, 0], CY[rb_, 1], CX[ca, 2], CX[ce, 3], CY[cc, 2], CY[rb_, 3],
+                           thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err)
             sl[0], sx[0], sy[0] = _LEVELS, 0, 0
             sf[0, 0], sf[0, 1], sf[0, 2], sf[0, 3], sf[0, 4], sf[0, 5] = g[0], g[1], g[2], g[3], g[4], g[5]
             sw[0, 0], sw[0, 1], sw[0, 2], sw[0, 3], sw[0, 4], sw[0, 5] = g[6], g[7], g[8], g[9], g[10], g[11]
@@ -1048,14 +1076,22 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                     continue
                 if lev > 1:
                     half = s >> 1
-                    G = (_node_geom(ix, iy, half, eps, pxl, pxh, pyl, pyh, thl, thh, a0, inv_inc, h, nb, mid,
-                                    lo_edge, hi_edge, err),
-                         _node_geom(ix + half, iy, half, eps, pxl, pxh, pyl, pyh, thl, thh, a0, inv_inc, h, nb,
-                                    mid, lo_edge, hi_edge, err),
-                         _node_geom(ix, iy + half, half, eps, pxl, pxh, pyl, pyh, thl, thh, a0, inv_inc, h, nb,
-                                    mid, lo_edge, hi_edge, err),
-                         _node_geom(ix + half, iy + half, half, eps, pxl, pxh, pyl, pyh, thl, thh, a0, inv_inc,
-                                    h, nb, mid, lo_edge, hi_edge, err))
+                    ca = ix - i0  # columns ca .. cm - 1 and cm .. ce, rows likewise
+                    cm = ca + half
+                    ce = ca + s - 1
+                    ra = iy - j0
+                    rm = ra + half
+                    rb_ = ra + s - 1
+                    cn = cm - 1
+                    rn = rm - 1
+                    G = (_node_geom(CX[ca, 0], CX[cn, 1], CY[ra, 0], CY[rn, 1], CX[ca, 2], CX[cn, 3], CY[ra, 2],
+                                    CY[rn, 3], thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err),
+                         _node_geom(CX[cm, 0], CX[ce, 1], CY[ra, 0], CY[rn, 1], CX[cm, 2], CX[ce, 3], CY[ra, 2],
+                                    CY[rn, 3], thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err),
+                         _node_geom(CX[ca, 0], CX[cn, 1], CY[rm, 0], CY[rb_, 1], CX[ca, 2], CX[cn, 3], CY[rm, 2],
+                                    CY[rb_, 3], thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err),
+                         _node_geom(CX[cm, 0], CX[ce, 1], CY[rm, 0], CY[rb_, 1], CX[cm, 2], CX[ce, 3], CY[rm, 2],
+                                    CY[rb_, 3], thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err))
                     for q in range(4):
                         g = G[q]
                         sl[sp] = lev - 1
@@ -1067,14 +1103,16 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                         sp += 1
                     continue
                 # the four cells: geometry of all four, then the reference's leaf decisions
-                G4 = (_geom1(ix, iy, eps, pxl, pxh, pyl, pyh, thl, thh, a0, h, nb, mid, lo_edge, hi_edge, err,
-                             inv_inc),
-                      _geom1(ix + 1, iy, eps, pxl, pxh, pyl, pyh, thl, thh, a0, h, nb, mid, lo_edge, hi_edge,
-                             err, inv_inc),
-                      _geom1(ix, iy + 1, eps, pxl, pxh, pyl, pyh, thl, thh, a0, h, nb, mid, lo_edge, hi_edge,
-                             err, inv_inc),
-                      _geom1(ix + 1, iy + 1, eps, pxl, pxh, pyl, pyh, thl, thh, a0, h, nb, mid, lo_edge,
-                             hi_edge, err, inv_inc))
+                c0 = ix - i0
+                r0 = iy - j0
+                G4 = (_geom1_d(CX[c0, 2], CX[c0, 3], CY[r0, 2], CY[r0, 3], thl, thh, a0, h, nb, mid, lo_edge,
+                               hi_edge, err, inv_inc),
+                      _geom1_d(CX[c0 + 1, 2], CX[c0 + 1, 3], CY[r0, 2], CY[r0, 3], thl, thh, a0, h, nb, mid,
+                               lo_edge, hi_edge, err, inv_inc),
+                      _geom1_d(CX[c0, 2], CX[c0, 3], CY[r0 + 1, 2], CY[r0 + 1, 3], thl, thh, a0, h, nb, mid,
+                               lo_edge, hi_edge, err, inv_inc),
+                      _geom1_d(CX[c0 + 1, 2], CX[c0 + 1, 3], CY[r0 + 1, 2], CY[r0 + 1, 3], thl, thh, a0, h, nb,
+                               mid, lo_edge, hi_edge, err, inv_inc))
                 for q in range(4):
                     nodes += 1
                     cx_ = ix + (q & 1)
