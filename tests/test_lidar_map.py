@@ -705,6 +705,20 @@ def test_update_map_scan_by_scan_equals_one_call():
         update_map(b, scans, boxes[:-1], bounds, order=[0])
 
 
+def test_scan_reach_is_bounded():
+    """A return beyond MAX_SPAN_TILES tiles a side (1e5 m at 5 cm) is refused by both paths
+    instead of traversing ~10^9 tiles; the same scan without it maps."""
+    r = np.array([2.0, 1e5, 3.0], np.float32)
+    v = np.ones(3, np.bool_)
+    box = np.array([0.0, 0.1, 0.0, 0.1, 0.0, 0.05])
+    for f in (K.scan_cells, K.scan_cells_reference):
+        with pytest.raises(ValueError, match="4096 tiles"):
+            f(r, v, -0.1, 0.1, box, 0.01, 0.0, 0.0, 0.05, True)
+        v2 = v.copy()
+        v2[1] = False
+        assert len(f(r, v2, -0.1, 0.1, box, 0.01, 0.0, 0.0, 0.05, True)[2]) > 0
+
+
 def test_bench_lidar_map_runs_and_checks(capsys):
     """The benchmark on a short log: the fast path against the reference (same map, old beams and
     counts) and against the truth of the simulated log, both reported OK (the timing verdict is

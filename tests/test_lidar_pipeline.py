@@ -220,6 +220,20 @@ def test_one_line_errors(tmp_path):
     r = CliRunner().invoke(main, ["run", str(no_odo), "--mode", "lidar", "--poses-known", "-o",
                                   str(tmp_path / "q.h5"), "--config", str(_toml(tmp_path, 'known_poses = "scan"'))])
     assert r.exit_code == 2 and "records no pose with its scans" in r.output
+    # a return far beyond any 2D LiDAR (a unit or encoding error) is refused before the map
+    # update would spend hours on it; lidar.max_range makes the log usable
+    far = replace(log.scans, ranges=log.scans.ranges.copy(), valid=log.scans.valid.copy(),
+                  range_max=np.full(len(log.scans), 1e4))
+    k = int(far.offsets[3]) + 5
+    far.ranges[k], far.valid[k] = 5000.0, True
+    far_log = tmp_path / "far.h5"
+    write_log(far_log, replace(log, scans=far), "h5", force=False)
+    r = CliRunner().invoke(main, ["run", str(far_log), "--mode", "lidar", "-o", str(tmp_path / "f.h5")])
+    assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1 and str(far_log) in r.output, r.output
+    assert "5000 m (scan 3, beam 5)" in r.output and "lidar.max_range" in r.output
+    r = CliRunner().invoke(main, ["run", str(far_log), "--mode", "lidar", "-o", str(tmp_path / "f.h5"),
+                                  "--config", str(_toml(tmp_path, "max_range = 100.0"))])
+    assert r.exit_code == 0, r.output
 
 
 def _toml(tmp_path, line: str) -> Path:

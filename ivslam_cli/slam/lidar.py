@@ -411,18 +411,36 @@ def predict_poses(log: LogData, cfg: Config, scans: Scans) -> PosePrediction:
 
 
 # ---------------------------------------------------------------- stage 3: the map
-def usable_scans(scans: Scans, cfg: Config) -> tuple[Scans, int]:
-    """``scans`` with returns beyond ``lidar.max_range`` marked invalid; how many were."""
-    cap = float(cfg["lidar.max_range"])
-    if cap <= 0.0:
-        return scans, 0
-    far = scans.valid & (scans.ranges.astype(np.float64) > cap)
-    k = int(far.sum())
-    if k == 0:
-        return scans, 0
-    from dataclasses import replace
+# a scan's map update visits the tiles within its reach: (2 reach / (64 eps))^2 tiles, and
+# per-column / per-row tables of 2 reach / eps rows (lidar_kernel). 2^16 cells (3.3 km at
+# 5 cm) is far beyond any 2D LiDAR; a return beyond it is a unit or encoding error.
+MAX_REACH_CELLS = 1 << 16
 
-    return replace(scans, valid=scans.valid & ~far), k
+
+def usable_scans(scans: Scans, cfg: Config, path=None) -> tuple[Scans, int]:
+    """``scans`` with returns beyond ``lidar.max_range`` marked invalid; how many were.
+    Raises :class:`IvslamError` when a valid return reaches more than ``MAX_REACH_CELLS``
+    cells of ``lidar.eps``."""
+    cap = float(cfg["lidar.max_range"])
+    far = scans.valid & (scans.ranges.astype(np.float64) > cap) if cap > 0.0 else None
+    k = 0 if far is None else int(far.sum())
+    if k:
+        from dataclasses import replace
+
+        scans = replace(scans, valid=scans.valid & ~far)
+    if scans.valid.any():
+        z = np.where(scans.valid, scans.ranges.astype(np.float64), 0.0)
+        i = int(np.argmax(z))
+        eps = float(cfg["lidar.eps"])
+        # the map kernels' largest range (see the range bound convention above)
+        reach = (z[i] + float(cfg["bounds.range_abs"])) / (1.0 - float(cfg["bounds.range_rel"]))
+        if not reach <= MAX_REACH_CELLS * eps:
+            s = int(np.searchsorted(scans.offsets, i, side="right")) - 1
+            raise IvslamError(f"a valid return of {z[i]:g} m (scan {s}, beam {i - int(scans.offsets[s])}) "
+                              f"reaches {reach / eps:,.0f} cells of lidar.eps = {eps:g} m, beyond the "
+                              f"{MAX_REACH_CELLS:,} one scan's map update may cover: set lidar.max_range to "
+                              "the sensor's reach (or a coarser lidar.eps)", path)
+    return scans, k
 
 
 def map_scans(tmap, scans: Scans, used: np.ndarray, boxes: np.ndarray, bounds):
@@ -483,7 +501,7 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
         raise IvslamError("no LiDAR scans: --mode lidar needs laser scans (sensor_msgs/LaserScan, FLASER, ...)", path)
     t0 = time.perf_counter()
     bounds = lidar_bounds(cfg)
-    scans, far = usable_scans(scans, cfg)
+    scans, far = usable_scans(scans, cfg, path)
     tmap = TileMap(float(cfg["lidar.eps"]))
     max_w = float(cfg["lidar.max_pose_width"])
     tracking = None

@@ -160,13 +160,22 @@ def _cos_gap(r_alpha, inc, fill):
     return -1.0
 
 
+MAX_SPAN_TILES = 4096  # tiles a side one scan may reach (its work and tables grow with the square)
+
+
 @njit(cache=True)
 def _tile_range(pxl, pxh, pyl, pyh, rmax, eps):
     """Tiles ``[tx0, tx1] x [ty0, ty1]`` holding every point within ``rmax`` of the box (one
-    tile of margin)."""
+    tile of margin). Raises ValueError beyond ``MAX_SPAN_TILES`` tiles a side (the pipeline
+    refuses such ranges first, with the log's name: lidar.usable_scans)."""
     side = TILE * eps
-    return (int(math.floor(down(down(pxl - rmax) / side))) - 1, int(math.floor(up(up(pxh + rmax) / side))) + 1,
-            int(math.floor(down(down(pyl - rmax) / side))) - 1, int(math.floor(up(up(pyh + rmax) / side))) + 1)
+    if not (max(pxh - pxl, pyh - pyl) + 2.0 * rmax < (MAX_SPAN_TILES - 4) * side):
+        raise ValueError("lidar map: a scan reaches over 4096 tiles (2^18 cells) a side")
+    tx0 = int(math.floor(down(down(pxl - rmax) / side))) - 1
+    tx1 = int(math.floor(up(up(pxh + rmax) / side))) + 1
+    ty0 = int(math.floor(down(down(pyl - rmax) / side))) - 1
+    ty1 = int(math.floor(up(up(pyh + rmax) / side))) + 1
+    return tx0, tx1, ty0, ty1
 
 
 # ---------------------------------------------------------------- growable buffers
