@@ -270,6 +270,22 @@ def test_tiles_reject_other_resolutions():
         TileMap(0.0)
 
 
+def test_tile_index_int32_coordinates():
+    """A tile beyond the index's int32 coordinates is never found (unknown: nothing proven) and
+    cannot be allocated; its key does not wrap onto an allocated tile."""
+    from ivslam_cli.paving.tiles import add_tile, find
+
+    m = TileMap(0.05)
+    keys, slots, cells, coords, n = m.arrays()
+    i, keys, slots, cells, coords, n = add_tile(keys, slots, cells, coords, n, 0, 0)
+    assert find(keys, slots, 0, 0) == i
+    for tx, ty in ((2**32, 0), (0, 2**32), (-(2**31) - 1, 0), (0, 2**31)):
+        assert find(keys, slots, tx, ty) == -1  # (2^32, 0) packs like (0, 0) without the check
+        with pytest.raises(ValueError):
+            add_tile(keys, slots, cells, coords, n, tx, ty)
+    assert find(keys, slots, 2**31 - 1, -(2**31)) == -1
+
+
 # ---------------------------------------------------------------- P_OBSTACLE, P_EMPTY
 def _case(seed: int, wxy: float, wth: float, alpha_factor: float, eps: float, full=False):
     rng = np.random.default_rng(seed)
@@ -707,7 +723,8 @@ def test_update_map_scan_by_scan_equals_one_call():
 
 def test_scan_reach_is_bounded():
     """A return beyond MAX_SPAN_TILES tiles a side (1e5 m at 5 cm) is refused by both paths
-    instead of traversing ~10^9 tiles; the same scan without it maps."""
+    instead of traversing ~10^9 tiles, and so is a pose beyond the tile index; the same scan
+    without them maps."""
     r = np.array([2.0, 1e5, 3.0], np.float32)
     v = np.ones(3, np.bool_)
     box = np.array([0.0, 0.1, 0.0, 0.1, 0.0, 0.05])
@@ -717,6 +734,10 @@ def test_scan_reach_is_bounded():
         v2 = v.copy()
         v2[1] = False
         assert len(f(r, v2, -0.1, 0.1, box, 0.01, 0.0, 0.0, 0.05, True)[2]) > 0
+        # a pose beyond the tile index's int32 coordinates (corrupt odometry): refused, not wrapped
+        far = box + np.array([1e12, 1e12, 0.0, 0.0, 0.0, 0.0])
+        with pytest.raises(ValueError, match="2\\^30 tiles"):
+            f(r, v2, -0.1, 0.1, far, 0.01, 0.0, 0.0, 0.05, True)
 
 
 def test_bench_lidar_map_runs_and_checks(capsys):

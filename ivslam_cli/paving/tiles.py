@@ -61,7 +61,10 @@ def _slot(key: np.int64, mask: int) -> int:
 
 @njit(cache=True)
 def find(keys: np.ndarray, slots: np.ndarray, tx: int, ty: int) -> int:
-    """Index of tile ``(tx, ty)`` in the tile array, or -1 if it was never allocated."""
+    """Index of tile ``(tx, ty)`` in the tile array, or -1 if it was never allocated (also
+    outside the index's int32 coordinates: such a tile is unknown, it cannot be allocated)."""
+    if not (-(2**31) <= tx < 2**31 and -(2**31) <= ty < 2**31):
+        return -1
     key = pack(tx, ty)
     mask = keys.shape[0] - 1
     s = _slot(key, mask)
@@ -94,6 +97,8 @@ def add_tile(keys, slots, cells, coords, n, tx, ty):
     i = find(keys, slots, tx, ty)
     if i >= 0:
         return i, keys, slots, cells, coords, n
+    if not (-(2**31) <= tx < 2**31 and -(2**31) <= ty < 2**31):
+        raise ValueError("tile coordinates beyond the int32 range of the tile index")
     if n >= cells.shape[0]:
         cap = 2 * cells.shape[0]
         nc = np.zeros((cap, TILE, TILE), dtype=np.uint8)

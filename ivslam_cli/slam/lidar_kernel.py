@@ -167,10 +167,14 @@ MAX_SPAN_TILES = 4096  # tiles a side one scan may reach (its work and tables gr
 def _tile_range(pxl, pxh, pyl, pyh, rmax, eps):
     """Tiles ``[tx0, tx1] x [ty0, ty1]`` holding every point within ``rmax`` of the box (one
     tile of margin). Raises ValueError beyond ``MAX_SPAN_TILES`` tiles a side (the pipeline
-    refuses such ranges first, with the log's name: lidar.usable_scans)."""
+    refuses such ranges first, with the log's name: lidar.usable_scans) or 2^30 tiles from the
+    origin (the tile index's int32 coordinates)."""
     side = TILE * eps
     if not (max(pxh - pxl, pyh - pyl) + 2.0 * rmax < (MAX_SPAN_TILES - 4) * side):
         raise ValueError("lidar map: a scan reaches over 4096 tiles (2^18 cells) a side")
+    if not (max(max(abs(pxl), abs(pxh)), max(abs(pyl), abs(pyh))) + rmax < 2.0**30 * side):
+        # the tile index holds int32 tile coordinates
+        raise ValueError("lidar map: a scan reaches beyond 2^30 tiles from the origin")
     tx0 = int(math.floor(down(down(pxl - rmax) / side))) - 1
     tx1 = int(math.floor(up(up(pxh + rmax) / side))) + 1
     ty0 = int(math.floor(down(down(pyl - rmax) / side))) - 1
