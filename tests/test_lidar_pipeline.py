@@ -234,6 +234,25 @@ def test_one_line_errors(tmp_path):
     r = CliRunner().invoke(main, ["run", str(far_log), "--mode", "lidar", "-o", str(tmp_path / "f.h5"),
                                   "--config", str(_toml(tmp_path, "max_range = 100.0"))])
     assert r.exit_code == 0, r.output
+    # pose boxes the map update cannot take: 1e12 m from the origin (known poses), or 1e12 m wide
+    # (an odometry jump, with max_pose_width = 0 mapping every scan): one line naming the scan
+    t = log.truth
+    shifted = tmp_path / "shifted.h5"
+    write_log(shifted, replace(log, truth=replace(t, pose=t.pose + [1e12, 0.0, 0.0])), "h5", force=False)
+    r = CliRunner().invoke(main, ["run", str(shifted), "--mode", "lidar", "--poses-known", "-o", str(tmp_path / "s.h5")])
+    assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1 and str(shifted) in r.output, r.output
+    assert "scan 0: its pose box lies 1e+12 m from the origin" in r.output
+    jump = tmp_path / "jump.h5"
+    o = log.odometry
+    write_log(jump, replace(log, odometry=replace(o, pose=o.pose + (np.arange(len(o.pose)) >= 5)[:, None] * [1e12, 0, 0])),
+              "h5", force=False)
+    for contract in ("true", "false"):  # scan by scan (contraction) and all at once
+        cfg_file = tmp_path / f"j{contract}.toml"
+        cfg_file.write_text(f'[lidar]\nmotion = "pose"\nmax_pose_width = 0.0\ncontract = {contract}\n')
+        r = CliRunner().invoke(main, ["run", str(jump), "--mode", "lidar", "-o", str(tmp_path / "j.h5"),
+                                      "--config", str(cfg_file)])
+        assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1 and str(jump) in r.output, r.output
+        assert "m wide" in r.output and "lidar.max_pose_width" in r.output
 
 
 def _toml(tmp_path, line: str) -> Path:

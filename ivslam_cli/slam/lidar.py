@@ -297,6 +297,7 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
 
     used, dropped, m, P, source, events = _trajectory(log, cfg, scans)
     max_w = float(cfg["lidar.max_pose_width"])
+    extent = extent_limits(scans, bounds, tmap.eps)  # for check_extent
     q = int(cfg["lidar.q_beams"])
     budget = int(cfg["lidar.contract_boxes"])
     stride = int(cfg["lidar.contract_stride"])
@@ -380,6 +381,7 @@ def track_and_map(log: LogData, cfg: Config, scans: Scans, bounds, tmap):
         w = max(box[1] - box[0], box[3] - box[2])
         narrow[j] = (w <= max_w) if max_w > 0 else True
         if narrow[j]:
+            check_extent(box, used[j:j + 1], extent, log.provenance.path)
             all_boxes[used[j]] = box
             one[0] = used[j]
             r = update_map(tmap, scans, all_boxes, bounds, order=one)
@@ -428,26 +430,76 @@ def usable_scans(scans: Scans, cfg: Config, path=None) -> tuple[Scans, int]:
         from dataclasses import replace
 
         scans = replace(scans, valid=scans.valid & ~far)
-    if scans.valid.any():
-        z = np.where(scans.valid, scans.ranges.astype(np.float64), 0.0)
-        i = int(np.argmax(z))
-        eps = float(cfg["lidar.eps"])
-        # the map kernels' largest range (see the range bound convention above)
-        reach = (z[i] + float(cfg["bounds.range_abs"])) / (1.0 - float(cfg["bounds.range_rel"]))
-        if not reach <= MAX_REACH_CELLS * eps:
-            s = int(np.searchsorted(scans.offsets, i, side="right")) - 1
-            raise IvslamError(f"a valid return of {z[i]:g} m (scan {s}, beam {i - int(scans.offsets[s])}) "
-                              f"reaches {reach / eps:,.0f} cells of lidar.eps = {eps:g} m, beyond the "
-                              f"{MAX_REACH_CELLS:,} one scan's map update may cover: set lidar.max_range to "
-                              "the sensor's reach (or a coarser lidar.eps)", path)
+    reach, i = scan_reach(scans, lidar_bounds(cfg))
+    eps = float(cfg["lidar.eps"])
+    if i >= 0 and not reach <= MAX_REACH_CELLS * eps:
+        s = int(np.searchsorted(scans.offsets, i, side="right")) - 1
+        raise IvslamError(f"a valid return of {float(scans.ranges[i]):g} m (scan {s}, beam "
+                          f"{i - int(scans.offsets[s])}) reaches {reach / eps:,.0f} cells of lidar.eps = {eps:g} m, "
+                          f"beyond the {MAX_REACH_CELLS:,} one scan's map update may cover: set lidar.max_range to "
+                          "the sensor's reach (or a coarser lidar.eps)", path)
     return scans, k
 
 
-def map_scans(tmap, scans: Scans, used: np.ndarray, boxes: np.ndarray, bounds):
+def scan_reach(scans: Scans, bounds) -> tuple[float, int]:
+    """The largest range the map kernels give a valid beam (``z + range_abs + range_rel z``
+    in their convention) and that beam's index; ``(0.0, -1)`` without valid beams."""
+    if not scans.valid.any():
+        return 0.0, -1
+    z = np.where(scans.valid, scans.ranges.astype(np.float64), 0.0)
+    i = int(np.argmax(z))
+    return float(z[i] + bounds.range_abs + bounds.range_rel * z[i]), i
+
+
+def extent_limits(scans: Scans, bounds, eps: float) -> tuple[float, float, float, float, float]:
+    """What :func:`check_extent` compares with: ``(reach, pad, span_max, origin_max, eps)``."""
+    from ivslam_cli.paving.tiles import TILE
+    from ivslam_cli.slam.lidar_kernel import MAX_SPAN_TILES
+
+    reach = scan_reach(scans, bounds)[0]
+    side = TILE * eps
+    pad = math.hypot(float(scans.mount[0]), float(scans.mount[1])) + side + reach
+    return reach, pad, (MAX_SPAN_TILES - 16) * side, 2.0**29 * side, eps
+
+
+def check_extent(boxes: np.ndarray, rows: np.ndarray, limits, path=None) -> None:
+    """:class:`IvslamError` naming the first scan (``rows``) whose robot pose box (``boxes``,
+    (N, 6)) the map update cannot take (``limits``: :func:`extent_limits`): so wide that,
+    with its returns, one scan spans over the kernels' ``MAX_SPAN_TILES`` tiles a side, or so
+    far from the origin that its tiles leave the tile index (corrupt odometry). Margins cover
+    the laser mount. Rows with NaN / inf are left to update_map's own check."""
+    reach, pad, span_max, origin_max, eps = limits
+    b = np.atleast_2d(boxes)
+    for j in range(b.shape[0]) if b.shape[0] <= 1 else _extent_suspects(b, pad, span_max, origin_max):
+        x0, x1, y0, y1 = b[j, :4].tolist()
+        w = max(x1 - x0, y1 - y0)
+        far = max(abs(x0), abs(x1), abs(y0), abs(y1))
+        if not math.isfinite(w + far):
+            continue
+        if not w + 2.0 * pad < span_max:
+            raise IvslamError(f"scan {int(rows[j])}: its pose box is {w:.4g} m wide, and with returns up to "
+                              f"{reach:.4g} m one scan's map update cannot cover it (at most {span_max:.4g} m a side "
+                              f"at lidar.eps = {eps:g} m): set lidar.max_pose_width (0 maps every scan)", path)
+        if not far + pad < origin_max:
+            raise IvslamError(f"scan {int(rows[j])}: its pose box lies {far:.4g} m from the origin, beyond the map's "
+                              f"tile index ({origin_max:.4g} m at lidar.eps = {eps:g} m): corrupt odometry or poses?",
+                              path)
+
+
+def _extent_suspects(b: np.ndarray, pad: float, span_max: float, origin_max: float) -> np.ndarray:
+    """Rows of ``b`` that :func:`check_extent` must look at (numpy over all rows)."""
+    with np.errstate(invalid="ignore"):
+        w = np.maximum(b[:, 1] - b[:, 0], b[:, 3] - b[:, 2])
+        far = np.max(np.abs(b[:, :4]), axis=1)
+        return np.flatnonzero(~(w + 2.0 * pad < span_max) | ~(far + pad < origin_max))
+
+
+def map_scans(tmap, scans: Scans, used: np.ndarray, boxes: np.ndarray, bounds, path=None):
     """Old/new test and map update for scans ``used`` (in that order) with robot boxes
     ``boxes`` (one row per used scan)."""
     from ivslam_cli.slam.lidar_map import update_map
 
+    check_extent(boxes, used, extent_limits(scans, bounds, tmap.eps), path)
     all_boxes = np.zeros((len(scans), 6))
     all_boxes[used] = boxes
     return update_map(tmap, scans, all_boxes, bounds, order=used)
@@ -514,7 +566,7 @@ def run_lidar(log: LogData, cfg: Config) -> LidarOutput:
         t1 = time.perf_counter()
         widths = _box_width(pred.boxes)
         narrow = widths <= max_w if max_w > 0 else np.ones(widths.shape, bool)
-        res = map_scans(tmap, scans, pred.used[narrow], pred.boxes[narrow], bounds)
+        res = map_scans(tmap, scans, pred.used[narrow], pred.boxes[narrow], bounds, path)
     dropped = list(pred.dropped)
     if (~narrow).any():
         dropped.append(Dropped("scans", int((~narrow).sum()),
