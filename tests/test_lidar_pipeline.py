@@ -239,13 +239,14 @@ def test_one_line_errors(tmp_path):
     t = log.truth
     shifted = tmp_path / "shifted.h5"
     write_log(shifted, replace(log, truth=replace(t, pose=t.pose + [1e12, 0.0, 0.0])), "h5", force=False)
-    r = CliRunner().invoke(main, ["run", str(shifted), "--mode", "lidar", "--poses-known", "-o", str(tmp_path / "s.h5")])
+    r = CliRunner().invoke(main, ["run", str(shifted), "--mode", "lidar", "--poses-known", "-o",
+                                  str(tmp_path / "s.h5")])
     assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1 and str(shifted) in r.output, r.output
     assert "scan 0: its pose box lies 1e+12 m from the origin" in r.output
     jump = tmp_path / "jump.h5"
     o = log.odometry
-    write_log(jump, replace(log, odometry=replace(o, pose=o.pose + (np.arange(len(o.pose)) >= 5)[:, None] * [1e12, 0, 0])),
-              "h5", force=False)
+    jumped = o.pose + (np.arange(len(o.pose)) >= 5)[:, None] * [1e12, 0.0, 0.0]
+    write_log(jump, replace(log, odometry=replace(o, pose=jumped)), "h5", force=False)
     for contract in ("true", "false"):  # scan by scan (contraction) and all at once
         cfg_file = tmp_path / f"j{contract}.toml"
         cfg_file.write_text(f'[lidar]\nmotion = "pose"\nmax_pose_width = 0.0\ncontract = {contract}\n')
