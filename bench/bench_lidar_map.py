@@ -28,7 +28,11 @@ inlined geometry as scalars: an array made in ``traverse`` and passed to an inli
 costs ~20 % in reference counting). Measured with gain but reverted: 4x4 blocks decided cell
 by cell (~6 %) — wrong: the reference proves P_EMPTY^k block by block, and a 2x2 block can pass
 its test where one of its cells alone fails (a random case of
-``test_fast_scan_cells_equal_reference`` lost empty cells). Measured without gain in session
+``test_fast_scan_cells_equal_reference`` lost empty cells). Session 6 found why: those cases
+are scans spanning over 2 pi, where a 2x2 block and one of its cells pick different branches
+for the empty test (the middle of their bearings rounds to different turns); restricted to
+``simple`` 4x4 blocks the variant is exact (4,000 random cases x 2 leaf modes) but within 1 %
+of the base on the axis-table code, so it is not applied. Also measured without gain in session
 6 (interleaved A/B, traverse alone): deciding leaf cells from their 2x2 block's windows (29 %
 of the cells are decided by the block's outer window, its common window ``_inner`` and the
 cell's range interval alone, skipping the cell's bearings) — as fast as the base when the four
