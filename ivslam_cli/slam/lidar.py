@@ -442,13 +442,15 @@ def usable_scans(scans: Scans, cfg: Config, path=None) -> tuple[Scans, int]:
 
 
 def scan_reach(scans: Scans, bounds) -> tuple[float, int]:
-    """The largest range the map kernels give a valid beam (``z + range_abs + range_rel z``
-    in their convention) and that beam's index; ``(0.0, -1)`` without valid beams."""
+    """The largest range the map kernels give a valid beam (their ``range_bounds``) and that
+    beam's index; ``(0.0, -1)`` without valid beams."""
+    from ivslam_cli.slam.lidar_geometry import range_bounds
+
     if not scans.valid.any():
         return 0.0, -1
     z = np.where(scans.valid, scans.ranges.astype(np.float64), 0.0)
     i = int(np.argmax(z))
-    return float(z[i] + bounds.range_abs + bounds.range_rel * z[i]), i
+    return float(range_bounds(float(z[i]), float(bounds.range_abs), float(bounds.range_rel))[1]), i
 
 
 def extent_limits(scans: Scans, bounds, eps: float) -> tuple[float, float, float, float, float]:

@@ -296,6 +296,6 @@ def range_bounds(z, r_abs, r_rel):
     return max(lo, 0.0), hi
 
 
-__all__ = ["ATAN_ERR", "FIN_MAX", "INF", "atan2_fast", "beam_window", "box_bearings", "box_bearings_fast",
-           "beam_offset", "box_ranges", "box_ranges_fin", "dn", "range_bounds", "sensor_box", "sensor_offset", "sensor_boxes_of", "upf",
-           "window_in_branch"]
+__all__ = ["ATAN_ERR", "FIN_MAX", "INF", "atan2_fast", "beam_offset", "beam_window", "box_bearings",
+           "box_bearings_fast", "box_ranges", "box_ranges_fin", "dn", "range_bounds", "sensor_box",
+           "sensor_boxes_of", "sensor_offset", "upf", "window_in_branch"]
