@@ -15,36 +15,30 @@ The cell-by-cell reference (``lidar_kernel.update_log_reference``) runs on the s
 same process: its time gives the speed-up, and its map, old/new beams and counts must equal
 the fast path's bit for bit (FAIL otherwise), as must the truth check of the simulated log.
 
-Where the time goes (perf, samples mapped onto the cached object code, 1,200 scans, exact leaf
-test): ``traverse`` 82 %, ``_write`` 8 %, ``_fast_tables`` 4 %, the exact cell tests 3 %.
-Within ``traverse`` no 64-byte block holds over 3 %; by source line the outward roundings
-``dn`` / ``upf`` 13 %, the sparse-table window queries ``_win`` 9 %, the exact "a beam meets"
-walks ``_meets`` 6 %, ``_inner`` ~20 %. Per scan about 4,100 quadtree nodes, 2,000 of them
-single cells. Measured without gain (within the 3 % noise): the children's ``_inner`` computed
-together; the hull instead of the exact test on 2x2 blocks; ``error_model="numpy"``;
-``_nrt=False`` on ``traverse``; table rows padded to 64 bytes (slower). Applied: per-scan axis
-tables of the cells' sides and offsets from the sensor box (~4 % on ``traverse``; passed to the
-inlined geometry as scalars: an array made in ``traverse`` and passed to an inlined helper
-costs ~20 % in reference counting). Measured with gain but reverted: 4x4 blocks decided cell
-by cell (~6 %) — wrong: the reference proves P_EMPTY^k block by block, and a 2x2 block can pass
-its test where one of its cells alone fails (a random case of
-``test_fast_scan_cells_equal_reference`` lost empty cells). Session 6 found why: those cases
-are scans spanning over 2 pi, where a 2x2 block and one of its cells pick different branches
-for the empty test (the middle of their bearings rounds to different turns); restricted to
-``simple`` 4x4 blocks the variant is exact (4,000 random cases x 2 leaf modes) but within 1 %
-of the base on the axis-table code, so it is not applied. Also measured without gain in session
-6 (interleaved A/B, traverse alone): deciding leaf cells from their 2x2 block's windows (29 %
-of the cells are decided by the block's outer window, its common window ``_inner`` and the
-cell's range interval alone, skipping the cell's bearings) — as fast as the base when the four
-cells' bearings are still computed together whenever one is undecided, 14 % slower when they
-are computed cell by cell (the four cells' geometry is a long dependency chain each: computing
-them together is what makes the leaves fast); the four cells' ``_win`` queries issued together
-(same time). Per scan: 41 tile roots, then 41 / 94 / 260 / 549 / 1,076 nodes at levels 5-1 and
-2,024 cells; ``_inner`` on 2x2 blocks pays for itself (of ~780 calls, 243 prove the block in
-P_OBSTACLE^k and 87 prune it: ~1,300 cell tests saved). What is left is the band's
-boundary at 5 cm (a beam's endpoint region at ±0.2 m / ±3° is 0.4-0.7 m thick). The shared
-machine's speed varies by ~25 % between runs: compare the ratio to the reference measured in
-the same run.
+How the fast path got here (interleaved A/B runs of ``traverse`` alone, 1,200 scans, exact leaf
+test; equality with the reference checked on 1,000 random cases x 2 leaf modes each time):
+
+- Session 7: each tile visited level by level; the geometry of all blocks of a level
+  (ranges, fast bearings, outer window, ``_inner``) and of all cells in one pass written with
+  selects only, which LLVM vectorises (AVX-512 on this machine: 8 blocks at a time), then the
+  decisions block by block. ``traverse`` 21 % faster (the leaves' geometry alone was 30 % of it
+  before, ~22 ns a cell scalar, ~5 ns vectorised); the bench went from 367x to 457x real time,
+  11.5x to 14.2x the reference; the same 4,084 nodes a scan. Gathers from the axis tables do
+  not vectorise (a separate scalar pass fills contiguous arrays first).
+- Earlier: per-scan axis tables of the cells' sides and offsets (~4 %); helpers inlined and
+  taking scalars (an array passed to an inlined helper costs ~20 % in reference counting);
+  ``_nrt=False`` on the few helpers that stay calls (~25 %).
+- Measured without gain: the hull instead of the exact test on 2x2 blocks; table rows padded
+  to 64 bytes (slower); 4x4 blocks decided cell by cell (exact only on ``simple`` blocks: on
+  scans spanning over 2 pi a 2x2 block and one of its cells pick different branches for the
+  empty test); leaf cells decided from their block's windows (29 % decidable, no faster); a
+  structure-of-arrays sparse table (1.6x slower to build).
+
+Per scan: 41 tile roots, then 41 / 94 / 260 / 549 / 1,076 nodes at levels 5-1 and 2,024
+cells; ``_inner`` on 2x2 blocks pays for itself (of ~780 uses, 243 prove the block in
+P_OBSTACLE^k and 87 prune it: ~1,300 cell tests saved). What is left is the band's boundary at
+5 cm (a beam's endpoint region at ±0.2 m / ±3° is 0.4-0.7 m thick). The shared machine's speed
+varies by 25-45 % between runs: compare the ratio to the reference measured in the same run.
 """
 
 from __future__ import annotations

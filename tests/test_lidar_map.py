@@ -620,7 +620,7 @@ def test_fast_path_grows_its_buffers():
              np.empty((1, 6), np.int64), np.empty((1, 2))]
     keys, slots, cells = np.full(4, np.iinfo(np.int64).min), np.full(4, -1), np.zeros((1, TILE, TILE), np.uint8)
     ok = K.traverse(keys, slots, cells, *args[:9], True, lg, T, np.zeros(nb, np.bool_), *small,
-                    np.zeros(4, np.int64))[0]
+                    np.zeros(4, np.int64), *K._level_buffers())[0]
     assert not ok
     new, ref = K.scan_cells(*args, True), K.scan_cells_reference(*args, True)
     assert new[2].shape[0] > 4096 and new[0].shape[0] > 1024

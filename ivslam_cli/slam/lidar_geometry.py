@@ -217,36 +217,43 @@ def atan_poly(t):
 
 @njit(cache=True, inline="always")
 def atan2_fast(y, x):
-    """``atan2(y, x)`` in ``[-pi, pi]`` within :data:`ATAN_ERR` (``(0, 0)`` gives 0)."""
+    """``atan2(y, x)`` in ``[-pi, pi]`` within :data:`ATAN_ERR` (``(0, 0)`` gives 0). Written
+    with selects, no branches: vectorisable in loops (:mod:`.lidar_kernel`'s level passes)."""
     ax = abs(x)
     ay = abs(y)
-    if ax >= ay:
-        if ax == 0.0:
-            return 0.0
-        a = atan_poly(ay / ax)
-    else:
-        a = 0.5 * math.pi - atan_poly(ax / ay)
-    if x < 0.0:
-        a = math.pi - a
-    return -a if y < 0.0 else a
+    sw = ay > ax
+    num = ax if sw else ay
+    den = ay if sw else ax
+    a = atan_poly(num / (den if den > 0.0 else 1.0))
+    a = 0.5 * math.pi - a if sw else a
+    a = math.pi - a if x < 0.0 else a
+    a = -a if y < 0.0 else a
+    return a if den > 0.0 else 0.0
 
 
 @njit(cache=True, inline="always")
 def box_bearings_fast(xl, xh, yl, yh):
     """:func:`box_bearings` with :func:`atan2_fast` at the same corners and in the same
     branches: ``(lo, hi, full)`` with ``lo, hi`` within ``ATAN_ERR`` (+ an ulp) of the real
-    bearings of those corners (no outward rounding: callers add their margins)."""
-    if xl > 0.0:
-        return atan2_fast(yl, xl if yl < 0.0 else xh), atan2_fast(yh, xl if yh > 0.0 else xh), False
-    if xh < 0.0:
-        lo = atan2_fast(-yh, -xh if -yh < 0.0 else -xl)
-        hi = atan2_fast(-yl, -xh if -yl > 0.0 else -xl)
-        return lo + math.pi, hi + math.pi, False
+    bearings of those corners (no outward rounding: callers add their margins). The corners
+    are chosen by selects (vectorisable)."""
+    right = xl > 0.0
+    left = xh < 0.0
+    # lower half plane, overridden by upper, left, right (box_bearings' order, reversed)
+    ya, xa, yb, xb = (yl if xl > 0.0 else yh), xl, (yh if xh > 0.0 else yl), xh
     if yl > 0.0:
-        return atan2_fast(yl if xh > 0.0 else yh, xh), atan2_fast(yh if xl > 0.0 else yl, xl), False
-    if yh < 0.0:
-        return atan2_fast(yl if xl > 0.0 else yh, xl), atan2_fast(yh if xh > 0.0 else yl, xh), False
-    return -PI_HI, PI_HI, True
+        ya, xa, yb, xb = (yl if xh > 0.0 else yh), xh, (yh if xl > 0.0 else yl), xl
+    if left:
+        ya, xa, yb, xb = -yh, (-xh if -yh < 0.0 else -xl), -yl, (-xh if -yl > 0.0 else -xl)
+    if right:
+        ya, xa, yb, xb = yl, (xl if yl < 0.0 else xh), yh, (xl if yh > 0.0 else xh)
+    lo = atan2_fast(ya, xa)
+    hi = atan2_fast(yb, xb)
+    if left and not right:
+        lo += math.pi
+        hi += math.pi
+    full = not (right or left or yl > 0.0 or yh < 0.0)
+    return (-PI_HI if full else lo), (PI_HI if full else hi), full
 
 
 @njit(cache=True)

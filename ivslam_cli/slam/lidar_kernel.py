@@ -470,7 +470,7 @@ def inclusion_new(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel,
 #     beam of this window meet this range interval" is O(1) unless the window holds a jump
 #     larger than the interval (_meets);
 #   - blocks away from the sensor box and from the back of the scan ("simple": one branch of
-#     the bearings, see _window_block) are tested with an *outer* window of beam indices that
+#     the bearings, see _level_geom) are tested with an *outer* window of beam indices that
 #     holds the reference window of each of their cells whatever the roundings (fast bearings,
 #     ATAN_ERR and rounding margins): proven empty, or pruned when no beam of it meets the
 #     block's range interval and no cell can be proven free (_inner's lower bound of every
@@ -479,8 +479,11 @@ def inclusion_new(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel,
 #   - a cell's reference window is computed from fast bearings when every index is farther from
 #     a rounding boundary than the error allows (_geom1), else exactly as the reference;
 #   - a window holding a jump is searched by halving (_meets_g), not beam by beam;
-#   - the geometry of the four children of a split block (and of the four cells of a 2 x 2
-#     block) is computed together, so that the processor overlaps their dependency chains.
+#   - each tile is visited level by level (breadth first): the geometry of all blocks of a level
+#     (ranges, fast bearings, windows, _inner), or of all cells, in one pass written with selects
+#     only, which the compiler vectorises (_level_geom, _cell_geom: 8 blocks at a time with
+#     AVX-512), then the decisions block by block, the blocks to refine listed for the next
+#     level. Records of a tile come in another order than the reference's; tiles in the same.
 # Blocks that are not simple (around the sensor box, the back of the scan) use the reference's
 # own block test. update_log / scan_cells / traverse / apply are the fast path; the *_reference
 # functions are the oracle of tests/test_lidar_map.py.
@@ -721,34 +724,6 @@ def _geom1_d(dxl, dxh, dyl, dyh, thl, thh, a0, h, nb, mid, lo_edge, hi_edge, err
     return r_lo, r_hi, o_lo, o_hi, e_lo, e_hi, e_lo >= 0 and e_hi <= nb - 1, state
 
 
-@njit(cache=True, inline="always")
-def _window_block(bl, bh, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err):
-    """Outer window of a block from its approximate bearings ``[bl, bh]`` (within ``err``):
-    ``(o_lo, o_hi, e_lo, e_hi, cover, simple)``. ``simple``: the bearings minus ``[theta]``
-    lie within 3 rad of the scan's middle in one branch and no other branch meets the scan's
-    cones; then every cell of the block gets, in the reference, its window from that branch,
-    inside ``[e_lo, e_hi]`` (and ``cover``: inside the scan)."""
-    pl = bl - thh - err
-    ph = bh - thl + err
-    if not (ph - pl < 5.9):
-        return 0, nb - 1, 0, -1, False, False
-    c = 0.5 * (pl + ph) - mid
-    if not (-3.0 < c < 3.0):
-        k = float(round(c / (2.0 * math.pi)))
-        pl -= k * 2.0 * math.pi
-        ph -= k * 2.0 * math.pi
-    simple = (pl - mid > -3.0 and ph - mid < 3.0 and pl + 2.0 * math.pi - hi_edge > err
-              and ph - 2.0 * math.pi - lo_edge < -err)
-    u_lo = (pl - h - a0) * inv_inc - 1e-9
-    u_hi = (ph + h - a0) * inv_inc + 1e-9
-    if not (-1e5 < u_lo and u_hi < 1e5):
-        return 0, nb - 1, 0, -1, False, False
-    e_lo = int(math.floor(u_lo))
-    e_hi = int(math.ceil(u_hi))
-    cover = e_lo >= 0 and e_hi <= nb - 1
-    return max(e_lo, 0), min(e_hi, nb - 1), e_lo, e_hi, cover, simple
-
-
 @njit(cache=True)
 def _axis_table(i0, n, eps, pl, ph):
     """Per grid column (or row) ``i0 + k`` of a scan's tiles, ``k < n``: the cell's sides
@@ -763,22 +738,6 @@ def _axis_table(i0, n, eps, pl, ph):
         A[k, 2] = dn(A[k, 0] - ph)
         A[k, 3] = upf(A[k, 1] - pl)
     return A
-
-
-@njit(cache=True, inline="always")
-def _node_geom(x0, x1, y0, y1, dxl, dxh, dyl, dyh, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err):
-    """A block's corners (rounded outward), range interval and fast outer window
-    (:func:`_window_block`): ``(x0, x1, y0, y1, r_lo, r_hi, o_lo, o_hi, e_lo, e_hi, cover, simple)``
-    (``simple`` False: use the reference's block test). The corners and the offsets from the
-    sensor box come from :func:`_axis_table` (scalars: an array passed to an inlined helper
-    costs reference counting on every call)."""
-    r_lo, r_hi = box_ranges_fin(dxl, dxh, dyl, dyh)
-    bl, bh, full = box_bearings_fast(dxl, dxh, dyl, dyh)
-    if not full and bh - bl < 3.0:
-        o_lo, o_hi, e_lo, e_hi, cover, simple = _window_block(bl, bh, thl, thh, a0, inv_inc, h, nb, mid, lo_edge,
-                                                              hi_edge, err)
-        return x0, x1, y0, y1, r_lo, r_hi, o_lo, o_hi, e_lo, e_hi, cover, simple
-    return x0, x1, y0, y1, r_lo, r_hi, 0, nb - 1, 0, -1, False, False
 
 
 @njit(cache=True)
@@ -849,10 +808,8 @@ def _inner(x0, x1, y0, y1, eps, pxl, pxh, pyl, pyh, thl, thh, a0, h, mid, cx, cy
     by = 0.5 * (y0 + y1)
     wbx = upf(max(upf(bx - x0), upf(x1 - bx)))  # a super-box of the block, centred on b
     wby = upf(max(upf(by - y0), upf(y1 - by)))
-    if wbx <= lw and wby <= lw:  # the level's bounds ``LC[lev]`` (see _level_consts)
-        rb = lrb
-    else:
-        rb = upf(math.sqrt(upf(upf(wbx * wbx) + upf(wby * wby))))
+    # the level's bounds ``LC[lev]`` (see _level_consts) when they hold
+    rb = lrb if (wbx <= lw and wby <= lw) else upf(math.sqrt(upf(upf(wbx * wbx) + upf(wby * wby))))
     # the range interval common to the block
     ex = max(max(upf(pxl - bx), upf(bx - pxh)), 0.0)
     ey = max(max(upf(pyl - by), upf(by - pyh)), 0.0)
@@ -865,47 +822,39 @@ def _inner(x0, x1, y0, y1, eps, pxl, pxh, pyl, pyh, thl, thh, a0, h, mid, cx, cy
     hy = max(upf(by - upf(y0 + 0.5 * eps)), upf(dn(y1 - 0.5 * eps) - by))
     hx = upf(max(hx, 0.0) + 1e-12 * (1.0 + abs(bx)))
     hy = upf(max(hy, 0.0) + 1e-12 * (1.0 + abs(by)))
-    if hx <= lc and hy <= lc:
-        rbc = lrbc
-    else:
-        rbc = upf(math.sqrt(upf(upf(hx * hx) + upf(hy * hy))))
+    rbc = lrbc if (hx <= lc and hy <= lc) else upf(math.sqrt(upf(upf(hx * hx) + upf(hy * hy))))
     # a cell reaches eps / 2 nearer / farther than its centre (straight to the nearest / from the
     # farthest point of the box; the nearer side used only with the block ahead of the box)
     k_lo = upf(upf(d_up + rbc) - 0.5 * eps)
     k_hi = dn(dn(dm - rbc) + 0.5 * eps)
     # beams common to the block's cells: a cell (half-width eps / 2, centre within (hx, hy) of
     # b) meets the box's shadow strip in direction psi when |n . v| <= dx |sin psi| + dy |cos psi|
+    # (selects, no branches: vectorised in _level_geom; ok False: no common beam)
     ddx = dn(dn(wx + 0.5 * eps) - hx)
     ddy = dn(dn(wy + 0.5 * eps) - hy)
-    if not (ddx > 0.0 and ddy > 0.0):
-        return 0, -1, k_lo, k_hi
     vx = bx - cx
     vy = by - cy
     L = math.sqrt(vx * vx + vy * vy)
-    if not (L > 1e-3):
-        return 0, -1, k_lo, k_hi
-    rho = (ddx * abs(vy) + ddy * abs(vx)) / (L * (L + ddx + ddy))
+    ok = ddx > 0.0 and ddy > 0.0 and L > 1e-3
+    Ls = L if ok else 1.0
+    rho = (ddx * abs(vy) + ddy * abs(vx)) / (Ls * (Ls + ddx + ddy))
     # every rounding here is relative ~1e-16 of the coordinates: margins far larger than that
-    rho = rho * (1.0 - 1e-9) - 1e-10 * (1.0 + abs(bx) + abs(by) + abs(cx) + abs(cy)) / L - amg
-    if not (rho > 0.0) or rho > 0.5:
-        return 0, -1, k_lo, k_hi
-    if not (L * (1.0 - 0.5 * rho * rho) > (rb + rc + eps) * (1.0 + 1e-9) + 1e-9):
-        return 0, -1, k_lo, k_hi
+    rho = rho * (1.0 - 1e-9) - 1e-10 * (1.0 + abs(bx) + abs(by) + abs(cx) + abs(cy)) / Ls - amg
+    ok = ok and rho > 0.0 and not (rho > 0.5)
+    ok = ok and L * (1.0 - 0.5 * rho * rho) > (rb + rc + eps) * (1.0 + 1e-9) + 1e-9
     alpha = atan2_fast(vy, vx)  # within ATAN_ERR (in amg, taken off rho)
     lo_ang = alpha - rho - thh - h
     hi_ang = alpha + rho - thl + h
-    if not (lo_ang < hi_ang):
-        return 0, -1, k_lo, k_hi
+    ok = ok and lo_ang < hi_ang
+    # any branch 2 pi k: the cones meeting [lo_ang, hi_ang] + 2 pi Z are in every real window
     c = 0.5 * (lo_ang + hi_ang) - mid
-    if not (-3.0 < c < 3.0):
-        k = float(round(c / (2.0 * math.pi)))
-        lo_ang -= k * 2.0 * math.pi
-        hi_ang -= k * 2.0 * math.pi
-    u_lo = (lo_ang - a0) * inv_inc
-    u_hi = (hi_ang - a0) * inv_inc
-    if not (-1e6 < u_lo and u_hi < 1e6):
-        return 0, -1, k_lo, k_hi
-    return int(math.ceil(u_lo + 1e-6)), int(math.floor(u_hi - 1e-6)), k_lo, k_hi
+    k = 0.0 if (-3.0 < c and c < 3.0) else math.floor(c / (2.0 * math.pi) + 0.5)
+    u_lo = (lo_ang - k * 2.0 * math.pi - a0) * inv_inc
+    u_hi = (hi_ang - k * 2.0 * math.pi - a0) * inv_inc
+    ok = ok and -1e6 < u_lo and u_hi < 1e6
+    i_lo = int(math.ceil((u_lo if ok else 0.0) + 1e-6))
+    i_hi = int(math.floor((u_hi if ok else 0.0) - 1e-6))
+    return (i_lo if ok else 0), (i_hi if ok else -1), k_lo, k_hi
 
 
 @njit(cache=True, inline="always")
@@ -923,13 +872,133 @@ def _tile_slot(tl, n_tl, slot, tx, ty, what):
     return slot
 
 
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _level_geom(n, s, LX, LY, c0, r0, CX, CY, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err,
+                DXL, DXH, DYL, DYH, RL, RH, OL, OH, EL, EH, CV, SM,
+                inner, X0, X1, Y0, Y1, IL, IH, KL, KH, eps, pxl, pxh, pyl, pyh, icx, icy, iwx, iwy, irc, amg,
+                lw, lrb, lc, lrbc):
+    """Geometry of the blocks ``(LX[j], LY[j])`` of ``s x s`` cells of a tile, ``j < n``
+    (columns from ``c0``, rows from ``r0`` in the axis tables :func:`_axis_table`): the range
+    interval into ``RL, RH`` and the fast outer window into ``OL, OH, EL, EH`` (clipped, then
+    unclipped), ``CV`` (cover: inside the scan) and ``SM`` (simple), 1 / 0.
+
+    The window comes from the fast bearings (within ``err``): ``simple`` says the bearings
+    minus ``[theta]`` lie within 3 rad of the scan's middle in one branch and no other branch
+    meets the scan's cones; then every cell of the block gets, in the reference, its window from
+    that branch, inside ``[e_lo, e_hi]`` (and ``cover``: inside the scan). Not simple: the
+    caller uses the reference's block test. With ``inner``, :func:`_inner` of every block into
+    ``IL, IH, KL, KH`` (corners into ``X0, X1, Y0, Y1``).
+
+    The loops have no branch (selects only): the compiler vectorises them (numpy's error
+    model: no zero-division test, every divisor is non-zero by a select). ``DXL .. DYH``: work
+    arrays (offsets from the sensor box, gathered first: gathers do not vectorise)."""
+    for j in range(n):  # the offsets from the axis tables (gathers: not vectorised)
+        ca = c0 + LX[j]
+        ra = r0 + LY[j]
+        DXL[j], DXH[j], DYL[j], DYH[j] = CX[ca, 2], CX[ca + s - 1, 3], CY[ra, 2], CY[ra + s - 1, 3]
+        X0[j], X1[j], Y0[j], Y1[j] = CX[ca, 0], CX[ca + s - 1, 1], CY[ra, 0], CY[ra + s - 1, 1]
+    if inner:  # _inner of every block (used for the simple ones that are neither pruned nor empty)
+        for j in range(n):
+            IL[j], IH[j], KL[j], KH[j] = _inner(X0[j], X1[j], Y0[j], Y1[j], eps, pxl, pxh, pyl, pyh, thl, thh, a0,
+                                                h, mid, icx, icy, iwx, iwy, irc, amg, inv_inc, lw, lrb, lc, lrbc)
+    for j in range(n):
+        dxl, dxh, dyl, dyh = DXL[j], DXH[j], DYL[j], DYH[j]
+        r_lo, r_hi = box_ranges_fin(dxl, dxh, dyl, dyh)
+        bl, bh, full = box_bearings_fast(dxl, dxh, dyl, dyh)
+        # the window, in the branch 2 pi k nearest the scan's middle (simple checks it is the
+        # reference's: then k = round(c / 2 pi), whatever the rounding at half-integers)
+        pl = bl - thh - err
+        ph = bh - thl + err
+        narrow = ph - pl < 5.9
+        c = 0.5 * (pl + ph) - mid
+        k = 0.0 if (-3.0 < c and c < 3.0) else math.floor(c / (2.0 * math.pi) + 0.5)
+        pl -= k * 2.0 * math.pi
+        ph -= k * 2.0 * math.pi
+        simple = (pl - mid > -3.0 and ph - mid < 3.0 and pl + 2.0 * math.pi - hi_edge > err
+                  and ph - 2.0 * math.pi - lo_edge < -err)
+        u_lo = (pl - h - a0) * inv_inc - 1e-9
+        u_hi = (ph + h - a0) * inv_inc + 1e-9
+        ok = (not full) and bh - bl < 3.0 and narrow and -1e5 < u_lo and u_hi < 1e5
+        e_lo = int(math.floor(u_lo if ok else 0.0))
+        e_hi = int(math.ceil(u_hi if ok else -1.0))
+        RL[j] = r_lo
+        RH[j] = r_hi
+        OL[j] = max(e_lo, 0) if ok else 0
+        OH[j] = min(e_hi, nb - 1) if ok else nb - 1
+        EL[j] = e_lo
+        EH[j] = e_hi
+        CV[j] = 1 if (ok and e_lo >= 0 and e_hi <= nb - 1) else 0
+        SM[j] = 1 if (ok and simple) else 0
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _cell_geom(n, LX, LY, c0, r0, CX, CY, thl, thh, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc,
+               DXL, DXH, DYL, DYH, RL, RH, OL, OH, EL, EH, CV, SM):
+    """:func:`_geom1_d` of cells ``(LX[j], LY[j])``, ``j < n`` (as :func:`_level_geom`; ``SM``:
+    the window decided, state 0). Selects only: vectorised."""
+    for j in range(n):
+        ca = c0 + LX[j]
+        ra = r0 + LY[j]
+        DXL[j], DXH[j], DYL[j], DYH[j] = CX[ca, 2], CX[ca, 3], CY[ra, 2], CY[ra, 3]
+    for j in range(n):
+        dxl, dxh, dyl, dyh = DXL[j], DXH[j], DYL[j], DYH[j]
+        r_lo, r_hi = box_ranges_fin(dxl, dxh, dyl, dyh)
+        bl, bh, full = box_bearings_fast(dxl, dxh, dyl, dyh)
+        pl = bl - thh
+        ph = bh - thl
+        c = 0.5 * (pl + ph) - mid
+        s1 = 3.3 < c and c < 9.2
+        s2 = -9.2 < c and c < -3.3
+        bad = not ((-3.0 < c and c < 3.0) or s1 or s2)  # the reference's branch m = 0, -1, +1
+        sh = -2.0 * math.pi if s1 else (2.0 * math.pi if s2 else 0.0)
+        pl += sh
+        ph += sh
+        u_lo = (pl - h - a0) * inv_inc
+        u_hi = (ph + h - a0) * inv_inc
+        ok = ph - pl < 5.9 and -1e5 < u_lo and u_hi < 1e5
+        u_lo = u_lo if ok else 0.0
+        u_hi = u_hi if ok else 0.0
+        d = err * inv_inc + 1e-9
+        f_lo = math.floor(u_lo - d)
+        f_hi = math.ceil(u_hi + d)
+        und = f_lo != math.floor(u_lo + d) or f_hi != math.ceil(u_hi - d)
+        e_lo = int(f_lo)
+        e_hi = int(f_hi)
+        g1 = pl + 2.0 * math.pi - hi_edge  # the reference widens to the whole scan when <= 0
+        g2 = ph - 2.0 * math.pi - lo_edge  # ... or when >= 0
+        wide = g1 <= -err or g2 >= err
+        und = und or bad or ((not wide) and (g1 <= err or g2 >= -err))
+        RL[j] = r_lo
+        RH[j] = r_hi
+        OL[j] = 0 if (full or wide) else (max(e_lo, 0) if ok else 0)
+        OH[j] = nb - 1 if (full or wide) else (min(e_hi, nb - 1) if ok else -1)
+        EL[j] = 0 if (full or not ok) else e_lo
+        EH[j] = -1 if (full or not ok) else e_hi
+        CV[j] = 1 if ((not full) and ok and e_lo >= 0 and e_hi <= nb - 1) else 0
+        SM[j] = 1 if (full or (ok and not und)) else 0
+
+
+_WF = 12  # rows of the level work arrays: floats (RL .. KH), integers (LX .. SM)
+_WI = 12
+
+
+@njit(cache=True)
+def _level_buffers():
+    """Work arrays of :func:`traverse` (rows of :data:`_WF` floats, :data:`_WI` integers; a tile
+    holds at most ``TILE^2`` blocks of a level)."""
+    return np.empty((_WF, TILE * TILE)), np.empty((_WI, TILE * TILE), dtype=np.int64)
+
+
 @njit(cache=True)
 def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps,
-             exact, lg, T, new, tl, blk, mblk, cand, cand_f, stats, fill=True):
+             exact, lg, T, new, tl, blk, mblk, cand, cand_f, stats, WF, WI, fill=True):
     """P_EMPTY^k, P_OBSTACLE^k and the new beams of one scan (fast path; the same cells and
-    beams as :func:`traverse_reference`). ``T``: the scan's table (:func:`_fast_tables`).
-    The cells' sides and offsets from the sensor box come from per-axis tables
-    (:func:`_axis_table`: the same roundings, once per column and row).
+    beams as :func:`traverse_reference`). ``T``: the scan's table (:func:`_fast_tables`);
+    ``WF, WI``: work arrays (:func:`_level_buffers`). The cells' sides and offsets from the
+    sensor box come from per-axis tables (:func:`_axis_table`: the same roundings, once per
+    column and row). Each tile is visited
+    level by level: the geometry of all blocks (or cells) of a level first, in a vectorised
+    pass (:func:`_level_geom`, :func:`_cell_geom`), then their decisions one by one.
 
     The map (``keys, slots, cells``) is only read. Outputs, in buffers of fixed size:
     ``tl[j] = (tx, ty, flags)`` the tiles holding records, in traversal order (flags: 1 =
@@ -974,13 +1043,11 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     j0 = ty0 * TILE
     CX = _axis_table(i0, (tx1 - tx0 + 1) * TILE, eps, pxl, pxh)
     CY = _axis_table(j0, (ty1 - ty0 + 1) * TILE, eps, pyl, pyh)
-    # the stack of blocks to visit: (level, x, y) in the tile, with their geometry (computed
-    # for the four children of a block together, so that the processor overlaps them)
-    sl = np.empty(4 * _LEVELS + 4, dtype=np.int64)
-    sx = np.empty(4 * _LEVELS + 4, dtype=np.int64)
-    sy = np.empty(4 * _LEVELS + 4, dtype=np.int64)
-    sf = np.empty((4 * _LEVELS + 4, 6))
-    sw = np.empty((4 * _LEVELS + 4, 6), dtype=np.int64)
+    # the blocks of a level (LX, LY) and of the next (NX, NY), in the tile; their geometry
+    RL, RH, DXL, DXH, DYL, DYH, X0, X1, Y0, Y1, KL, KH = (WF[0], WF[1], WF[2], WF[3], WF[4], WF[5], WF[6],
+                                                          WF[7], WF[8], WF[9], WF[10], WF[11])
+    LX, LY, NX, NY, OL, OH, EL, EH, IL, IH, CV, SM = (WI[0], WI[1], WI[2], WI[3], WI[4], WI[5], WI[6], WI[7],
+                                                      WI[8], WI[9], WI[10], WI[11])
     cap_blk = blk.shape[0]
     cap_mblk = mblk.shape[0]
     cap_cand = cand.shape[0]
@@ -991,177 +1058,153 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
         for ty in range(ty0, ty1 + 1):
             t = find(keys, slots, tx, ty)
             slot = -1
-            ca = tx * TILE - i0
-            cc = ty * TILE - j0
-            ce = ca + TILE - 1
-            rb_ = cc + TILE - 1
-            g = _node_geom(CX[ca, 0], CX[ce, 1], CY[cc, 0], CY[rb_, 1], CX[ca, 2], CX[ce, 3], CY[cc, 2], CY[rb_, 3],
-                           thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err)
-            sl[0], sx[0], sy[0] = _LEVELS, 0, 0
-            sf[0, 0], sf[0, 1], sf[0, 2], sf[0, 3], sf[0, 4], sf[0, 5] = g[0], g[1], g[2], g[3], g[4], g[5]
-            sw[0, 0], sw[0, 1], sw[0, 2], sw[0, 3], sw[0, 4], sw[0, 5] = g[6], g[7], g[8], g[9], g[10], g[11]
-            sp = 1
-            while sp > 0:
-                sp -= 1
-                lev, lx, ly = sl[sp], sx[sp], sy[sp]
-                nodes += 1
-                ix = tx * TILE + lx
-                iy = ty * TILE + ly
+            c0 = tx * TILE - i0
+            r0 = ty * TILE - j0
+            LX[0] = 0
+            LY[0] = 0
+            n_lev = 1
+            lev = _LEVELS
+            while lev > 0 and n_lev > 0:
                 s = 1 << lev
-                x0, x1, y0, y1, r_lo, r_hi = sf[sp, 0], sf[sp, 1], sf[sp, 2], sf[sp, 3], sf[sp, 4], sf[sp, 5]
-                if r_lo > rmax:
-                    continue
-                o_lo, o_hi, e_lo, e_hi = sw[sp, 0], sw[sp, 1], sw[sp, 2], sw[sp, 3]
-                cover = sw[sp, 4] != 0
-                simple = sw[sp, 5] != 0
-                if not simple:
-                    # the reference's block test (around the sensor box, the back of the scan)
-                    dxl, dxh = dn(x0 - pxh), upf(x1 - pxl)
-                    dyl, dyh = dn(y0 - pyh), upf(y1 - pyl)
-                    bl, bh, full = box_bearings(dxl, dxh, dyl, dyh)
-                    if full:
-                        o_lo, o_hi, e_lo, e_hi, cover = 0, nb - 1, 0, -1, False
-                    else:
-                        o_lo, o_hi, e_lo, e_hi, cover = beam_window(down(bl - thh), up(bh - thl),
-                                                                    a0, inc, h, nb)
-                if o_lo > o_hi:
-                    continue
-                lo_min, hi_max, f_min, f_max = _win(T, lg, o_lo, o_hi)
-                if cover and (e_lo != o_lo or e_hi != o_hi):
-                    f_min = _win(T, lg, e_lo, e_hi)[2]
-                if cover and r_hi < f_min:
-                    slot = _tile_slot(tl, n_tl, slot, tx, ty, 1)
-                    if slot < 0 or n_blk >= cap_blk:
-                        return False, n_tl, n_blk, n_mblk, n_cand
-                    n_tl = max(n_tl, slot + 1)
-                    blk[n_blk, 0], blk[n_blk, 1], blk[n_blk, 2], blk[n_blk, 3] = ix, iy, lev, slot
-                    n_blk += 1
-                    n_empty += s * s
-                    continue
-                freep = r_lo < f_max
-                obs = r_hi >= lo_min and r_lo <= hi_max
-                if simple:
-                    # [o_lo, o_hi] holds every cell's window
-                    if obs and exact:
-                        obs = _meets(T, lg, o_lo, o_hi, r_hi, r_lo, lo_min, hi_max, stats)
-                    if not obs and not freep:
-                        continue
-                    if LC[lev, 2] < iw_min + 0.5 * eps:
-                        u_lo, u_hi, k_lo, k_hi = _inner(x0, x1, y0, y1, eps, pxl, pxh, pyl, pyh, thl, thh, a0, h,
-                                                        mid, icx, icy, iwx, iwy, irc, amg, inv_inc, LC[lev, 0],
-                                                        LC[lev, 1], LC[lev, 2], LC[lev, 3])
-                    else:  # cells too far apart for a bearing common to all of them
-                        u_lo, u_hi = 0, -1
-                    if u_lo <= u_hi:
-                        i_lo = max(u_lo, 0)
-                        i_hi = min(u_hi, nb - 1)
-                        if i_lo <= i_hi:
-                            ilo_min, ihi_max, if_min, _ = _win(T, lg, i_lo, i_hi)
-                        # no cell can be proven empty: its window reaches outside the scan, or
-                        # its largest range reaches the free range of a beam in every window
-                        if freep and (u_lo < 0 or u_hi > nb - 1 or k_hi >= if_min):
-                            freep = False
-                        # every cell is in P_OBSTACLE^k when a beam of [i_lo, i_hi] meets the range
-                        # interval of each cell centre: one beam with lo <= k_hi and hi >= k_lo,
-                        # or the hull reaching them all with no jump wider than the narrowest,
-                        # at least the box's smaller side (see _inner_consts)
-                        if obs and i_lo <= i_hi and _meets_g(T, lg, i_lo, i_hi, k_hi, k_lo, ilo_min, ihi_max,
-                                                             max(gmin_c, down(k_hi - k_lo)), stats):
-                            # every cell is in P_OBSTACLE^k
-                            slot = _tile_slot(tl, n_tl, slot, tx, ty, 2)
-                            if slot < 0 or n_mblk >= cap_mblk:
-                                return False, n_tl, n_blk, n_mblk, n_cand
-                            n_tl = max(n_tl, slot + 1)
-                            mblk[n_mblk, 0], mblk[n_mblk, 1], mblk[n_mblk, 2] = ix, iy, lev
-                            mblk[n_mblk, 3], mblk[n_mblk, 4], mblk[n_mblk, 5] = o_lo, o_hi, slot
-                            n_mblk += 1
-                            n_obst += s * s
-                            # unmeasured cells: their beams are new (each cell once per log)
-                            for a in range(lx, lx + s):
-                                for b in range(ly, ly + s):
-                                    if _unmeasured(cells, t, a, b):
-                                        c_lo, c_hi, _, _, _, q_lo, q_hi = _cell_window(
-                                            tx * TILE + a, ty * TILE + b, eps, box, a0, inc, h, nb, rmax,
-                                            mid, lo_edge, hi_edge, err)
-                                        _scan_new(T, c_lo, c_hi, q_lo, q_hi, new, stats)
-                            continue
-                if not obs and not freep:
-                    continue
-                if lev > 1:
-                    half = s >> 1
-                    ca = ix - i0  # columns ca .. cm - 1 and cm .. ce, rows likewise
-                    cm = ca + half
-                    ce = ca + s - 1
-                    ra = iy - j0
-                    rm = ra + half
-                    rb_ = ra + s - 1
-                    cn = cm - 1
-                    rn = rm - 1
-                    G = (_node_geom(CX[ca, 0], CX[cn, 1], CY[ra, 0], CY[rn, 1], CX[ca, 2], CX[cn, 3], CY[ra, 2],
-                                    CY[rn, 3], thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err),
-                         _node_geom(CX[cm, 0], CX[ce, 1], CY[ra, 0], CY[rn, 1], CX[cm, 2], CX[ce, 3], CY[ra, 2],
-                                    CY[rn, 3], thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err),
-                         _node_geom(CX[ca, 0], CX[cn, 1], CY[rm, 0], CY[rb_, 1], CX[ca, 2], CX[cn, 3], CY[rm, 2],
-                                    CY[rb_, 3], thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err),
-                         _node_geom(CX[cm, 0], CX[ce, 1], CY[rm, 0], CY[rb_, 1], CX[cm, 2], CX[ce, 3], CY[rm, 2],
-                                    CY[rb_, 3], thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err))
-                    for q in range(4):
-                        g = G[q]
-                        sl[sp] = lev - 1
-                        sx[sp] = lx + (half if (q & 1) else 0)
-                        sy[sp] = ly + (half if (q & 2) else 0)
-                        sf[sp, 0], sf[sp, 1], sf[sp, 2], sf[sp, 3], sf[sp, 4], sf[sp, 5] = g[0], g[1], g[2], g[3], g[4], g[5]
-                        sw[sp, 0], sw[sp, 1], sw[sp, 2], sw[sp, 3] = g[6], g[7], g[8], g[9]
-                        sw[sp, 4], sw[sp, 5] = g[10], g[11]
-                        sp += 1
-                    continue
-                # the four cells: geometry of all four, then the reference's leaf decisions
-                c0 = ix - i0
-                r0 = iy - j0
-                G4 = (_geom1_d(CX[c0, 2], CX[c0, 3], CY[r0, 2], CY[r0, 3], thl, thh, a0, h, nb, mid, lo_edge,
-                               hi_edge, err, inv_inc),
-                      _geom1_d(CX[c0 + 1, 2], CX[c0 + 1, 3], CY[r0, 2], CY[r0, 3], thl, thh, a0, h, nb, mid,
-                               lo_edge, hi_edge, err, inv_inc),
-                      _geom1_d(CX[c0, 2], CX[c0, 3], CY[r0 + 1, 2], CY[r0 + 1, 3], thl, thh, a0, h, nb, mid,
-                               lo_edge, hi_edge, err, inv_inc),
-                      _geom1_d(CX[c0 + 1, 2], CX[c0 + 1, 3], CY[r0 + 1, 2], CY[r0 + 1, 3], thl, thh, a0, h, nb,
-                               mid, lo_edge, hi_edge, err, inv_inc))
-                for q in range(4):
+                half = s >> 1
+                inner = LC[lev, 2] < iw_min + 0.5 * eps  # else cells too far apart for a common bearing
+                _level_geom(n_lev, s, LX, LY, c0, r0, CX, CY, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge,
+                            err, DXL, DXH, DYL, DYH, RL, RH, OL, OH, EL, EH, CV, SM, inner, X0, X1, Y0, Y1, IL, IH,
+                            KL, KH, eps, pxl, pxh, pyl, pyh, icx, icy, iwx, iwy, irc, amg, LC[lev, 0], LC[lev, 1],
+                            LC[lev, 2], LC[lev, 3])
+                n_next = 0
+                for j in range(n_lev):
+                    lx, ly = LX[j], LY[j]
                     nodes += 1
-                    cx_ = ix + (q & 1)
-                    cy_ = iy + (q >> 1)
-                    r_lo, r_hi, o_lo, o_hi, ce_lo, ce_hi, c_cover, state = G4[q]
+                    r_lo, r_hi = RL[j], RH[j]
                     if r_lo > rmax:
                         continue
-                    if state == 0:
-                        code = _classify(T, lg, o_lo, o_hi, ce_lo, ce_hi, c_cover, r_lo, r_hi, stats)
-                    else:
-                        code, o_lo, o_hi, r_lo, r_hi = _cell(cx_, cy_, eps, box, a0, inc, h, nb, rmax, mid,
-                                                             lo_edge, hi_edge, T, lg, stats)
-                    if code == 0 or (code == 2 and exact):
+                    ix = tx * TILE + lx
+                    iy = ty * TILE + ly
+                    o_lo, o_hi, e_lo, e_hi, cover, simple = OL[j], OH[j], EL[j], EH[j], CV[j] != 0, SM[j] != 0
+                    if not simple:
+                        # the reference's block test (around the sensor box, the back of the scan)
+                        dxl, dxh = dn(X0[j] - pxh), upf(X1[j] - pxl)
+                        dyl, dyh = dn(Y0[j] - pyh), upf(Y1[j] - pyl)
+                        bl, bh, full = box_bearings(dxl, dxh, dyl, dyh)
+                        if full:
+                            o_lo, o_hi, e_lo, e_hi, cover = 0, nb - 1, 0, -1, False
+                        else:
+                            o_lo, o_hi, e_lo, e_hi, cover = beam_window(down(bl - thh), up(bh - thl),
+                                                                        a0, inc, h, nb)
+                    if o_lo > o_hi:
                         continue
-                    if code == 1:
+                    lo_min, hi_max, f_min, f_max = _win(T, lg, o_lo, o_hi)
+                    if cover and (e_lo != o_lo or e_hi != o_hi):
+                        f_min = _win(T, lg, e_lo, e_hi)[2]
+                    if cover and r_hi < f_min:
                         slot = _tile_slot(tl, n_tl, slot, tx, ty, 1)
                         if slot < 0 or n_blk >= cap_blk:
                             return False, n_tl, n_blk, n_mblk, n_cand
                         n_tl = max(n_tl, slot + 1)
-                        blk[n_blk, 0], blk[n_blk, 1], blk[n_blk, 2], blk[n_blk, 3] = cx_, cy_, 0, slot
+                        blk[n_blk, 0], blk[n_blk, 1], blk[n_blk, 2], blk[n_blk, 3] = ix, iy, lev, slot
                         n_blk += 1
-                        n_empty += 1
+                        n_empty += s * s
                         continue
-                    marked = code == 3
-                    if marked and _unmeasured(cells, t, lx + (q & 1), ly + (q >> 1)):
-                        _scan_new(T, o_lo, o_hi, r_lo, r_hi, new, stats)
-                    slot = _tile_slot(tl, n_tl, slot, tx, ty, 2 if marked else 0)
-                    if slot < 0 or n_cand >= cap_cand:
+                    freep = r_lo < f_max
+                    obs = r_hi >= lo_min and r_lo <= hi_max
+                    if simple:
+                        # [o_lo, o_hi] holds every cell's window
+                        if obs and exact:
+                            obs = _meets(T, lg, o_lo, o_hi, r_hi, r_lo, lo_min, hi_max, stats)
+                        if not obs and not freep:
+                            continue
+                        if inner:
+                            u_lo, u_hi, k_lo, k_hi = IL[j], IH[j], KL[j], KH[j]
+                        else:
+                            u_lo, u_hi = 0, -1
+                        if u_lo <= u_hi:
+                            i_lo = max(u_lo, 0)
+                            i_hi = min(u_hi, nb - 1)
+                            if i_lo <= i_hi:
+                                ilo_min, ihi_max, if_min, _ = _win(T, lg, i_lo, i_hi)
+                            # no cell can be proven empty: its window reaches outside the scan, or
+                            # its largest range reaches the free range of a beam in every window
+                            if freep and (u_lo < 0 or u_hi > nb - 1 or k_hi >= if_min):
+                                freep = False
+                            # every cell is in P_OBSTACLE^k when a beam of [i_lo, i_hi] meets the
+                            # range interval of each cell centre: one beam with lo <= k_hi and hi >=
+                            # k_lo, or the hull reaching them all with no jump wider than the
+                            # narrowest, at least the box's smaller side (see _inner_consts)
+                            if obs and i_lo <= i_hi and _meets_g(T, lg, i_lo, i_hi, k_hi, k_lo, ilo_min,
+                                                                 ihi_max, max(gmin_c, down(k_hi - k_lo)), stats):
+                                slot = _tile_slot(tl, n_tl, slot, tx, ty, 2)
+                                if slot < 0 or n_mblk >= cap_mblk:
+                                    return False, n_tl, n_blk, n_mblk, n_cand
+                                n_tl = max(n_tl, slot + 1)
+                                mblk[n_mblk, 0], mblk[n_mblk, 1], mblk[n_mblk, 2] = ix, iy, lev
+                                mblk[n_mblk, 3], mblk[n_mblk, 4], mblk[n_mblk, 5] = o_lo, o_hi, slot
+                                n_mblk += 1
+                                n_obst += s * s
+                                # unmeasured cells: their beams are new (each cell once per log)
+                                for a in range(lx, lx + s):
+                                    for b in range(ly, ly + s):
+                                        if _unmeasured(cells, t, a, b):
+                                            c_lo, c_hi, _, _, _, q_lo, q_hi = _cell_window(
+                                                tx * TILE + a, ty * TILE + b, eps, box, a0, inc, h, nb, rmax,
+                                                mid, lo_edge, hi_edge, err)
+                                            _scan_new(T, c_lo, c_hi, q_lo, q_hi, new, stats)
+                                continue
+                    if not obs and not freep:
+                        continue
+                    # refine: the four quarters at the next level (cells at level 0)
+                    NX[n_next], NY[n_next] = lx, ly
+                    NX[n_next + 1], NY[n_next + 1] = lx + half, ly
+                    NX[n_next + 2], NY[n_next + 2] = lx, ly + half
+                    NX[n_next + 3], NY[n_next + 3] = lx + half, ly + half
+                    n_next += 4
+                LX, NX = NX, LX
+                LY, NY = NY, LY
+                n_lev = n_next
+                lev -= 1
+            if lev > 0 or n_lev == 0:
+                continue
+            # the cells: geometry of all, then the reference's leaf decisions
+            _cell_geom(n_lev, LX, LY, c0, r0, CX, CY, thl, thh, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc,
+                       DXL, DXH, DYL, DYH, RL, RH, OL, OH, EL, EH, CV, SM)
+            for j in range(n_lev):
+                nodes += 1
+                r_lo, r_hi = RL[j], RH[j]
+                if r_lo > rmax:
+                    continue
+                lx, ly = LX[j], LY[j]
+                cx_ = tx * TILE + lx
+                cy_ = ty * TILE + ly
+                if SM[j] != 0:
+                    o_lo, o_hi = OL[j], OH[j]
+                    code = _classify(T, lg, o_lo, o_hi, EL[j], EH[j], CV[j] != 0, r_lo, r_hi, stats)
+                else:
+                    code, o_lo, o_hi, r_lo, r_hi = _cell(cx_, cy_, eps, box, a0, inc, h, nb, rmax, mid,
+                                                         lo_edge, hi_edge, T, lg, stats)
+                if code == 0 or (code == 2 and exact):
+                    continue
+                if code == 1:
+                    slot = _tile_slot(tl, n_tl, slot, tx, ty, 1)
+                    if slot < 0 or n_blk >= cap_blk:
                         return False, n_tl, n_blk, n_mblk, n_cand
                     n_tl = max(n_tl, slot + 1)
-                    cand[n_cand, 0], cand[n_cand, 1] = cx_, cy_
-                    cand[n_cand, 2], cand[n_cand, 3] = o_lo, o_hi
-                    cand[n_cand, 4], cand[n_cand, 5] = (1 if marked else 0), slot
-                    cand_f[n_cand, 0], cand_f[n_cand, 1] = r_lo, r_hi
-                    n_cand += 1
-                    n_obst += 1
+                    blk[n_blk, 0], blk[n_blk, 1], blk[n_blk, 2], blk[n_blk, 3] = cx_, cy_, 0, slot
+                    n_blk += 1
+                    n_empty += 1
+                    continue
+                marked = code == 3
+                if marked and _unmeasured(cells, t, lx, ly):
+                    _scan_new(T, o_lo, o_hi, r_lo, r_hi, new, stats)
+                slot = _tile_slot(tl, n_tl, slot, tx, ty, 2 if marked else 0)
+                if slot < 0 or n_cand >= cap_cand:
+                    return False, n_tl, n_blk, n_mblk, n_cand
+                n_tl = max(n_tl, slot + 1)
+                cand[n_cand, 0], cand[n_cand, 1] = cx_, cy_
+                cand[n_cand, 2], cand[n_cand, 3] = o_lo, o_hi
+                cand[n_cand, 4], cand[n_cand, 5] = (1 if marked else 0), slot
+                cand_f[n_cand, 0], cand_f[n_cand, 1] = r_lo, r_hi
+                n_cand += 1
+                n_obst += 1
     stats[0] += nodes
     stats[1] += n_empty
     stats[3] += n_obst
@@ -1295,7 +1338,7 @@ def _grown(a):
 
 @njit(cache=True)
 def _traverse_grown(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, lg, T,
-                    new, tl, blk, mblk, cand, cand_f, st, fill):
+                    new, tl, blk, mblk, cand, cand_f, st, WF, WI, fill):
     """:func:`traverse` of one scan, its record buffers grown (and ``new``, ``st`` reset) until
     they hold the scan: ``(n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f)``."""
     nb = ranges.shape[0]
@@ -1304,7 +1347,7 @@ def _traverse_grown(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_re
         st[:] = 0
         ok, n_tl, n_blk, n_mblk, n_cand = traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel,
                                                    r_alpha, eps, exact, lg, T, new, tl, blk, mblk, cand, cand_f,
-                                                   st, fill)
+                                                   st, WF, WI, fill)
         if ok:
             return n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f
         if n_tl >= tl.shape[0]:
@@ -1333,6 +1376,7 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
     cnt_valid = np.zeros(nbmax + 1, dtype=np.int64)
     new_idx = np.zeros(nbmax, dtype=np.int64)
     tl, blk, mblk, cand, cand_f = _record_buffers()
+    WF, WI = _level_buffers()
     st = np.zeros(4, dtype=np.int64)
     for s in order:
         b0, b1 = offsets[s], offsets[s + 1]
@@ -1341,7 +1385,7 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
             continue
         n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f = _traverse_grown(
             keys, slots, cells, ranges[b0:b1], valid[b0:b1], angle_min[s], angle_inc[s], boxes[s], r_abs, r_rel,
-            r_alpha, eps, exact, lg, T, new, tl, blk, mblk, cand, cand_f, st, fill)
+            r_alpha, eps, exact, lg, T, new, tl, blk, mblk, cand, cand_f, st, WF, WI, fill)
         n_new = 0
         n_old = 0
         rmax = -INF
@@ -1384,10 +1428,11 @@ def scan_cells(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, f
     slots = np.full(4, -1, dtype=np.int64)
     cells = np.zeros((1, TILE, TILE), dtype=np.uint8)
     tl, blk, mblk, cand, cand_f = _record_buffers()
+    WF, WI = _level_buffers()
     st = np.zeros(4, dtype=np.int64)
     n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f = _traverse_grown(
         keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, lg, T, new, tl, blk,
-        mblk, cand, cand_f, st, fill)
+        mblk, cand, cand_f, st, WF, WI, fill)
     ex = np.empty(st[1], dtype=np.int64)
     ey = np.empty(st[1], dtype=np.int64)
     _block_cells(blk, n_blk, ex, ey, 0)
