@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from ivslam_cli.logs.model import Scans
 from ivslam_cli.paving.tiles import EMPTY, OBST_NEW, OBST_OLD, OBSTACLE, TILE, TileMap
 from ivslam_cli.paving.tiles import EMPTY_STATE
-from ivslam_cli.slam.lidar_geometry import box_bearings, box_ranges, sensor_box
+from ivslam_cli.slam.lidar_geometry import box_bearings, box_ranges, range_bounds, sensor_box
 from ivslam_cli.slam.lidar_map import LidarBounds, inclusion_new, scan_sets, update_map
 
 SETTINGS = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -622,6 +622,16 @@ def test_fast_path_grows_its_buffers():
     ok = K.traverse(keys, slots, cells, *args[:9], True, lg, T, np.zeros(nb, np.bool_), *small,
                     np.zeros(4, np.int64), *K._level_buffers())[0]
     assert not ok
+    # work arrays too small for the blocks of a level: their size is asked for
+    wf, wi = np.empty((K._WF, 4)), np.empty((K._WI, 4), np.int64)
+    r = K.traverse(keys, slots, cells, *args[:9], True, lg, T, np.zeros(nb, np.bool_), *K._record_buffers(),
+                   np.zeros(4, np.int64), wf, wi)
+    assert not r[0] and r[5] > 4
+    r = K._traverse_grown(keys, slots, cells, *args[:9], True, lg, T, np.zeros(nb, np.bool_),
+                          *K._record_buffers(), np.zeros(4, np.int64), wf, wi, True)
+    assert r[10].shape[1] > 4
+    tx0, tx1, ty0, ty1 = K._tile_range(*sb[:4], float(T[0, :nb, 1].max()), 0.011)
+    assert (tx1 - tx0 + 1) * (ty1 - ty0 + 1) > 2 * K._CHUNK  # several chunks of tiles
     new, ref = K.scan_cells(*args, True), K.scan_cells_reference(*args, True)
     assert new[2].shape[0] > 4096 and new[0].shape[0] > 1024
     assert _cellset(new[0], new[1]) == _cellset(ref[0], ref[1])
@@ -751,3 +761,26 @@ def test_bench_lidar_map_runs_and_checks(capsys):
     assert out.count("same map, old beams and counts: OK") == 2
     assert "P_OBSTACLE^k ∪ P_OLD^k: OK" in out
     assert "load average" in out and "beams/s" in out
+
+
+def test_fast_update_log_several_chunks_of_tiles():
+    """A fine grid where a scan's tiles span several chunks (the fast path visits up to
+    ``_CHUNK`` tiles together, level by level): the reference's map, tiles in the same order."""
+    rng = np.random.default_rng(5)
+    segs, room = random_world(rng)
+    poses = np.array([random_pose(rng, segs, room) for _ in range(3)])
+    scans = ray_scans(rng, segs, poses, (0.1, 0.0, 0.0), "urg", 0.03, 0.01)
+    bounds = LidarBounds(0.03, 0.01, 0.0)
+    boxes = np.array([random_box(rng, p, 0.1, math.radians(1)) for p in poses])
+    eps = 0.015
+    sb = sensor_boxes(boxes, scans.mount)[0]
+    hi = max(range_bounds(float(z), 0.03, 0.01)[1] for z in scans.ranges[scans.valid])
+    tx0, tx1, ty0, ty1 = K._tile_range(*sb[:4], hi, eps)
+    assert (tx1 - tx0 + 1) * (ty1 - ty0 + 1) > 2 * K._CHUNK
+    new, ref = TileMap(eps), TileMap(eps)
+    a = _run_log(K.update_log, new, scans, boxes, bounds, np.arange(len(scans)), True, True)
+    b = _run_log(K.update_log_reference, ref, scans, boxes, bounds, np.arange(len(scans)), True, True)
+    _same_maps(new, ref)
+    assert new.n > K._CHUNK
+    assert np.array_equal(a[0], b[0])
+    assert np.array_equal(a[1][:, 1:5], b[1][:, 1:5])

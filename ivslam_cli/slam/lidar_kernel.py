@@ -873,12 +873,12 @@ def _tile_slot(tl, n_tl, slot, tx, ty, what):
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def _level_geom(n, s, LX, LY, c0, r0, CX, CY, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err,
+def _level_geom(n, s, LX, LY, CX, CY, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge, err,
                 DXL, DXH, DYL, DYH, RL, RH, OL, OH, EL, EH, CV, SM,
                 inner, X0, X1, Y0, Y1, IL, IH, KL, KH, eps, pxl, pxh, pyl, pyh, icx, icy, iwx, iwy, irc, amg,
                 lw, lrb, lc, lrbc):
-    """Geometry of the blocks ``(LX[j], LY[j])`` of ``s x s`` cells of a tile, ``j < n``
-    (columns from ``c0``, rows from ``r0`` in the axis tables :func:`_axis_table`): the range
+    """Geometry of the blocks of ``s x s`` cells with first column ``LX[j]`` and row ``LY[j]``
+    in the axis tables (:func:`_axis_table`), ``j < n``: the range
     interval into ``RL, RH`` and the fast outer window into ``OL, OH, EL, EH`` (clipped, then
     unclipped), ``CV`` (cover: inside the scan) and ``SM`` (simple), 1 / 0.
 
@@ -893,8 +893,8 @@ def _level_geom(n, s, LX, LY, c0, r0, CX, CY, thl, thh, a0, inv_inc, h, nb, mid,
     model: no zero-division test, every divisor is non-zero by a select). ``DXL .. DYH``: work
     arrays (offsets from the sensor box, gathered first: gathers do not vectorise)."""
     for j in range(n):  # the offsets from the axis tables (gathers: not vectorised)
-        ca = c0 + LX[j]
-        ra = r0 + LY[j]
+        ca = LX[j]
+        ra = LY[j]
         DXL[j], DXH[j], DYL[j], DYH[j] = CX[ca, 2], CX[ca + s - 1, 3], CY[ra, 2], CY[ra + s - 1, 3]
         X0[j], X1[j], Y0[j], Y1[j] = CX[ca, 0], CX[ca + s - 1, 1], CY[ra, 0], CY[ra + s - 1, 1]
     if inner:  # _inner of every block (used for the simple ones that are neither pruned nor empty)
@@ -932,13 +932,13 @@ def _level_geom(n, s, LX, LY, c0, r0, CX, CY, thl, thh, a0, inv_inc, h, nb, mid,
 
 
 @njit(cache=True, error_model="numpy", _nrt=False)
-def _cell_geom(n, LX, LY, c0, r0, CX, CY, thl, thh, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc,
+def _cell_geom(n, LX, LY, CX, CY, thl, thh, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc,
                DXL, DXH, DYL, DYH, RL, RH, OL, OH, EL, EH, CV, SM):
     """:func:`_geom1_d` of cells ``(LX[j], LY[j])``, ``j < n`` (as :func:`_level_geom`; ``SM``:
     the window decided, state 0). Selects only: vectorised."""
     for j in range(n):
-        ca = c0 + LX[j]
-        ra = r0 + LY[j]
+        ca = LX[j]
+        ra = LY[j]
         DXL[j], DXH[j], DYL[j], DYH[j] = CX[ca, 2], CX[ca, 3], CY[ra, 2], CY[ra, 3]
     for j in range(n):
         dxl, dxh, dyl, dyh = DXL[j], DXH[j], DYL[j], DYH[j]
@@ -980,13 +980,14 @@ def _cell_geom(n, LX, LY, c0, r0, CX, CY, thl, thh, a0, h, nb, mid, lo_edge, hi_
 
 _WF = 12  # rows of the level work arrays: floats (RL .. KH), integers (LX .. SM)
 _WI = 12
+_CHUNK = 64  # tiles traversed together, level by level (bounds the work arrays: 4 * 64 * 4096 blocks)
 
 
 @njit(cache=True)
 def _level_buffers():
-    """Work arrays of :func:`traverse` (rows of :data:`_WF` floats, :data:`_WI` integers; a tile
-    holds at most ``TILE^2`` blocks of a level)."""
-    return np.empty((_WF, TILE * TILE)), np.empty((_WI, TILE * TILE), dtype=np.int64)
+    """Work arrays of :func:`traverse` (rows of :data:`_WF` floats, :data:`_WI` integers, one
+    column per block of a level; :func:`_traverse_grown` grows them when a scan needs more)."""
+    return np.empty((_WF, 8192)), np.empty((_WI, 8192), dtype=np.int64)
 
 
 @njit(cache=True)
@@ -996,9 +997,10 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     beams as :func:`traverse_reference`). ``T``: the scan's table (:func:`_fast_tables`);
     ``WF, WI``: work arrays (:func:`_level_buffers`). The cells' sides and offsets from the
     sensor box come from per-axis tables (:func:`_axis_table`: the same roundings, once per
-    column and row). Each tile is visited
-    level by level: the geometry of all blocks (or cells) of a level first, in a vectorised
-    pass (:func:`_level_geom`, :func:`_cell_geom`), then their decisions one by one.
+    column and row). The tiles are visited together (by chunks of :data:`_CHUNK`), level by
+    level: the geometry of all blocks (or cells) of a level first, in a vectorised pass
+    (:func:`_level_geom`, :func:`_cell_geom`), then their decisions one by one; the tiles'
+    slots are put back in the order of a visit tile by tile at the end (:func:`_tiles_in_order`).
 
     The map (``keys, slots, cells``) is only read. Outputs, in buffers of fixed size:
     ``tl[j] = (tx, ty, flags)`` the tiles holding records, in traversal order (flags: 1 =
@@ -1011,8 +1013,9 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     P_OBSTACLE^{i,k} meets P_UNKNOWN. ``stats`` += [nodes, empty cells, beam tests, obstacle
     cells].
 
-    Returns ``(ok, n_tl, n_blk, n_mblk, n_cand)``; ``ok`` False: a buffer was too small
-    (``new`` and ``stats`` are then partial: grow the buffers, reset them, run again).
+    Returns ``(ok, n_tl, n_blk, n_mblk, n_cand, need)``; ``ok`` False: a buffer was too small
+    (``need`` > 0: the work arrays, which need that many columns; ``new`` and ``stats`` are then
+    partial: grow the buffers, reset them, run again).
     """
     nb = ranges.shape[0]
     h = max(r_alpha, 0.5 * inc)
@@ -1023,7 +1026,7 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     n_mblk = 0
     n_cand = 0
     if rmax == -INF:
-        return True, n_tl, n_blk, n_mblk, n_cand
+        return True, n_tl, n_blk, n_mblk, n_cand, 0
     if not (abs(box[0]) + abs(box[1]) + abs(box[2]) + abs(box[3]) + 2.0 * rmax + 4.0 * TILE * eps < FIN_MAX):
         # the tile index (int32 tile coordinates) bounds a map far below this
         raise ValueError("lidar map: coordinates or ranges beyond 1e150")
@@ -1043,172 +1046,217 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     j0 = ty0 * TILE
     CX = _axis_table(i0, (tx1 - tx0 + 1) * TILE, eps, pxl, pxh)
     CY = _axis_table(j0, (ty1 - ty0 + 1) * TILE, eps, pyl, pyh)
-    # the blocks of a level (LX, LY) and of the next (NX, NY), in the tile; their geometry
+    # the blocks of a level (LX, LY: columns and rows in the axis tables) and of the next (NX,
+    # NY); their geometry
     RL, RH, DXL, DXH, DYL, DYH, X0, X1, Y0, Y1, KL, KH = (WF[0], WF[1], WF[2], WF[3], WF[4], WF[5], WF[6],
                                                           WF[7], WF[8], WF[9], WF[10], WF[11])
     LX, LY, NX, NY, OL, OH, EL, EH, IL, IH, CV, SM = (WI[0], WI[1], WI[2], WI[3], WI[4], WI[5], WI[6], WI[7],
                                                       WI[8], WI[9], WI[10], WI[11])
+    cap = WI.shape[1]
     cap_blk = blk.shape[0]
     cap_mblk = mblk.shape[0]
     cap_cand = cand.shape[0]
+    # the tiles in the reference's order (rank = column-major over the scan's tile range): their
+    # map index and their slot in ``tl`` (-1: no record yet)
+    nty = ty1 - ty0 + 1
+    n_tiles = (tx1 - tx0 + 1) * nty
+    TT = np.empty(n_tiles, dtype=np.int64)
+    TS = np.full(n_tiles, -1, dtype=np.int64)
+    for q in range(n_tiles):
+        TT[q] = find(keys, slots, tx0 + q // nty, ty0 + q % nty)
     nodes = 0
     n_empty = 0
     n_obst = 0
-    for tx in range(tx0, tx1 + 1):
-        for ty in range(ty0, ty1 + 1):
-            t = find(keys, slots, tx, ty)
-            slot = -1
-            c0 = tx * TILE - i0
-            r0 = ty * TILE - j0
-            LX[0] = 0
-            LY[0] = 0
-            n_lev = 1
-            lev = _LEVELS
-            while lev > 0 and n_lev > 0:
-                s = 1 << lev
-                half = s >> 1
-                inner = LC[lev, 2] < iw_min + 0.5 * eps  # else cells too far apart for a common bearing
-                _level_geom(n_lev, s, LX, LY, c0, r0, CX, CY, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge,
-                            err, DXL, DXH, DYL, DYH, RL, RH, OL, OH, EL, EH, CV, SM, inner, X0, X1, Y0, Y1, IL, IH,
-                            KL, KH, eps, pxl, pxh, pyl, pyh, icx, icy, iwx, iwy, irc, amg, LC[lev, 0], LC[lev, 1],
-                            LC[lev, 2], LC[lev, 3])
-                n_next = 0
-                for j in range(n_lev):
-                    lx, ly = LX[j], LY[j]
-                    nodes += 1
-                    r_lo, r_hi = RL[j], RH[j]
-                    if r_lo > rmax:
-                        continue
-                    ix = tx * TILE + lx
-                    iy = ty * TILE + ly
-                    o_lo, o_hi, e_lo, e_hi, cover, simple = OL[j], OH[j], EL[j], EH[j], CV[j] != 0, SM[j] != 0
-                    if not simple:
-                        # the reference's block test (around the sensor box, the back of the scan)
-                        dxl, dxh = dn(X0[j] - pxh), upf(X1[j] - pxl)
-                        dyl, dyh = dn(Y0[j] - pyh), upf(Y1[j] - pyl)
-                        bl, bh, full = box_bearings(dxl, dxh, dyl, dyh)
-                        if full:
-                            o_lo, o_hi, e_lo, e_hi, cover = 0, nb - 1, 0, -1, False
-                        else:
-                            o_lo, o_hi, e_lo, e_hi, cover = beam_window(down(bl - thh), up(bh - thl),
-                                                                        a0, inc, h, nb)
-                    if o_lo > o_hi:
-                        continue
-                    lo_min, hi_max, f_min, f_max = _win(T, lg, o_lo, o_hi)
-                    if cover and (e_lo != o_lo or e_hi != o_hi):
-                        f_min = _win(T, lg, e_lo, e_hi)[2]
-                    if cover and r_hi < f_min:
-                        slot = _tile_slot(tl, n_tl, slot, tx, ty, 1)
-                        if slot < 0 or n_blk >= cap_blk:
-                            return False, n_tl, n_blk, n_mblk, n_cand
-                        n_tl = max(n_tl, slot + 1)
-                        blk[n_blk, 0], blk[n_blk, 1], blk[n_blk, 2], blk[n_blk, 3] = ix, iy, lev, slot
-                        n_blk += 1
-                        n_empty += s * s
-                        continue
-                    freep = r_lo < f_max
-                    obs = r_hi >= lo_min and r_lo <= hi_max
-                    if simple:
-                        # [o_lo, o_hi] holds every cell's window
-                        if obs and exact:
-                            obs = _meets(T, lg, o_lo, o_hi, r_hi, r_lo, lo_min, hi_max, stats)
-                        if not obs and not freep:
-                            continue
-                        if inner:
-                            u_lo, u_hi, k_lo, k_hi = IL[j], IH[j], KL[j], KH[j]
-                        else:
-                            u_lo, u_hi = 0, -1
-                        if u_lo <= u_hi:
-                            i_lo = max(u_lo, 0)
-                            i_hi = min(u_hi, nb - 1)
-                            if i_lo <= i_hi:
-                                ilo_min, ihi_max, if_min, _ = _win(T, lg, i_lo, i_hi)
-                            # no cell can be proven empty: its window reaches outside the scan, or
-                            # its largest range reaches the free range of a beam in every window
-                            if freep and (u_lo < 0 or u_hi > nb - 1 or k_hi >= if_min):
-                                freep = False
-                            # every cell is in P_OBSTACLE^k when a beam of [i_lo, i_hi] meets the
-                            # range interval of each cell centre: one beam with lo <= k_hi and hi >=
-                            # k_lo, or the hull reaching them all with no jump wider than the
-                            # narrowest, at least the box's smaller side (see _inner_consts)
-                            if obs and i_lo <= i_hi and _meets_g(T, lg, i_lo, i_hi, k_hi, k_lo, ilo_min,
-                                                                 ihi_max, max(gmin_c, down(k_hi - k_lo)), stats):
-                                slot = _tile_slot(tl, n_tl, slot, tx, ty, 2)
-                                if slot < 0 or n_mblk >= cap_mblk:
-                                    return False, n_tl, n_blk, n_mblk, n_cand
-                                n_tl = max(n_tl, slot + 1)
-                                mblk[n_mblk, 0], mblk[n_mblk, 1], mblk[n_mblk, 2] = ix, iy, lev
-                                mblk[n_mblk, 3], mblk[n_mblk, 4], mblk[n_mblk, 5] = o_lo, o_hi, slot
-                                n_mblk += 1
-                                n_obst += s * s
-                                # unmeasured cells: their beams are new (each cell once per log)
-                                for a in range(lx, lx + s):
-                                    for b in range(ly, ly + s):
-                                        if _unmeasured(cells, t, a, b):
-                                            c_lo, c_hi, _, _, _, q_lo, q_hi = _cell_window(
-                                                tx * TILE + a, ty * TILE + b, eps, box, a0, inc, h, nb, rmax,
-                                                mid, lo_edge, hi_edge, err)
-                                            _scan_new(T, c_lo, c_hi, q_lo, q_hi, new, stats)
-                                continue
-                    if not obs and not freep:
-                        continue
-                    # refine: the four quarters at the next level (cells at level 0)
-                    NX[n_next], NY[n_next] = lx, ly
-                    NX[n_next + 1], NY[n_next + 1] = lx + half, ly
-                    NX[n_next + 2], NY[n_next + 2] = lx, ly + half
-                    NX[n_next + 3], NY[n_next + 3] = lx + half, ly + half
-                    n_next += 4
-                LX, NX = NX, LX
-                LY, NY = NY, LY
-                n_lev = n_next
-                lev -= 1
-            if lev > 0 or n_lev == 0:
-                continue
-            # the cells: geometry of all, then the reference's leaf decisions
-            _cell_geom(n_lev, LX, LY, c0, r0, CX, CY, thl, thh, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc,
-                       DXL, DXH, DYL, DYH, RL, RH, OL, OH, EL, EH, CV, SM)
+    for q0 in range(0, n_tiles, _CHUNK):  # a chunk of tiles, level by level
+        n_lev = 0
+        for q in range(q0, min(q0 + _CHUNK, n_tiles)):
+            LX[n_lev] = (q // nty) * TILE
+            LY[n_lev] = (q % nty) * TILE
+            n_lev += 1
+        lev = _LEVELS
+        while lev > 0 and n_lev > 0:
+            if 4 * n_lev > cap:
+                return False, n_tl, n_blk, n_mblk, n_cand, 4 * n_lev
+            s = 1 << lev
+            half = s >> 1
+            inner = LC[lev, 2] < iw_min + 0.5 * eps  # else cells too far apart for a common bearing
+            _level_geom(n_lev, s, LX, LY, CX, CY, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge,
+                        err, DXL, DXH, DYL, DYH, RL, RH, OL, OH, EL, EH, CV, SM, inner, X0, X1, Y0, Y1, IL, IH,
+                        KL, KH, eps, pxl, pxh, pyl, pyh, icx, icy, iwx, iwy, irc, amg, LC[lev, 0], LC[lev, 1],
+                        LC[lev, 2], LC[lev, 3])
+            n_next = 0
             for j in range(n_lev):
+                gx, gy = LX[j], LY[j]
                 nodes += 1
                 r_lo, r_hi = RL[j], RH[j]
                 if r_lo > rmax:
                     continue
-                lx, ly = LX[j], LY[j]
-                cx_ = tx * TILE + lx
-                cy_ = ty * TILE + ly
-                if SM[j] != 0:
-                    o_lo, o_hi = OL[j], OH[j]
-                    code = _classify(T, lg, o_lo, o_hi, EL[j], EH[j], CV[j] != 0, r_lo, r_hi, stats)
-                else:
-                    code, o_lo, o_hi, r_lo, r_hi = _cell(cx_, cy_, eps, box, a0, inc, h, nb, rmax, mid,
-                                                         lo_edge, hi_edge, T, lg, stats)
-                if code == 0 or (code == 2 and exact):
+                ix = i0 + gx
+                iy = j0 + gy
+                q = (gx >> TILE_SHIFT) * nty + (gy >> TILE_SHIFT)
+                o_lo, o_hi, e_lo, e_hi, cover, simple = OL[j], OH[j], EL[j], EH[j], CV[j] != 0, SM[j] != 0
+                if not simple:
+                    # the reference's block test (around the sensor box, the back of the scan)
+                    dxl, dxh = dn(X0[j] - pxh), upf(X1[j] - pxl)
+                    dyl, dyh = dn(Y0[j] - pyh), upf(Y1[j] - pyl)
+                    bl, bh, full = box_bearings(dxl, dxh, dyl, dyh)
+                    if full:
+                        o_lo, o_hi, e_lo, e_hi, cover = 0, nb - 1, 0, -1, False
+                    else:
+                        o_lo, o_hi, e_lo, e_hi, cover = beam_window(down(bl - thh), up(bh - thl),
+                                                                    a0, inc, h, nb)
+                if o_lo > o_hi:
                     continue
-                if code == 1:
-                    slot = _tile_slot(tl, n_tl, slot, tx, ty, 1)
+                lo_min, hi_max, f_min, f_max = _win(T, lg, o_lo, o_hi)
+                if cover and (e_lo != o_lo or e_hi != o_hi):
+                    f_min = _win(T, lg, e_lo, e_hi)[2]
+                if cover and r_hi < f_min:
+                    slot = _tile_slot(tl, n_tl, TS[q], ix >> TILE_SHIFT, iy >> TILE_SHIFT, 1)
                     if slot < 0 or n_blk >= cap_blk:
-                        return False, n_tl, n_blk, n_mblk, n_cand
+                        return False, n_tl, n_blk, n_mblk, n_cand, 0
+                    TS[q] = slot
                     n_tl = max(n_tl, slot + 1)
-                    blk[n_blk, 0], blk[n_blk, 1], blk[n_blk, 2], blk[n_blk, 3] = cx_, cy_, 0, slot
+                    blk[n_blk, 0], blk[n_blk, 1], blk[n_blk, 2], blk[n_blk, 3] = ix, iy, lev, slot
                     n_blk += 1
-                    n_empty += 1
+                    n_empty += s * s
                     continue
-                marked = code == 3
-                if marked and _unmeasured(cells, t, lx, ly):
-                    _scan_new(T, o_lo, o_hi, r_lo, r_hi, new, stats)
-                slot = _tile_slot(tl, n_tl, slot, tx, ty, 2 if marked else 0)
-                if slot < 0 or n_cand >= cap_cand:
-                    return False, n_tl, n_blk, n_mblk, n_cand
+                freep = r_lo < f_max
+                obs = r_hi >= lo_min and r_lo <= hi_max
+                if simple:
+                    # [o_lo, o_hi] holds every cell's window
+                    if obs and exact:
+                        obs = _meets(T, lg, o_lo, o_hi, r_hi, r_lo, lo_min, hi_max, stats)
+                    if not obs and not freep:
+                        continue
+                    if inner:
+                        u_lo, u_hi, k_lo, k_hi = IL[j], IH[j], KL[j], KH[j]
+                    else:
+                        u_lo, u_hi = 0, -1
+                    if u_lo <= u_hi:
+                        i_lo = max(u_lo, 0)
+                        i_hi = min(u_hi, nb - 1)
+                        if i_lo <= i_hi:
+                            ilo_min, ihi_max, if_min, _ = _win(T, lg, i_lo, i_hi)
+                        # no cell can be proven empty: its window reaches outside the scan, or
+                        # its largest range reaches the free range of a beam in every window
+                        if freep and (u_lo < 0 or u_hi > nb - 1 or k_hi >= if_min):
+                            freep = False
+                        # every cell is in P_OBSTACLE^k when a beam of [i_lo, i_hi] meets the
+                        # range interval of each cell centre: one beam with lo <= k_hi and hi >=
+                        # k_lo, or the hull reaching them all with no jump wider than the
+                        # narrowest, at least the box's smaller side (see _inner_consts)
+                        if obs and i_lo <= i_hi and _meets_g(T, lg, i_lo, i_hi, k_hi, k_lo, ilo_min,
+                                                             ihi_max, max(gmin_c, down(k_hi - k_lo)), stats):
+                            slot = _tile_slot(tl, n_tl, TS[q], ix >> TILE_SHIFT, iy >> TILE_SHIFT, 2)
+                            if slot < 0 or n_mblk >= cap_mblk:
+                                return False, n_tl, n_blk, n_mblk, n_cand, 0
+                            TS[q] = slot
+                            n_tl = max(n_tl, slot + 1)
+                            mblk[n_mblk, 0], mblk[n_mblk, 1], mblk[n_mblk, 2] = ix, iy, lev
+                            mblk[n_mblk, 3], mblk[n_mblk, 4], mblk[n_mblk, 5] = o_lo, o_hi, slot
+                            n_mblk += 1
+                            n_obst += s * s
+                            # unmeasured cells: their beams are new (each cell once per log)
+                            t = TT[q]
+                            lx = ix & TILE_MASK
+                            ly = iy & TILE_MASK
+                            for a in range(lx, lx + s):
+                                for b in range(ly, ly + s):
+                                    if _unmeasured(cells, t, a, b):
+                                        c_lo, c_hi, _, _, _, q_lo, q_hi = _cell_window(
+                                            ix - lx + a, iy - ly + b, eps, box, a0, inc, h, nb, rmax, mid, lo_edge,
+                                            hi_edge, err)
+                                        _scan_new(T, c_lo, c_hi, q_lo, q_hi, new, stats)
+                            continue
+                if not obs and not freep:
+                    continue
+                # refine: the four quarters at the next level (cells at level 0)
+                NX[n_next], NY[n_next] = gx, gy
+                NX[n_next + 1], NY[n_next + 1] = gx + half, gy
+                NX[n_next + 2], NY[n_next + 2] = gx, gy + half
+                NX[n_next + 3], NY[n_next + 3] = gx + half, gy + half
+                n_next += 4
+            LX, NX = NX, LX
+            LY, NY = NY, LY
+            n_lev = n_next
+            lev -= 1
+        if lev > 0 or n_lev == 0:
+            continue
+        # the cells: geometry of all, then the reference's leaf decisions
+        _cell_geom(n_lev, LX, LY, CX, CY, thl, thh, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc,
+                   DXL, DXH, DYL, DYH, RL, RH, OL, OH, EL, EH, CV, SM)
+        for j in range(n_lev):
+            nodes += 1
+            r_lo, r_hi = RL[j], RH[j]
+            if r_lo > rmax:
+                continue
+            gx, gy = LX[j], LY[j]
+            cx_ = i0 + gx
+            cy_ = j0 + gy
+            q = (gx >> TILE_SHIFT) * nty + (gy >> TILE_SHIFT)
+            if SM[j] != 0:
+                o_lo, o_hi = OL[j], OH[j]
+                code = _classify(T, lg, o_lo, o_hi, EL[j], EH[j], CV[j] != 0, r_lo, r_hi, stats)
+            else:
+                code, o_lo, o_hi, r_lo, r_hi = _cell(cx_, cy_, eps, box, a0, inc, h, nb, rmax, mid,
+                                                     lo_edge, hi_edge, T, lg, stats)
+            if code == 0 or (code == 2 and exact):
+                continue
+            if code == 1:
+                slot = _tile_slot(tl, n_tl, TS[q], cx_ >> TILE_SHIFT, cy_ >> TILE_SHIFT, 1)
+                if slot < 0 or n_blk >= cap_blk:
+                    return False, n_tl, n_blk, n_mblk, n_cand, 0
+                TS[q] = slot
                 n_tl = max(n_tl, slot + 1)
-                cand[n_cand, 0], cand[n_cand, 1] = cx_, cy_
-                cand[n_cand, 2], cand[n_cand, 3] = o_lo, o_hi
-                cand[n_cand, 4], cand[n_cand, 5] = (1 if marked else 0), slot
-                cand_f[n_cand, 0], cand_f[n_cand, 1] = r_lo, r_hi
-                n_cand += 1
-                n_obst += 1
+                blk[n_blk, 0], blk[n_blk, 1], blk[n_blk, 2], blk[n_blk, 3] = cx_, cy_, 0, slot
+                n_blk += 1
+                n_empty += 1
+                continue
+            marked = code == 3
+            if marked and _unmeasured(cells, TT[q], cx_ & TILE_MASK, cy_ & TILE_MASK):
+                _scan_new(T, o_lo, o_hi, r_lo, r_hi, new, stats)
+            slot = _tile_slot(tl, n_tl, TS[q], cx_ >> TILE_SHIFT, cy_ >> TILE_SHIFT, 2 if marked else 0)
+            if slot < 0 or n_cand >= cap_cand:
+                return False, n_tl, n_blk, n_mblk, n_cand, 0
+            TS[q] = slot
+            n_tl = max(n_tl, slot + 1)
+            cand[n_cand, 0], cand[n_cand, 1] = cx_, cy_
+            cand[n_cand, 2], cand[n_cand, 3] = o_lo, o_hi
+            cand[n_cand, 4], cand[n_cand, 5] = (1 if marked else 0), slot
+            cand_f[n_cand, 0], cand_f[n_cand, 1] = r_lo, r_hi
+            n_cand += 1
+            n_obst += 1
+    _tiles_in_order(tl, n_tl, TS, blk, n_blk, mblk, n_mblk, cand, n_cand)
     stats[0] += nodes
     stats[1] += n_empty
     stats[3] += n_obst
-    return True, n_tl, n_blk, n_mblk, n_cand
+    return True, n_tl, n_blk, n_mblk, n_cand, 0
+
+
+@njit(cache=True)
+def _tiles_in_order(tl, n_tl, TS, blk, n_blk, mblk, n_mblk, cand, n_cand):
+    """Renumber the tile slots in the order of the tiles' ranks (``TS[rank]`` = slot, -1 none):
+    the reference's order (tiles visited one by one), ``tl`` and the records' slots rewritten."""
+    new_of = np.empty(max(n_tl, 1), dtype=np.int64)
+    k = 0
+    for q in range(TS.shape[0]):
+        if TS[q] >= 0:
+            new_of[TS[q]] = k
+            k += 1
+    in_order = True
+    for j in range(n_tl):
+        in_order = in_order and new_of[j] == j
+    if in_order:
+        return
+    old = tl[:n_tl].copy()
+    for j in range(n_tl):
+        tl[new_of[j]] = old[j]
+    for k in range(n_blk):
+        blk[k, 3] = new_of[blk[k, 3]]
+    for k in range(n_mblk):
+        mblk[k, 5] = new_of[mblk[k, 5]]
+    for k in range(n_cand):
+        cand[k, 5] = new_of[cand[k, 5]]
 
 
 @njit(cache=True, _nrt=False)
@@ -1339,17 +1387,22 @@ def _grown(a):
 @njit(cache=True)
 def _traverse_grown(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, lg, T,
                     new, tl, blk, mblk, cand, cand_f, st, WF, WI, fill):
-    """:func:`traverse` of one scan, its record buffers grown (and ``new``, ``st`` reset) until
-    they hold the scan: ``(n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f)``."""
+    """:func:`traverse` of one scan, its record buffers and work arrays grown (and ``new``,
+    ``st`` reset) until they hold the scan: ``(n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand,
+    cand_f, WF, WI)``."""
     nb = ranges.shape[0]
     while True:
         new[:nb] = False
         st[:] = 0
-        ok, n_tl, n_blk, n_mblk, n_cand = traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel,
-                                                   r_alpha, eps, exact, lg, T, new, tl, blk, mblk, cand, cand_f,
-                                                   st, WF, WI, fill)
+        ok, n_tl, n_blk, n_mblk, n_cand, need = traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs,
+                                                         r_rel, r_alpha, eps, exact, lg, T, new, tl, blk, mblk,
+                                                         cand, cand_f, st, WF, WI, fill)
         if ok:
-            return n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f
+            return n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f, WF, WI
+        if need > 0:
+            m = max(need, 2 * WI.shape[1])
+            WF = np.empty((WF.shape[0], m))
+            WI = np.empty((WI.shape[0], m), dtype=np.int64)
         if n_tl >= tl.shape[0]:
             tl = _grown(tl)
         if n_blk >= blk.shape[0]:
@@ -1383,7 +1436,7 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
         nb = b1 - b0
         if nb == 0:
             continue
-        n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f = _traverse_grown(
+        n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f, WF, WI = _traverse_grown(
             keys, slots, cells, ranges[b0:b1], valid[b0:b1], angle_min[s], angle_inc[s], boxes[s], r_abs, r_rel,
             r_alpha, eps, exact, lg, T, new, tl, blk, mblk, cand, cand_f, st, WF, WI, fill)
         n_new = 0
@@ -1430,7 +1483,7 @@ def scan_cells(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, f
     tl, blk, mblk, cand, cand_f = _record_buffers()
     WF, WI = _level_buffers()
     st = np.zeros(4, dtype=np.int64)
-    n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f = _traverse_grown(
+    n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f, WF, WI = _traverse_grown(
         keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, lg, T, new, tl, blk,
         mblk, cand, cand_f, st, WF, WI, fill)
     ex = np.empty(st[1], dtype=np.int64)
