@@ -18,13 +18,21 @@ the fast path's bit for bit (FAIL otherwise), as must the truth check of the sim
 How the fast path got here (interleaved A/B runs of ``traverse`` alone, 1,200 scans, exact leaf
 test; equality with the reference checked on 1,000 random cases x 2 leaf modes each time):
 
-- Session 7: each tile visited level by level; the geometry of all blocks of a level
-  (ranges, fast bearings, outer window, ``_inner``) and of all cells in one pass written with
-  selects only, which LLVM vectorises (AVX-512 on this machine: 8 blocks at a time), then the
-  decisions block by block. ``traverse`` 21 % faster (the leaves' geometry alone was 30 % of it
-  before, ~22 ns a cell scalar, ~5 ns vectorised); the bench went from 367x to 457x real time,
-  11.5x to 14.2x the reference; the same 4,084 nodes a scan. Gathers from the axis tables do
-  not vectorise (a separate scalar pass fills contiguous arrays first).
+- Session 7: the tiles of a scan visited together (chunks of 64), level by level; the
+  geometry of all blocks of a level (ranges, fast bearings, outer window, ``_inner``) and of
+  all cells in one pass written with selects only, which LLVM vectorises (AVX-512 on this
+  machine: 8 blocks at a time), then the decisions block by block, the tiles' slots put back
+  in the reference's order at the end. ``traverse`` 35 % faster (the leaves' geometry alone was
+  30 % of it, ~22 ns a cell scalar); a tile at a time gave 21 % (most of a tile's levels hold
+  under 8 blocks, which ran in the scalar remainder loops). The bench went from 367x to
+  473-536x real time, 11.5x to 16-18x the reference; the same 4,084 nodes a scan. Gathers from
+  the axis tables do not vectorise (a scalar pass fills contiguous arrays first); padding the
+  passes to whole vectors was slower.
+- Where the time goes now (perf, samples mapped onto the compiled functions, the whole
+  update on a growing map): ``traverse``'s decisions 45 %, ``_level_geom`` 15 %, ``_write``
+  13 % (spread out: no hot spot; skipping ``_flags`` calls for cells with no new beam in their
+  window gained nothing), ``_cell_geom`` 7 %, ``_fast_tables`` 7 %, ``_cell_window`` 4 % (the
+  unmeasured cells of blocks proven in P_OBSTACLE^k: the new-beam test).
 - Earlier: per-scan axis tables of the cells' sides and offsets (~4 %); helpers inlined and
   taking scalars (an array passed to an inlined helper costs ~20 % in reference counting);
   ``_nrt=False`` on the few helpers that stay calls (~25 %).
