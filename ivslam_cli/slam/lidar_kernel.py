@@ -1056,14 +1056,12 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     cap_blk = blk.shape[0]
     cap_mblk = mblk.shape[0]
     cap_cand = cand.shape[0]
-    # the tiles in the reference's order (rank = column-major over the scan's tile range): their
-    # map index and their slot in ``tl`` (-1: no record yet)
+    # the tiles in the reference's order (rank = column-major over the scan's tile range), by
+    # chunks: the map index of the chunk's tiles and their slot in ``tl`` (-1: no record yet)
     nty = ty1 - ty0 + 1
     n_tiles = (tx1 - tx0 + 1) * nty
-    TT = np.empty(n_tiles, dtype=np.int64)
-    TS = np.full(n_tiles, -1, dtype=np.int64)
-    for q in range(n_tiles):
-        TT[q] = find(keys, slots, tx0 + q // nty, ty0 + q % nty)
+    TT = np.empty(_CHUNK, dtype=np.int64)
+    TS = np.empty(_CHUNK, dtype=np.int64)
     nodes = 0
     n_empty = 0
     n_obst = 0
@@ -1072,6 +1070,8 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
         for q in range(q0, min(q0 + _CHUNK, n_tiles)):
             LX[n_lev] = (q // nty) * TILE
             LY[n_lev] = (q % nty) * TILE
+            TT[n_lev] = find(keys, slots, tx0 + q // nty, ty0 + q % nty)
+            TS[n_lev] = -1
             n_lev += 1
         lev = _LEVELS
         while lev > 0 and n_lev > 0:
@@ -1093,7 +1093,7 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                     continue
                 ix = i0 + gx
                 iy = j0 + gy
-                q = (gx >> TILE_SHIFT) * nty + (gy >> TILE_SHIFT)
+                q = (gx >> TILE_SHIFT) * nty + (gy >> TILE_SHIFT) - q0  # in the chunk
                 o_lo, o_hi, e_lo, e_hi, cover, simple = OL[j], OH[j], EL[j], EH[j], CV[j] != 0, SM[j] != 0
                 if not simple:
                     # the reference's block test (around the sensor box, the back of the scan)
@@ -1193,7 +1193,7 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
             gx, gy = LX[j], LY[j]
             cx_ = i0 + gx
             cy_ = j0 + gy
-            q = (gx >> TILE_SHIFT) * nty + (gy >> TILE_SHIFT)
+            q = (gx >> TILE_SHIFT) * nty + (gy >> TILE_SHIFT) - q0  # in the chunk
             if SM[j] != 0:
                 o_lo, o_hi = OL[j], OH[j]
                 code = _classify(T, lg, o_lo, o_hi, EL[j], EH[j], CV[j] != 0, r_lo, r_hi, stats)
@@ -1226,7 +1226,7 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
             cand_f[n_cand, 0], cand_f[n_cand, 1] = r_lo, r_hi
             n_cand += 1
             n_obst += 1
-    _tiles_in_order(tl, n_tl, TS, blk, n_blk, mblk, n_mblk, cand, n_cand)
+    _tiles_in_order(tl, n_tl, tx0, ty0, nty, blk, n_blk, mblk, n_mblk, cand, n_cand)
     stats[0] += nodes
     stats[1] += n_empty
     stats[3] += n_obst
@@ -1234,20 +1234,20 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
 
 
 @njit(cache=True)
-def _tiles_in_order(tl, n_tl, TS, blk, n_blk, mblk, n_mblk, cand, n_cand):
-    """Renumber the tile slots in the order of the tiles' ranks (``TS[rank]`` = slot, -1 none):
+def _tiles_in_order(tl, n_tl, tx0, ty0, nty, blk, n_blk, mblk, n_mblk, cand, n_cand):
+    """Renumber the tile slots in the order of the tiles' ranks (``(tx - tx0) nty + ty - ty0``):
     the reference's order (tiles visited one by one), ``tl`` and the records' slots rewritten."""
-    new_of = np.empty(max(n_tl, 1), dtype=np.int64)
-    k = 0
-    for q in range(TS.shape[0]):
-        if TS[q] >= 0:
-            new_of[TS[q]] = k
-            k += 1
+    rank = np.empty(max(n_tl, 1), dtype=np.int64)
     in_order = True
     for j in range(n_tl):
-        in_order = in_order and new_of[j] == j
+        rank[j] = (tl[j, 0] - tx0) * nty + (tl[j, 1] - ty0)
+        in_order = in_order and (j == 0 or rank[j] > rank[j - 1])
     if in_order:
         return
+    new_of = np.empty(n_tl, dtype=np.int64)
+    order = np.argsort(rank[:n_tl])
+    for k in range(n_tl):
+        new_of[order[k]] = k
     old = tl[:n_tl].copy()
     for j in range(n_tl):
         tl[new_of[j]] = old[j]
