@@ -217,8 +217,9 @@ def atan_poly(t):
 
 @njit(cache=True, inline="always")
 def atan2_fast(y, x):
-    """``atan2(y, x)`` in ``[-pi, pi]`` within :data:`ATAN_ERR` (``(0, 0)`` gives 0). Written
-    with selects, no branches: vectorisable in loops (:mod:`.lidar_kernel`'s level passes)."""
+    """``atan2(y, x)`` in ``[-pi, pi]`` within :data:`ATAN_ERR` for finite ``(y, x)`` (``(0, 0)``
+    gives 0; NaN is not handled: callers check their inputs). Written with selects, no
+    branches: vectorisable in loops (:mod:`.lidar_kernel`'s level passes)."""
     ax = abs(x)
     ay = abs(y)
     sw = ay > ax

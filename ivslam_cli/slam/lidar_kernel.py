@@ -980,7 +980,7 @@ def _cell_geom(n, LX, LY, CX, CY, thl, thh, a0, h, nb, mid, lo_edge, hi_edge, er
 
 _WF = 12  # rows of the level work arrays: floats (RL .. KH), integers (LX .. SM)
 _WI = 12
-_CHUNK = 64  # tiles traversed together, level by level (bounds the work arrays: 4 * 64 * 4096 blocks)
+_CHUNK = 64  # tiles traversed together, level by level (the work arrays need at most 64 * 4096 columns)
 
 
 @njit(cache=True)
