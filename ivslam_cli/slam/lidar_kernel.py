@@ -1053,6 +1053,8 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     LX, LY, NX, NY, OL, OH, EL, EH, IL, IH, CV, SM = (WI[0], WI[1], WI[2], WI[3], WI[4], WI[5], WI[6], WI[7],
                                                       WI[8], WI[9], WI[10], WI[11])
     cap = WI.shape[1]
+    if cap < _CHUNK:  # a chunk's tiles are listed before any test
+        return False, n_tl, n_blk, n_mblk, n_cand, _CHUNK
     cap_blk = blk.shape[0]
     cap_mblk = mblk.shape[0]
     cap_cand = cand.shape[0]
