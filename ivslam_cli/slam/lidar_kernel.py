@@ -684,44 +684,40 @@ def _geom1(cx, cy, eps, pxl, pxh, pyl, pyh, thl, thh, a0, h, nb, mid, lo_edge, h
 @njit(cache=True, inline="always")
 def _geom1_d(dxl, dxh, dyl, dyh, thl, thh, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc):
     """:func:`_geom1` from the cell's offsets from the sensor box ``[dxl, dxh] x [dyl, dyh]``
-    (:func:`_axis_table`)."""
+    (:func:`_axis_table`). Selects only, no branches: vectorised in :func:`_cell_geom`."""
     r_lo, r_hi = box_ranges_fin(dxl, dxh, dyl, dyh)
     bl, bh, full = box_bearings_fast(dxl, dxh, dyl, dyh)
-    if full:
-        return r_lo, r_hi, 0, nb - 1, 0, -1, False, 0
-    state = 0
     pl = bl - thh
     ph = bh - thl
     c = 0.5 * (pl + ph) - mid
-    if not (-3.0 < c < 3.0):  # the reference's branch m = round(c / 2 pi) = +-1
-        if 3.3 < c < 9.2:
-            pl -= 2.0 * math.pi
-            ph -= 2.0 * math.pi
-        elif -9.2 < c < -3.3:
-            pl += 2.0 * math.pi
-            ph += 2.0 * math.pi
-        else:
-            state = -1
+    s1 = 3.3 < c and c < 9.2
+    s2 = -9.2 < c and c < -3.3
+    bad = not ((-3.0 < c and c < 3.0) or s1 or s2)  # the reference's branch m = round(c / 2 pi): 0, +-1
+    sh = -2.0 * math.pi if s1 else (2.0 * math.pi if s2 else 0.0)
+    pl += sh
+    ph += sh
     u_lo = (pl - h - a0) * inv_inc
     u_hi = (ph + h - a0) * inv_inc
-    if not (ph - pl < 5.9 and -1e5 < u_lo and u_hi < 1e5):
-        return r_lo, r_hi, 0, -1, 0, -1, False, -1
+    ok = ph - pl < 5.9 and -1e5 < u_lo and u_hi < 1e5
+    u_lo = u_lo if ok else 0.0
+    u_hi = u_hi if ok else 0.0
     d = err * inv_inc + 1e-9
     f_lo = math.floor(u_lo - d)
     f_hi = math.ceil(u_hi + d)
-    if f_lo != math.floor(u_lo + d) or f_hi != math.ceil(u_hi - d):
-        state = -1
+    und = bad or f_lo != math.floor(u_lo + d) or f_hi != math.ceil(u_hi - d)
     e_lo = int(f_lo)
     e_hi = int(f_hi)
-    o_lo = max(e_lo, 0)
-    o_hi = min(e_hi, nb - 1)
     g1 = pl + 2.0 * math.pi - hi_edge  # the reference widens to the whole scan when <= 0
     g2 = ph - 2.0 * math.pi - lo_edge  # ... or when >= 0
-    if g1 <= -err or g2 >= err:
-        o_lo, o_hi = 0, nb - 1
-    elif g1 <= err or g2 >= -err:
-        state = -1
-    return r_lo, r_hi, o_lo, o_hi, e_lo, e_hi, e_lo >= 0 and e_hi <= nb - 1, state
+    wide = g1 <= -err or g2 >= err
+    und = und or ((not wide) and (g1 <= err or g2 >= -err))
+    # full: every bearing, the whole scan, decided; not ok: undecided (empty window)
+    o_lo = 0 if (full or not ok or wide) else max(e_lo, 0)
+    o_hi = nb - 1 if full else (-1 if not ok else (nb - 1 if wide else min(e_hi, nb - 1)))
+    cover = (not full) and ok and e_lo >= 0 and e_hi <= nb - 1
+    state = 0 if full else (-1 if (und or not ok) else 0)
+    return (r_lo, r_hi, o_lo, o_hi, 0 if (full or not ok) else e_lo, -1 if (full or not ok) else e_hi, cover,
+            state)
 
 
 @njit(cache=True)
@@ -941,41 +937,16 @@ def _cell_geom(n, LX, LY, CX, CY, thl, thh, a0, h, nb, mid, lo_edge, hi_edge, er
         ra = LY[j]
         DXL[j], DXH[j], DYL[j], DYH[j] = CX[ca, 2], CX[ca, 3], CY[ra, 2], CY[ra, 3]
     for j in range(n):
-        dxl, dxh, dyl, dyh = DXL[j], DXH[j], DYL[j], DYH[j]
-        r_lo, r_hi = box_ranges_fin(dxl, dxh, dyl, dyh)
-        bl, bh, full = box_bearings_fast(dxl, dxh, dyl, dyh)
-        pl = bl - thh
-        ph = bh - thl
-        c = 0.5 * (pl + ph) - mid
-        s1 = 3.3 < c and c < 9.2
-        s2 = -9.2 < c and c < -3.3
-        bad = not ((-3.0 < c and c < 3.0) or s1 or s2)  # the reference's branch m = 0, -1, +1
-        sh = -2.0 * math.pi if s1 else (2.0 * math.pi if s2 else 0.0)
-        pl += sh
-        ph += sh
-        u_lo = (pl - h - a0) * inv_inc
-        u_hi = (ph + h - a0) * inv_inc
-        ok = ph - pl < 5.9 and -1e5 < u_lo and u_hi < 1e5
-        u_lo = u_lo if ok else 0.0
-        u_hi = u_hi if ok else 0.0
-        d = err * inv_inc + 1e-9
-        f_lo = math.floor(u_lo - d)
-        f_hi = math.ceil(u_hi + d)
-        und = f_lo != math.floor(u_lo + d) or f_hi != math.ceil(u_hi - d)
-        e_lo = int(f_lo)
-        e_hi = int(f_hi)
-        g1 = pl + 2.0 * math.pi - hi_edge  # the reference widens to the whole scan when <= 0
-        g2 = ph - 2.0 * math.pi - lo_edge  # ... or when >= 0
-        wide = g1 <= -err or g2 >= err
-        und = und or bad or ((not wide) and (g1 <= err or g2 >= -err))
+        r_lo, r_hi, o_lo, o_hi, e_lo, e_hi, cover, state = _geom1_d(DXL[j], DXH[j], DYL[j], DYH[j], thl, thh, a0,
+                                                                    h, nb, mid, lo_edge, hi_edge, err, inv_inc)
         RL[j] = r_lo
         RH[j] = r_hi
-        OL[j] = 0 if (full or wide) else (max(e_lo, 0) if ok else 0)
-        OH[j] = nb - 1 if (full or wide) else (min(e_hi, nb - 1) if ok else -1)
-        EL[j] = 0 if (full or not ok) else e_lo
-        EH[j] = -1 if (full or not ok) else e_hi
-        CV[j] = 1 if ((not full) and ok and e_lo >= 0 and e_hi <= nb - 1) else 0
-        SM[j] = 1 if (full or (ok and not und)) else 0
+        OL[j] = o_lo
+        OH[j] = o_hi
+        EL[j] = e_lo
+        EH[j] = e_hi
+        CV[j] = 1 if cover else 0
+        SM[j] = 1 if state == 0 else 0
 
 
 _WF = 12  # rows of the level work arrays: floats (RL .. KH), integers (LX .. SM)
