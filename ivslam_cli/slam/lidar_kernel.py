@@ -1023,7 +1023,7 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                                                           WF[7], WF[8], WF[9], WF[10], WF[11])
     LX, LY, NX, NY, OL, OH, EL, EH, IL, IH, CV, SM = (WI[0], WI[1], WI[2], WI[3], WI[4], WI[5], WI[6], WI[7],
                                                       WI[8], WI[9], WI[10], WI[11])
-    cap = WI.shape[1]
+    cap = min(WF.shape[1], WI.shape[1])
     if cap < _CHUNK:  # a chunk's tiles are listed before any test
         return False, n_tl, n_blk, n_mblk, n_cand, _CHUNK
     cap_blk = blk.shape[0]
