@@ -25,7 +25,7 @@ test; equality with the reference checked on 1,000 random cases x 2 leaf modes e
   in the reference's order at the end. ``traverse`` 35 % faster (the leaves' geometry alone was
   30 % of it, ~22 ns a cell scalar); a tile at a time gave 21 % (most of a tile's levels hold
   under 8 blocks, which ran in the scalar remainder loops). The bench went from 367x to
-  473-536x real time, 11.5x to 16-18x the reference; the same 4,084 nodes a scan. Gathers from
+  470-536x real time, 11.5x to 15-18x the reference; the same 4,084 nodes a scan. Gathers from
   the axis tables do not vectorise (a scalar pass fills contiguous arrays first); padding the
   passes to whole vectors was slower.
 - Where the time goes now (perf, samples mapped onto the compiled functions, the whole
