@@ -143,16 +143,17 @@ def run_case(log, config: str | Path | None, *, gtsam: bool, repeat: int = 1,
              overrides: dict[str, Any] | None = None) -> dict[str, Any]:
     """Our pipeline (and optionally GTSAM, same bounds) on a log: one row of figures."""
     from ivslam_cli.config import resolve_config
-    from ivslam_cli.slam.landmarks import run_landmarks
+    from ivslam_cli.slam.landmarks import Params as LandmarksParams
+    from ivslam_cli.slam.landmarks.pipeline import solve
 
     cfg = resolve_config(config, overrides or {}, log_bounds=log.bounds)
-    out, wall, cpu = timed(lambda: run_landmarks(log, cfg), repeat)
+    out, wall, cpu = timed(lambda: solve(log, LandmarksParams.from_config(cfg)), repeat)
     row: dict[str, Any] = {"ours_s": wall, "ours_cpu_s": cpu, **our_figures(log, out)}
     # what q-relaxation changed: the same run with plain intersections (q = 0)
     if int(cfg["robust.q_landmark"]) or int(cfg["robust.q_pose"]) or float(cfg["robust.q_landmark_frac"]):
         plain_cfg = resolve_config(config, {**(overrides or {}), "robust.q_landmark": 0, "robust.q_pose": 0,
                                             "robust.q_landmark_frac": 0.0}, log_bounds=log.bounds)
-        plain = our_figures(log, run_landmarks(log, plain_cfg))
+        plain = our_figures(log, solve(log, LandmarksParams.from_config(plain_cfg)))
         row.update({f"plain_{k}": plain[k] for k in ("empty_events", "pose_fraction", "lm_contained",
                                                      "pose_width_median", "landmark_width_median")})
     if gtsam:

@@ -1,4 +1,4 @@
-"""Benchmark: pose contraction against the map (``slam.lidar_contract.contract_pose``), fast path
+"""Benchmark: pose contraction against the map (``slam.lidar.contract.contract_pose``), fast path
 against the reference (hash lookups cell by cell), on three cases:
 
 - ``sim``: a simulated URG-04LX log (``ivslam simulate``'s ``urg-04lx`` profile, 682 beams over
@@ -55,7 +55,7 @@ def _box_around(rng, pose, hxy, hth):
 def _sim_case(n_map: int, n_test: int):
     from ivslam_cli.paving.tiles import TileMap
     from ivslam_cli.simulate import SimConfig, simulate
-    from ivslam_cli.slam.lidar_map import LidarBounds, update_map
+    from ivslam_cli.slam.lidar.map_update import LidarBounds, update_map
 
     log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=7, steps=n_map + n_test))
     scans, truth = log.scans, log.truth.pose
@@ -73,15 +73,17 @@ def _exp1_case(n_map: int, n_test: int):
     from ivslam_cli.config import resolve_config
     from ivslam_cli.logs import read_log
     from ivslam_cli.paving.tiles import TileMap
-    from ivslam_cli.slam.lidar import lidar_bounds, predict_poses, usable_scans
-    from ivslam_cli.slam.lidar_map import update_map
+    from ivslam_cli.slam.lidar import Params
+    from ivslam_cli.slam.lidar.map_update import update_map, usable_scans
+    from ivslam_cli.slam.lidar.prediction import predict_poses
 
     log = read_log(EXP1)
     cfg = resolve_config(CONFIG, {"lidar.poses_known": True, "lidar.known_poses": "odometry",
                                   "lidar.pose_margin": (0.02, 0.02, math.radians(0.3))}, log_bounds=log.bounds)
-    bounds = lidar_bounds(cfg)
-    scans, _ = usable_scans(log.scans, cfg)
-    pred = predict_poses(log, cfg, scans)
+    params = Params.from_config(cfg)
+    bounds = params.beams
+    scans, _ = usable_scans(log.scans, bounds, params.max_range, params.eps)
+    pred = predict_poses(log, params, scans)
     used, boxes = pred.used, pred.boxes
     tmap = TileMap(EPS)
     all_boxes = np.zeros((len(scans), 6))
@@ -97,16 +99,19 @@ def _exp1_case(n_map: int, n_test: int):
 def _pipeline_case(every: int):
     """Run exp1's track-and-map pass; returns (scans, bounds, sampled calls, per-call fast times,
     per-call box widths)."""
-    import ivslam_cli.slam.lidar_contract as LC
+    import ivslam_cli.slam.lidar.tracking as LC
     from ivslam_cli.config import resolve_config
     from ivslam_cli.logs import read_log
     from ivslam_cli.paving.tiles import TileMap
-    from ivslam_cli.slam.lidar import lidar_bounds, run_lidar, usable_scans
+    from ivslam_cli.slam.lidar import Params as LidarParams
+    from ivslam_cli.slam.lidar.map_update import usable_scans
+    from ivslam_cli.slam.lidar.pipeline import solve
 
     log = read_log(EXP1)
     cfg = resolve_config(CONFIG, {}, log_bounds=log.bounds)
-    bounds = lidar_bounds(cfg)
-    scans, _ = usable_scans(log.scans, cfg)
+    params = LidarParams.from_config(cfg)
+    bounds = params.beams
+    scans, _ = usable_scans(log.scans, bounds, params.max_range, params.eps)
     orig = LC.contract_pose
     times, widths, calls = [], [], []
 
@@ -123,14 +128,14 @@ def _pipeline_case(every: int):
 
     LC.contract_pose = timed
     try:
-        run_lidar(log, cfg)
+        solve(log, LidarParams.from_config(cfg))
     finally:
         LC.contract_pose = orig
     return scans, bounds, calls, np.array(times), np.array(widths)
 
 
 def _time(calls, scans, bounds, reference: bool, repeat: int):
-    from ivslam_cli.slam.lidar_contract import contract_pose
+    from ivslam_cli.slam.lidar.contract import contract_pose
 
     best, outs = math.inf, None
     for _ in range(max(1, repeat)):
@@ -145,7 +150,7 @@ def _time(calls, scans, bounds, reference: bool, repeat: int):
 
 
 def _report(name, calls, scans, bounds, repeat, no_reference, truth=None) -> bool:
-    from ivslam_cli.slam.lidar_contract import contract_pose
+    from ivslam_cli.slam.lidar.contract import contract_pose
 
     tm, k, box = calls[0]
     for ref in (False, True):  # compile / cache load

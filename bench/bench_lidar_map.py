@@ -161,8 +161,8 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
 
     from ivslam_cli.simulate import SimConfig, simulate
-    from ivslam_cli.slam import lidar_kernel as K
-    from ivslam_cli.slam.lidar_map import STAT_FIELDS, LidarBounds, sensor_boxes, update_map
+    from ivslam_cli.slam.lidar import map_kernel as K
+    from ivslam_cli.slam.lidar.map_update import STAT_FIELDS, LidarBounds, sensor_boxes, update_map
     from ivslam_cli.paving.tiles import TileMap
 
     log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=7, steps=args.scans))

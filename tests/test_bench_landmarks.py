@@ -21,7 +21,8 @@ from bench.bench_landmarks import (
 from ivslam_cli.config import resolve_config
 from ivslam_cli.report.core import landmark_containment, pose_containment
 from ivslam_cli.simulate import SimConfig, simulate
-from ivslam_cli.slam.landmarks import run_landmarks
+from ivslam_cli.slam.landmarks import Params as LandmarksParams
+from ivslam_cli.slam.landmarks.pipeline import solve
 
 HAVE_GTSAM = importlib.util.find_spec("gtsam") is not None
 OVERRIDES = {"landmarks.initial_pose_from_truth": True}
@@ -39,7 +40,7 @@ def row(sim):
 
 
 def test_our_figures_match_the_report(sim):
-    out = run_landmarks(sim, resolve_config(None, OVERRIDES, log_bounds=sim.bounds))
+    out = solve(sim, LandmarksParams.from_config(resolve_config(None, OVERRIDES, log_bounds=sim.bounds)))
     fig = our_figures(sim, out)
     pc, lc = pose_containment(out.poses, sim.truth), landmark_containment(out.landmarks, sim.truth)
     assert (fig["pose_checked"], fig["pose_contained"]) == (pc.checked, pc.contained) and pc.checked > 0
@@ -58,7 +59,7 @@ def test_figures_without_truth_are_nan(sim):
     from dataclasses import replace
 
     log = replace(sim, truth=None)
-    out = run_landmarks(log, resolve_config(None, {"landmarks.initial_pose": [0.0, 0.0, 0.0]}, log_bounds=log.bounds))
+    out = solve(log, LandmarksParams.from_config(resolve_config(None, {"landmarks.initial_pose": [0.0, 0.0, 0.0]}, log_bounds=log.bounds)))
     fig = our_figures(log, out)
     assert fig["pose_checked"] == 0 and math.isnan(fig["pose_fraction"]) and fig["lm_checked"] == 0
     text = format_table([{"name": "no truth", **fig, "ours_s": 0.5}], VICTORIA_COLUMNS)

@@ -16,8 +16,10 @@ from ivslam_cli.config import resolve_config
 from ivslam_cli.logs.model import Odometry
 from ivslam_cli.report.core import landmark_containment, pose_containment
 from ivslam_cli.simulate import SimConfig, simulate
-from ivslam_cli.slam import landmarks_kernel as K
-from ivslam_cli.slam.landmarks import chord_steps, node_lags, run_landmarks, speed_interval, subdivide
+from ivslam_cli.slam.landmarks import kernel as K
+from ivslam_cli.slam.landmarks import Params as LandmarksParams
+from ivslam_cli.slam.landmarks.pipeline import solve
+from ivslam_cli.slam.motion import chord_steps, node_lags, speed_interval, subdivide
 
 
 def _sim(seed: int, steps: int = 120, **kw):
@@ -44,7 +46,7 @@ def _check_sound(log, out):
 @given(seed=st.integers(0, 10_000), noise=st.sampled_from(["uniform", "edges", "triangular"]))
 def test_simulated_logs_keep_the_truth(seed, noise):
     log = _sim(seed, noise=noise)
-    out = run_landmarks(log, _cfg(log))
+    out = solve(log, LandmarksParams.from_config(_cfg(log)))
     _check_sound(log, out)
     assert len(out.consistency.empty_events) == 0
     assert len(out.consistency.rejected) == 0  # honest bounds: nothing proven inconsistent
@@ -56,7 +58,7 @@ def test_one_hundred_simulated_seeds_keep_the_truth():
     widths = []
     for seed in range(105):
         log = _sim(seed)
-        out = run_landmarks(log, _cfg(log))
+        out = solve(log, LandmarksParams.from_config(_cfg(log)))
         _check_sound(log, out)
         assert len(out.consistency.empty_events) == 0 and len(out.consistency.rejected) == 0
         widths.append(out.stats["median_landmark_width"])
@@ -75,8 +77,8 @@ def test_one_hundred_seeds_with_outliers_are_detected_or_absorbed():
         mask = dirty.truth.outliers["observations"]
         q = int(np.bincount(log.observations.landmark_id[mask]).max()) if mask.any() else 0
         _, per_pose = np.unique(log.observations.stamp[mask], return_counts=True)
-        out = run_landmarks(log, _cfg(log, **{"robust.q_landmark": q,
-                                              "robust.q_pose": int(per_pose.max()) if per_pose.size else 0}))
+        out = solve(log, LandmarksParams.from_config(_cfg(log, **{"robust.q_landmark": q,
+                                              "robust.q_pose": int(per_pose.max()) if per_pose.size else 0})))
         _check_sound(log, out)
         rejected = set(out.consistency.rejected.index.tolist())
         assert rejected <= set(np.flatnonzero(mask).tolist())
@@ -88,10 +90,10 @@ def test_one_hundred_seeds_with_outliers_are_detected_or_absorbed():
 def test_contracts_beyond_dead_reckoning():
     log = _sim(3, steps=200)
     cfg = _cfg(log)
-    out = run_landmarks(log, cfg)
+    out = solve(log, LandmarksParams.from_config(cfg))
     # dead reckoning alone: no observation at all
-    dr = run_landmarks(replace(log, observations=replace(log.observations, landmark_id=log.observations.landmark_id * 0 + 999,
-                                                         range=log.observations.range * 0 + 1e9)), cfg)
+    dr = solve(replace(log, observations=replace(log.observations, landmark_id=log.observations.landmark_id * 0 + 999,
+                                                         range=log.observations.range * 0 + 1e9)), LandmarksParams.from_config(cfg))
     w = out.poses.box[:, :2, 1] - out.poses.box[:, :2, 0]
     wd = dr.poses.box[:, :2, 1] - dr.poses.box[:, :2, 0]
     assert np.all(w <= wd + 1e-12)
@@ -101,8 +103,8 @@ def test_contracts_beyond_dead_reckoning():
 
 def test_more_sweeps_never_widen():
     log = _sim(5)
-    one = run_landmarks(log, _cfg(log, **{"landmarks.max_iterations": 1}))
-    many = run_landmarks(log, _cfg(log, **{"landmarks.max_iterations": 10, "landmarks.tolerance": 0.0}))
+    one = solve(log, LandmarksParams.from_config(_cfg(log, **{"landmarks.max_iterations": 1})))
+    many = solve(log, LandmarksParams.from_config(_cfg(log, **{"landmarks.max_iterations": 10, "landmarks.tolerance": 0.0})))
     assert np.all(many.poses.box[..., 0] >= one.poses.box[..., 0])
     assert np.all(many.poses.box[..., 1] <= one.poses.box[..., 1])
     _check_sound(log, many)
@@ -119,13 +121,13 @@ def test_outliers_are_rejected_and_the_truth_kept():
     # the stated assumption: at most q per landmark and at most q_pose = 1 at each pose
     _, per_pose = np.unique(log.observations.stamp[mask], return_counts=True)
     assert per_pose.max() <= 1
-    out = run_landmarks(log, _cfg(log, **{"robust.q_landmark": q, "robust.q_pose": 1}))
+    out = solve(log, LandmarksParams.from_config(_cfg(log, **{"robust.q_landmark": q, "robust.q_pose": 1})))
     _check_sound(log, out)
     rejected = set(out.consistency.rejected.index.tolist())
     # an honest observation is never proven inconsistent
     assert rejected <= set(np.flatnonzero(mask).tolist())
     # the outliers are detected or absorbed: the enclosures stay close to the clean run's
-    ref = run_landmarks(clean, _cfg(clean, **{"robust.q_landmark": q, "robust.q_pose": 1}))
+    ref = solve(clean, LandmarksParams.from_config(_cfg(clean, **{"robust.q_landmark": q, "robust.q_pose": 1})))
     assert out.stats["median_landmark_width"] <= 2.0 * ref.stats["median_landmark_width"]
     assert out.stats["median_pose_width"] <= 2.0 * ref.stats["median_pose_width"]
 
@@ -134,7 +136,7 @@ def test_plain_intersection_with_outliers_reports_events():
     clean = _sim(11, steps=200)
     dirty = _sim(11, steps=200, outlier_rate=0.05, outlier_magnitude=30.0)
     log = replace(dirty, odometry=clean.odometry)
-    out = run_landmarks(log, _cfg(log))
+    out = solve(log, LandmarksParams.from_config(_cfg(log)))
     # never silently empty: every box stays non-empty, the contradictions are recorded
     assert np.all(out.poses.box[..., 0] <= out.poses.box[..., 1])
     assert len(out.consistency.empty_events) + len(out.consistency.rejected) > 0
@@ -166,7 +168,7 @@ def _increment_log(seed: int, trans: float = 0.02, rot: float = 0.01):
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_pose_increment_odometry_keeps_the_truth(seed):
     log = _increment_log(seed)
-    out = run_landmarks(log, _cfg(log))
+    out = solve(log, LandmarksParams.from_config(_cfg(log)))
     assert out.stats["motion"] == "pose increments"
     _check_sound(log, out)
     assert len(out.consistency.empty_events) == 0
@@ -179,8 +181,8 @@ def test_observations_between_increment_stamps_are_attached_soundly():
     # the truth of a shifted observation is the pose at the shifted stamp: re-simulate the
     # measurement geometry by keeping it (an observation 30 ms late is within one step's reach)
     log2 = replace(log, observations=shifted)
-    out = run_landmarks(log2, _cfg(log2, **{"bounds.range_abs": log.bounds["range_abs"] + 0.1,
-                                            "bounds.bearing": log.bounds["bearing"] + 0.05}))
+    out = solve(log2, LandmarksParams.from_config(_cfg(log2, **{"bounds.range_abs": log.bounds["range_abs"] + 0.1,
+                                            "bounds.bearing": log.bounds["bearing"] + 0.05})))
     _check_sound(log2, out)
 
 

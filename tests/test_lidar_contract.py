@@ -17,8 +17,8 @@ from test_lidar_map import SETTINGS, make_scans, random_box, random_pose, random
 
 from ivslam_cli.logs.model import Scans
 from ivslam_cli.paving.tiles import EMPTY, OBST_NEW, OBST_OLD, TILE, TileMap
-from ivslam_cli.slam.lidar_contract import contract_pose
-from ivslam_cli.slam.lidar_map import LidarBounds, update_map
+from ivslam_cli.slam.lidar.contract import contract_pose
+from ivslam_cli.slam.lidar.map_update import LidarBounds, update_map
 
 EPS = 0.05
 R_ABS, R_REL, HALF = 0.03, 0.01, 0.004
@@ -86,7 +86,8 @@ def test_the_pipeline_contracts_its_pose_boxes_against_the_map():
     from ivslam_cli.config import resolve_config
     from ivslam_cli.report.core import pose_containment
     from ivslam_cli.simulate import SimConfig, simulate
-    from ivslam_cli.slam.lidar import run_lidar
+    from ivslam_cli.slam.lidar import Params as LidarParams
+    from ivslam_cli.slam.lidar.pipeline import solve
 
     log = simulate(SimConfig(scenario="lidar", seed=5, steps=200))
     widths = {}
@@ -94,7 +95,7 @@ def test_the_pipeline_contracts_its_pose_boxes_against_the_map():
         # the simulator ray-casts: state the gap assumption, or no free space is proven to contract with
         cfg = resolve_config(None, {"landmarks.initial_pose_from_truth": True, "lidar.contract": contract,
                                     "lidar.fill_gaps": True}, log_bounds=log.bounds)
-        out = run_lidar(log, cfg)
+        out = solve(log, LidarParams.from_config(cfg))
         pc = pose_containment(out.poses, log.truth)
         assert pc.contained == pc.checked > 0
         widths[contract] = out.stats["median_pose_width"]

@@ -26,7 +26,7 @@ from ivslam_cli.report.text import render_text
 from ivslam_cli.results.example import example_result
 from ivslam_cli.results.hdf5 import read_result, write_result
 from ivslam_cli.results.model import CELL_EMPTY, CELL_OBSTACLE, CELL_UNKNOWN, LogOddsGrid, MapGrid
-from ivslam_cli.slam.lidar_logodds import (
+from ivslam_cli.slam.lidar.logodds import (
     DIS_EMPTY_OCCUPIED,
     DIS_NONE,
     DIS_OBSTACLE_FREE,

@@ -18,8 +18,8 @@ from hypothesis import strategies as st
 from ivslam_cli.logs.model import Scans
 from ivslam_cli.paving.tiles import EMPTY, OBST_NEW, OBST_OLD, OBSTACLE, TILE, TileMap
 from ivslam_cli.paving.tiles import EMPTY_STATE
-from ivslam_cli.slam.lidar_geometry import box_bearings, box_ranges, range_bounds, sensor_box
-from ivslam_cli.slam.lidar_map import LidarBounds, inclusion_new, scan_sets, update_map
+from ivslam_cli.slam.lidar.geometry import box_bearings, box_ranges, range_bounds, sensor_box
+from ivslam_cli.slam.lidar.map_update import LidarBounds, inclusion_new, scan_sets, update_map
 
 SETTINGS = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow])
 BEAMS, INC = 683, 2 * math.pi / 1024  # URG-04LX-like: 683 beams over 240 degrees
@@ -467,9 +467,9 @@ def test_old_new_full_and_cheap_forms():
 # lidar_kernel keeps the cell-by-cell quadtree as *_reference: the fast path (certified blocks,
 # fast bearings with an error filter, O(1) window tests) must give the same cells, beams, map
 # flags, tile order and counts, bit for bit.
-from ivslam_cli.slam import lidar_kernel as K  # noqa: E402
-from ivslam_cli.slam.lidar_geometry import ATAN_ERR, atan2_fast, atan_poly  # noqa: E402
-from ivslam_cli.slam.lidar_map import sensor_boxes  # noqa: E402
+from ivslam_cli.slam.lidar import map_kernel as K  # noqa: E402
+from ivslam_cli.slam.lidar.geometry import ATAN_ERR, atan2_fast, atan_poly  # noqa: E402
+from ivslam_cli.slam.lidar.map_update import sensor_boxes  # noqa: E402
 
 GEOMETRIES = {  # name: (beams, angle_min, increment)
     "urg": (BEAMS, A0, INC),
@@ -658,7 +658,7 @@ def test_atan2_fast_error_bound():
             out[i] = atan2_fast(y[i], x[i])
         return out
 
-    from ivslam_cli.slam import lidar_geometry as G
+    from ivslam_cli.slam.lidar import geometry as G
 
     n = 2**22
     t = np.linspace(0.0, 1.0, n + 1)

@@ -30,7 +30,8 @@ from ivslam_cli.results.model import CELL_EMPTY, CELL_OBSTACLE
 from ivslam_cli.simulate import SimConfig, simulate
 from ivslam_cli.simulate.lidar import laser_poses
 from ivslam_cli.simulate.raycast import cast
-from ivslam_cli.slam.lidar import lidar_bounds, run_lidar
+from ivslam_cli.slam.lidar import Params as LidarParams
+from ivslam_cli.slam.lidar.pipeline import solve
 from test_lidar_map import segments_meet_cells
 
 REPO = Path(__file__).resolve().parents[1]
@@ -89,7 +90,7 @@ def run_sim(seed, world, sensor="urg-04lx", noise="uniform", steps=60, overrides
     log = simulate(SimConfig(scenario="lidar", world=world, sensor=sensor, seed=seed, steps=steps, noise=noise))
     cfg = resolve_config(None, {"landmarks.initial_pose_from_truth": True, "lidar.fill_gaps": True,
                                 **(overrides or {})}, log_bounds=log.bounds)
-    return log, run_lidar(log, cfg)
+    return log, solve(log, LidarParams.from_config(cfg))
 
 
 def assert_truth_kept(log, out):
@@ -184,7 +185,7 @@ def test_range_bounds_hold_in_both_conventions():
     """The map kernels take |z − d| ≤ a' + r'·d; [bounds] says |z − d| ≤ a + r·z (measured) and
     simulated logs a + r·d (true): the converted bounds hold for both."""
     cfg = resolve_config(overrides={"bounds.range_abs": 0.05, "bounds.range_rel": 0.1, "bounds.bearing": 0.0})
-    b = lidar_bounds(cfg)
+    b = LidarParams.from_config(cfg).beams
     rng = np.random.default_rng(0)
     d = rng.uniform(0.0, 50.0, 10_000)
     for z in (d + 0.999 * rng.uniform(-1, 1, d.size) * (0.05 + 0.1 * d),  # true-range convention
@@ -206,7 +207,7 @@ def test_one_line_errors(tmp_path):
     log = simulate(SimConfig(scenario="lidar", world="rooms", seed=1, steps=10))
     cfg = resolve_config(None, {}, log_bounds=log.bounds)
     with pytest.raises(IvslamError, match="no LiDAR scans"):
-        run_lidar(replace(log, scans=None), cfg)
+        solve(replace(log, scans=None), LidarParams.from_config(cfg))
     no_odo = tmp_path / "no_odo.h5"
     write_log(no_odo, replace(log, odometry=None), "h5", force=False)
     r = CliRunner().invoke(main, ["run", str(no_odo), "--mode", "lidar", "-o", str(tmp_path / "r.h5")])
@@ -368,7 +369,7 @@ def test_a_scan_contradicting_its_keyframe_is_an_empty_event():
     cfg = resolve_config(None, {"landmarks.initial_pose_from_truth": True, "lidar.fill_gaps": True,
                                 "lidar.keyframes": True, "lidar.contract": False, "lidar.q_beams": 0,
                                 "lidar.keyframe_distance": 0.2, "lidar.match_boxes": 300}, log_bounds=log.bounds)
-    out = run_lidar(bad, cfg)
+    out = solve(bad, LidarParams.from_config(cfg))
     kinds = [str(c) for c in out.consistency.empty_events.constraint]
     assert any(c.startswith("keyframe") for c in kinds), kinds
     assert out.stats["keyframes_unmatched"] + kinds.count("keyframe_meet") >= 1

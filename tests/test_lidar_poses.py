@@ -8,8 +8,9 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ivslam_cli.slam.landmarks_kernel import INCREMENT
-from ivslam_cli.slam.lidar_poses import dead_reckon, meet_boxes, meet_node, smooth_backward
+from ivslam_cli.slam.landmarks.kernel import INCREMENT
+from ivslam_cli.interval.pose import meet_or_keep
+from ivslam_cli.slam.motion_kernel import dead_reckon, meet_node, smooth_backward
 
 
 def _wrap(a):
@@ -66,11 +67,11 @@ def test_backward_pass_keeps_the_truth_and_carries_a_contraction_back(seed, n, e
         assert w(P)[n - 2] < w(fwd)[n - 2]
 
 
-def test_meet_boxes_meets_headings_as_angles_and_keeps_a_on_empty():
+def test_meet_or_keep_meets_headings_as_angles_and_keeps_a_on_empty():
     a = np.array([[0.0, 1.0, 0.0, 1.0, 3.0, 3.4], [0.0, 1.0, 0.0, 1.0, 0.0, 0.1]])
     b = np.array([[0.5, 2.0, -1.0, 0.5, 3.2 - 2 * math.pi, 3.3 - 2 * math.pi], [2.0, 3.0, 0.0, 1.0, 0.0, 0.1]])
     out = np.empty_like(a)
-    assert meet_boxes(a, b, out) == 1
+    assert meet_or_keep(a.reshape(-1, 3, 2), b.reshape(-1, 3, 2), out.reshape(-1, 3, 2)) == 1
     assert out[0, :4].tolist() == [0.5, 1.0, 0.0, 0.5]
     lo, hi = out[0, 4:]
     assert hi - lo <= 0.1 + 1e-9 and (lo <= 3.2 <= hi or lo <= 3.2 - 2 * math.pi <= hi)

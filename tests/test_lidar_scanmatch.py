@@ -16,8 +16,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ivslam_cli.slam.lidar_map import LidarBounds
-from ivslam_cli.slam.lidar_scanmatch import covered_free, match_scan
+from ivslam_cli.slam.lidar.map_update import LidarBounds
+from ivslam_cli.slam.lidar.scanmatch import covered_free, match_scan
 from ivslam_cli.simulate import SimConfig, simulate
 
 WORLDS = ("rooms", "corridor", "pillars", "open")

@@ -425,14 +425,15 @@ def test_simulated_keyframes_run_relations_use_the_relative_enclosures(tmp_path,
     from ivslam_cli.config import resolve_config
     from ivslam_cli.simulate import SimConfig, simulate
     from ivslam_cli.slam import run_pipeline
-    from ivslam_cli.slam.lidar import run_lidar
+    from ivslam_cli.slam.lidar import Params as LidarParams
+    from ivslam_cli.slam.lidar.pipeline import solve
 
     log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=4, steps=60))
     cfg = resolve_config(None, {"landmarks.initial_pose_from_truth": True, "lidar.fill_gaps": True,
                                 "lidar.keyframes": True, "lidar.keyframe_distance": 0.3,
                                 "lidar.keyframe_turn": 0.2, "lidar.match_boxes": 300}, log_bounds=log.bounds)
     res = run_pipeline(log, cfg, "lidar")
-    pairs, boxes = run_lidar(log, cfg).relative
+    pairs, boxes = solve(log, LidarParams.from_config(cfg)).relative
     assert res.relative is not None and len(res.relative) == pairs.shape[0] > 0
     assert np.array_equal(res.relative.pairs, pairs) and np.array_equal(res.relative.box.reshape(-1, 6), boxes)
     write_result(tmp_path / "r.h5", res)

@@ -18,7 +18,7 @@ from ivslam_cli.errors import IvslamError, LogError
 from ivslam_cli.logs.ivslam_h5 import read_ivslam_h5, write_ivslam_h5
 from ivslam_cli.logs.writers import format_from_path, write_log
 from ivslam_cli.simulate import SimConfig, simulate
-from ivslam_cli.simulate.meta import decode_meta
+from ivslam_cli.logs.meta import decode_meta
 
 EXT = {"mcap": ".mcap", "ros1": ".bag", "ros2": "", "ros2-mcap": "", "h5": ".h5"}
 

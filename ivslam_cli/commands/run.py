@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-MODES = ("pairs", "landmarks", "lidar")
+from ivslam_cli.slam import MODES
 
 
 def _default_output(log: str, mode: str) -> Path:
@@ -77,18 +77,19 @@ def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, 
       ivslam run sample_logs/lidar_rooms.h5 --mode lidar --initial-pose-from-truth
       ivslam run ../shared/datasets/carmen_corrected/aces-corrected.log.gz --mode lidar --poses-known
     """
+    from ivslam_cli.atomic import refuse_existing
     from ivslam_cli.config import resolve_config
     from ivslam_cli.errors import InconsistentData, IvslamError
     from ivslam_cli.logs import read_log
-    from ivslam_cli.slam import run_pipeline
+    from ivslam_cli.results.hdf5 import write_result
+    from ivslam_cli.slam import run_pipeline, summary
 
     out = Path(output) if output else _default_output(log, mode)
-    if out.exists() and not force:
-        raise IvslamError("result exists; use --force to overwrite it", out)
     if tum is not None and mode == "pairs":
         raise IvslamError(f"--tum needs pose enclosures: --mode landmarks or lidar (not {mode})")
-    if tum is not None and Path(tum).exists() and not force:
-        raise IvslamError("TUM file exists; use --force to overwrite it", tum)
+    for path in (out, tum):  # fail before the run, not after it
+        if path is not None:
+            refuse_existing(path, force)
     data = read_log(log, fmt, scan_topic=scan_topic, odom_topic=odom_topic, landmark_topic=landmark_topic,
                     truth_topic=truth_topic, robot=robot)
     overrides = {
@@ -105,29 +106,11 @@ def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, 
     }
     cfg = resolve_config(config_file, overrides, log_bounds=data.bounds)
     result = run_pipeline(data, cfg, mode, argv=sys.argv[1:] if ctx.parent else None)
-    from ivslam_cli.results.hdf5 import write_result
-
     write_result(out, result, force=force)
-    s = result.stats
-    events = len(result.consistency.empty_events)
     if tum is not None:
         from ivslam_cli.results.export import write_tum
 
         write_tum(tum, result.poses, force=force)
-    if mode == "landmarks":
-        click.echo(f"landmarks: {s['nodes']} poses, {s['landmarks']} landmarks, {s['observations']} observations "
-                   f"({s['observations_rejected']} rejected), {s['sweeps']} sweep(s)"
-                   f"{'' if s['converged'] else ' (not converged)'}, {events} empty event(s), "
-                   f"{result.runtime_s:.2f} s -> {out}", err=True)
-    elif mode == "lidar":
-        click.echo(f"lidar: {s['scans_used']}/{s['scans']} scans ({s['scans_mapped']} mapped), {s['beams']} beams "
-                   f"({s['valid_beams_mapped']} valid mapped: "
-                   f"{s['old_beams']} old, {s['new_beams']} new), {s['motion']}; map {s['area_empty_m2']:.4g} m² "
-                   f"empty, {s['area_obstacle_m2']:.4g} m² obstacle, {s['area_explored_m2']:.4g} m² explored; "
-                   f"{events} empty event(s), {result.runtime_s:.2f} s -> {out}", err=True)
-    else:
-        click.echo(f"{mode}: {s.get('intersections', 0)} intersections, {s.get('pairs', 0)} pairs, "
-                   f"{len(result.landmarks) if result.landmarks is not None else 0} landmarks, "
-                   f"{events} empty event(s), {result.runtime_s:.2f} s -> {out}", err=True)
+    click.echo(f"{summary(result)}, {result.runtime_s:.2f} s -> {out}", err=True)
     if result.consistency.stopped:
         raise InconsistentData(f"stopped (--strict): {result.consistency.stopped}; result written to {out}")

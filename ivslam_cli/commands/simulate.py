@@ -66,13 +66,12 @@ def command(scenario, output, fmt, seed, steps, duration, rate, landmarks, world
     """
     from pathlib import Path
 
-    from ivslam_cli.errors import IvslamError
+    from ivslam_cli.atomic import refuse_existing
     from ivslam_cli.logs.writers import format_from_path, write_log
     from ivslam_cli.simulate import SimConfig, simulate
 
     out = Path(output)
-    if out.exists() and not force:
-        raise IvslamError("output exists (use --force to overwrite)", out)
+    refuse_existing(out, force)
     fmt = fmt or format_from_path(out)
     cfg = SimConfig(scenario=scenario, seed=seed, steps=steps, duration=duration, rate=rate,
                     landmarks=landmarks, world_size=world_size, world=world, sensor=sensor,

@@ -212,3 +212,22 @@ def empty(n: int) -> np.ndarray:
     out[:, 0] = np.inf
     out[:, 1] = -np.inf
     return out
+
+
+def sym(half) -> np.ndarray:
+    """``[-h, h]`` rows for non-negative upper bounds ``h`` (a symmetric error interval)."""
+    half = np.asarray(half, dtype=np.float64)
+    return np.column_stack([-half, half])
+
+
+def point(a) -> np.ndarray:
+    """Degenerate rows ``[a, a]``."""
+    a = np.asarray(a, dtype=np.float64)
+    return np.column_stack([a, a])
+
+
+def bound_up(value: float) -> float:
+    """The upper end of the interval enclosing a decimal bound (``0`` stays ``0``)."""
+    from ivslam_cli.interval.rounding import enclose
+
+    return enclose(value)[1] if value else 0.0

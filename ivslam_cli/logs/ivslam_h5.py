@@ -85,9 +85,9 @@ def write_h5_file(path: str | Path, log: LogData) -> None:
 def write_ivslam_h5(path: str | Path, log: LogData, force: bool = False) -> Path:
     """Write ``log`` atomically (temp file beside ``path`` + rename); refuses to replace an
     existing file unless ``force``."""
-    from ivslam_cli.logs.writers import atomic_output
+    from ivslam_cli.atomic import atomic_output
 
-    with atomic_output(path, force) as tmp:
+    with atomic_output(path, force=force) as tmp:
         write_h5_file(tmp, log)
     return Path(path)
 

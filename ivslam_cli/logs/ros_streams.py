@@ -18,7 +18,7 @@ from ivslam_cli.logs.conventions import ScanSink, make_observations, make_odomet
 from ivslam_cli.logs.laserscan_wire import decode_laserscans
 from ivslam_cli.logs.model import Dropped, GroundTruth, LogData, Provenance
 from ivslam_cli.logs.msgdefs import LANDMARK_MSG_ROS2
-from ivslam_cli.simulate.meta import META_TOPIC, decode_meta
+from ivslam_cli.logs.meta import META_TOPIC, decode_meta
 
 SCAN = "sensor_msgs/msg/LaserScan"
 ODOM = "nav_msgs/msg/Odometry"

@@ -9,7 +9,7 @@ output name: ``.mcap`` -> mcap, ``.bag`` -> ros1, ``.h5``/``.hdf5`` -> h5, anyth
 Topics (ROS 2 type names; ROS 1 drops the ``/msg/``):
 
 ==================  =====================================  =============================
-``/ivslam/meta``    ``std_msgs/msg/String``                JSON (:mod:`ivslam_cli.simulate.meta`), once, latched
+``/ivslam/meta``    ``std_msgs/msg/String``                JSON (:mod:`ivslam_cli.logs.meta`), once, latched
 ``/tf_static``      ``tf2_msgs/msg/TFMessage``             ``base_link`` -> ``laser`` mount, once, latched
 ``/scan``           ``sensor_msgs/msg/LaserScan``          one per scan, frame ``laser``
 ``/odom``           ``nav_msgs/msg/Odometry``              frame ``odom`` -> ``base_link``: dead-reckoned pose, measured twist
@@ -29,16 +29,13 @@ with ``force``.
 
 from __future__ import annotations
 
-import contextlib
 import math
-import os
-import shutil
-import tempfile
-from collections.abc import Iterator
+
 from pathlib import Path
 
 import numpy as np
 
+from ivslam_cli.atomic import atomic_output
 from ivslam_cli.errors import IvslamError
 from ivslam_cli.logs.model import LogData
 from ivslam_cli.logs.msgdefs import LANDMARK_MSG_ROS2
@@ -70,35 +67,6 @@ def seconds_to_ns(t: np.ndarray) -> np.ndarray:
     t = np.asarray(t, dtype=np.float64)
     sec = np.floor(t)
     return sec.astype(np.int64) * 1_000_000_000 + np.round((t - sec) * 1e9).astype(np.int64)
-
-
-# ---- atomic output -------------------------------------------------------------------
-
-@contextlib.contextmanager
-def atomic_output(path: str | Path, force: bool = False) -> Iterator[Path]:
-    """Yield a path to write (file or directory) that is renamed to ``path`` on success.
-
-    The temporary lives in a fresh directory beside ``path`` (same file system), so the
-    final rename is atomic; on error nothing is left behind and ``path`` is untouched.
-    """
-    path = Path(path)
-    if path.exists() and not force:
-        raise IvslamError("output exists (use --force to overwrite)", path)
-    parent = path.parent if str(path.parent) else Path(".")
-    if not parent.is_dir():
-        raise IvslamError("output directory does not exist", parent)
-    tmpdir = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=parent))
-    try:
-        target = tmpdir / path.name
-        yield target
-        if not target.exists():
-            raise IvslamError("writer produced no output", path)
-        if path.exists():  # force: move the old one aside, then swap
-            aside = tmpdir / (path.name + ".old")
-            os.replace(path, aside)
-        os.replace(target, path)
-    finally:
-        shutil.rmtree(tmpdir, ignore_errors=True)
 
 
 # ---- messages ------------------------------------------------------------------------
@@ -276,13 +244,13 @@ def _write_ros2(path: Path, msgs, storage: str) -> None:
 
 def write_log(path: str | Path, log: LogData, fmt: str | None = None, force: bool = False) -> Path:
     """Write ``log`` to ``path`` in ``fmt`` (default from the name), atomically."""
-    from ivslam_cli.simulate.meta import encode_meta
+    from ivslam_cli.logs.meta import encode_meta
 
     fmt = fmt or format_from_path(path)
     if fmt not in FORMATS:
         raise IvslamError(f"unknown format '{fmt}' (choose from {', '.join(FORMATS)})", path)
     path = Path(path)
-    with atomic_output(path, force) as tmp:
+    with atomic_output(path, force=force) as tmp:
         if fmt == "h5":
             from ivslam_cli.logs.ivslam_h5 import write_h5_file
 

@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from ivslam_cli.interval.pose import box_width
 from ivslam_cli.logs.model import GroundTruth
 from ivslam_cli.results.model import (
     CELL_EMPTY,
@@ -77,12 +78,6 @@ def box_centre(box: np.ndarray) -> np.ndarray:
     with np.errstate(invalid="ignore"):  # inf + (−inf) for empty boxes, masked below
         c = 0.5 * (box[..., 0] + box[..., 1])
     return np.where(box_is_empty(box)[..., None], np.nan, c)
-
-
-def box_width(box: np.ndarray) -> np.ndarray:
-    """Largest side ``[...]``; NaN for empty boxes."""
-    w = np.max(box[..., 1] - box[..., 0], axis=-1)
-    return np.where(box_is_empty(box), np.nan, w)
 
 
 def pair_hulls(pairs: PairSubpavings) -> np.ndarray:
@@ -289,7 +284,7 @@ class Report:
     map_beams: dict[str, int] = field(default_factory=dict)  # lidar: scans/beams mapped, old/new
     # lidar: the log-odds baseline (not guaranteed) and where it disagrees with the interval map
     logodds_cells: dict[str, int] = field(default_factory=dict)  # occupied / free / unknown
-    disagreement: dict[str, int] = field(default_factory=dict)  # see slam.lidar_logodds.compare
+    disagreement: dict[str, int] = field(default_factory=dict)  # see slam.lidar.logodds.compare
     disagreement_code: np.ndarray | None = None  # (H, W) uint8 per-cell codes (for the plot)
 
     @property
@@ -354,7 +349,7 @@ def compute_report(r: Result) -> Report:
     dis: dict[str, int] = {}
     dis_code = None
     if r.logodds is not None and r.grid is not None:
-        from ivslam_cli.slam.lidar_logodds import compare  # numba only when there is one
+        from ivslam_cli.slam.lidar.logodds import compare  # numba only when there is one
 
         d = compare(r.grid, r.logodds)
         lo_cells, dis, dis_code = d.logodds_cells, d.counts(), d.code

@@ -7,7 +7,7 @@ landmark j (dl(i,j) + position of j: its truth when known, else its box centre; 
 darker), landmark boxes, and the truth (landmarks as crosses, trajectory as a line). Right
 panel: width-over-time curves per kind (median and max per step bin). A lidar result with the
 log-odds baseline gets it beside the map, on the same axes, with the cells where the two
-disagree in colour (``slam.lidar_logodds.compare``), and the widths below.
+disagree in colour (``slam.lidar.logodds.compare``), and the widths below.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numpy as np
 
 from ivslam_cli.errors import IvslamError
 from ivslam_cli.report.core import Report, box_centre
-from ivslam_cli.results.atomic import atomic_path
+from ivslam_cli.atomic import atomic_path
 from ivslam_cli.results.model import CELL_EMPTY, CELL_OBSTACLE, LABEL_INNER, box_is_empty
 
 FORMATS = {".png": "png", ".svg": "svg"}
@@ -99,7 +99,7 @@ def _draw_map(ax, rep: Report) -> None:
         ax.legend(fontsize="x-small", loc="best")
 
 
-# disagreement code -> colour, legend (see slam.lidar_logodds.compare). (a) and the occupied
+# disagreement code -> colour, legend (see slam.lidar.logodds.compare). (a) and the occupied
 # unknown cells are few and small: drawn as markers (on both panels) so that they show at any
 # scale; (c) is a tint of the log-odds image (the outer obstacle set's margin).
 DIS_MARKED = (

@@ -59,16 +59,19 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from ivslam_cli.errors import IvslamError, LogError
-from ivslam_cli.interval import arith as K
-from ivslam_cli.interval.angles import angle_meet_narrow
-from ivslam_cli.interval.rounding import ensure_round_to_nearest, up
+from ivslam_cli.interval.rounding import ensure_round_to_nearest
+from ivslam_cli.interval.pose import (
+    DEFAULT_SLICES,
+    compose_enclosure,
+    invert_enclosure,
+    meet_enclosures,
+    relative_enclosure,
+)
 from ivslam_cli.results.model import Poses, RelativePoses, box_is_empty
 
 DEFAULT_TOL = 1e-4  # s
-DEFAULT_SLICES = 16
 DEFAULT_MAX_HOPS = 8  # relative enclosures composed at most along a chain
 SOURCES = ("global", "relative", "inverted", "chained")  # codes 0..3 of RelationsCheck.source
 FAILURES_LISTED = 20
@@ -121,179 +124,6 @@ def read_relations(path) -> Relations:
         raise IvslamError("no relations (empty file or only comments)", path)
     a = np.asarray(rows, np.float64)
     return Relations(path=str(path), t1=a[:, 0], t2=a[:, 1], rel=np.ascontiguousarray(a[:, [2, 3, 7]]))
-
-
-# ---------------------------------------------------------------- the enclosure
-@njit(cache=True)
-def _rel_one(b1, b2, slices, out):
-    """Relative pose enclosure of box ``b2`` in the frame of box ``b1`` (each ``(3, 2)``)."""
-    dxl, dxh = K.sub(b2[0, 0], b2[0, 1], b1[0, 0], b1[0, 1])
-    dyl, dyh = K.sub(b2[1, 0], b2[1, 1], b1[1, 0], b1[1, 1])
-    tl, th = K.sub(b2[2, 0], b2[2, 1], b1[2, 0], b1[2, 1])
-    out[2, 0], out[2, 1] = tl, th
-    if not (dxl <= dxh) or not (dyl <= dyh) or not (tl <= th):
-        for d in range(3):
-            out[d, 0], out[d, 1] = K.EMPTY_LO, K.EMPTY_HI
-        return
-    # |p2 − p1| ≤ rho, and a rotation keeps the length
-    mx = max(abs(dxl), abs(dxh))
-    my = max(abs(dyl), abs(dyh))
-    rho = up(math.sqrt(up(up(mx * mx) + up(my * my))))
-    a_lo, a_hi = b1[2, 0], b1[2, 1]
-    m = slices
-    if not (a_hi - a_lo < 1e3) or m < 1:  # unbounded or huge heading: one piece (sin, cos give [-1, 1])
-        m = 1
-    xl, xh, yl, yh = math.inf, -math.inf, math.inf, -math.inf
-    prev = a_lo
-    for j in range(m):
-        nxt = a_hi if j == m - 1 else a_lo + (a_hi - a_lo) * ((j + 1) / m)
-        if nxt < prev:  # rounding: keep the pieces ordered; their union still covers [a_lo, a_hi]
-            nxt = prev
-        cl, ch = K.cos(prev, nxt)
-        sl, sh = K.sin(prev, nxt)
-        # Δx = c·dx + s·dy,  Δy = −s·dx + c·dy
-        p1l, p1h = K.mul(cl, ch, dxl, dxh)
-        p2l, p2h = K.mul(sl, sh, dyl, dyh)
-        ql, qh = K.add(p1l, p1h, p2l, p2h)
-        p3l, p3h = K.mul(sl, sh, dxl, dxh)
-        p4l, p4h = K.mul(cl, ch, dyl, dyh)
-        rl, rh = K.sub(p4l, p4h, p3l, p3h)
-        xl, xh = min(xl, ql), max(xh, qh)
-        yl, yh = min(yl, rl), max(yh, rh)
-        prev = nxt
-    out[0, 0], out[0, 1] = max(xl, -rho), min(xh, rho)
-    out[1, 0], out[1, 1] = max(yl, -rho), min(yh, rho)
-
-
-@njit(cache=True)
-def _rel_all(b1, b2, slices, out):
-    for i in range(b1.shape[0]):
-        _rel_one(b1[i], b2[i], slices, out[i])
-
-
-def relative_enclosure(box1: np.ndarray, box2: np.ndarray, slices: int = DEFAULT_SLICES) -> np.ndarray:
-    """``(N, 3, 2)`` enclosures of the pose of box2's robot in box1's frame (see the module
-    docstring); rows of an empty box are empty (``[+inf, −inf]``)."""
-    ensure_round_to_nearest()
-    b1 = np.ascontiguousarray(box1, np.float64).reshape(-1, 3, 2)
-    b2 = np.ascontiguousarray(box2, np.float64).reshape(-1, 3, 2)
-    if b1.shape != b2.shape:
-        raise ValueError("box1 and box2 must have the same shape")
-    out = np.empty_like(b1)
-    _rel_all(b1, b2, int(slices), out)
-    return out
-
-
-@njit(cache=True)
-def _invert_one(b, slices, out):
-    """``out`` ⊇ the inverse ``(−R(−θ) t, −θ)`` of every pose ``(t, θ)`` of box ``b`` (each
-    ``(3, 2)``): the relative pose of the origin in the frame of ``b``."""
-    _rel_one(b, np.zeros((3, 2)), slices, out)
-
-
-@njit(cache=True)
-def _compose_one(p, r, slices, out):
-    """``out`` ⊇ ``p ⊕ r = (t_p + R(θ_p) t_r, θ_p + θ_r)`` for every pose of box ``p`` and every
-    relative pose (in ``p``'s frame) of box ``r`` (each ``(3, 2)``); ``[θ_p]`` sliced."""
-    tl, th = K.add(p[2, 0], p[2, 1], r[2, 0], r[2, 1])
-    out[2, 0], out[2, 1] = tl, th
-    ok = tl <= th
-    for d in range(3):
-        ok = ok and p[d, 0] <= p[d, 1] and r[d, 0] <= r[d, 1]
-    if not ok:
-        for d in range(3):
-            out[d, 0], out[d, 1] = K.EMPTY_LO, K.EMPTY_HI
-        return
-    mx = max(abs(r[0, 0]), abs(r[0, 1]))
-    my = max(abs(r[1, 0]), abs(r[1, 1]))
-    rho = up(math.sqrt(up(up(mx * mx) + up(my * my))))
-    a_lo, a_hi = p[2, 0], p[2, 1]
-    m = slices
-    if not (a_hi - a_lo < 1e3) or m < 1:
-        m = 1
-    xl, xh, yl, yh = math.inf, -math.inf, math.inf, -math.inf
-    prev = a_lo
-    for j in range(m):
-        nxt = a_hi if j == m - 1 else a_lo + (a_hi - a_lo) * ((j + 1) / m)
-        if nxt < prev:
-            nxt = prev
-        cl, ch = K.cos(prev, nxt)
-        sl, sh = K.sin(prev, nxt)
-        # R(θ) t_r = (c·x − s·y, s·x + c·y)
-        p1l, p1h = K.mul(cl, ch, r[0, 0], r[0, 1])
-        p2l, p2h = K.mul(sl, sh, r[1, 0], r[1, 1])
-        ql, qh = K.sub(p1l, p1h, p2l, p2h)
-        p3l, p3h = K.mul(sl, sh, r[0, 0], r[0, 1])
-        p4l, p4h = K.mul(cl, ch, r[1, 0], r[1, 1])
-        wl, wh = K.add(p3l, p3h, p4l, p4h)
-        xl, xh = min(xl, ql), max(xh, qh)
-        yl, yh = min(yl, wl), max(yh, wh)
-        prev = nxt
-    out[0, 0], out[0, 1] = K.add(p[0, 0], p[0, 1], max(xl, -rho), min(xh, rho))
-    out[1, 0], out[1, 1] = K.add(p[1, 0], p[1, 1], max(yl, -rho), min(yh, rho))
-
-
-@njit(cache=True)
-def _meet_one(a, b, out):
-    """``out`` = ``a ∩ b`` for two enclosures of one relative pose (headings met modulo 2π in
-    the narrower branch); empty (``[+inf, −inf]`` everywhere) when they do not meet."""
-    out[0, 0], out[0, 1] = max(a[0, 0], b[0, 0]), min(a[0, 1], b[0, 1])
-    out[1, 0], out[1, 1] = max(a[1, 0], b[1, 0]), min(a[1, 1], b[1, 1])
-    out[2, 0], out[2, 1] = angle_meet_narrow(a[2, 0], a[2, 1], b[2, 0], b[2, 1])
-    if not (out[0, 0] <= out[0, 1] and out[1, 0] <= out[1, 1] and out[2, 0] <= out[2, 1]):
-        for d in range(3):
-            out[d, 0], out[d, 1] = K.EMPTY_LO, K.EMPTY_HI
-
-
-@njit(cache=True)
-def _invert_all(b, slices, out):
-    for i in range(b.shape[0]):
-        _invert_one(b[i], slices, out[i])
-
-
-@njit(cache=True)
-def _compose_all(p, r, slices, out):
-    for i in range(p.shape[0]):
-        _compose_one(p[i], r[i], slices, out[i])
-
-
-@njit(cache=True)
-def _meet_all(a, b, out):
-    for i in range(a.shape[0]):
-        _meet_one(a[i], b[i], out[i])
-
-
-def invert_enclosure(box: np.ndarray, slices: int = DEFAULT_SLICES) -> np.ndarray:
-    """``(N, 3, 2)`` enclosures of the inverses ``(−R(−θ) t, −θ)`` of the poses in ``box``."""
-    ensure_round_to_nearest()
-    b = np.ascontiguousarray(box, np.float64).reshape(-1, 3, 2)
-    out = np.empty_like(b)
-    _invert_all(b, int(slices), out)
-    return out
-
-
-def compose_enclosure(p: np.ndarray, r: np.ndarray, slices: int = DEFAULT_SLICES) -> np.ndarray:
-    """``(N, 3, 2)`` enclosures of ``p ⊕ r``: the relative pose ``r`` (in ``p``'s frame) in the
-    frame ``p`` is given in."""
-    ensure_round_to_nearest()
-    a = np.ascontiguousarray(p, np.float64).reshape(-1, 3, 2)
-    b = np.ascontiguousarray(r, np.float64).reshape(-1, 3, 2)
-    if a.shape != b.shape:
-        raise ValueError("p and r must have the same shape")
-    out = np.empty_like(a)
-    _compose_all(a, b, int(slices), out)
-    return out
-
-
-def meet_enclosures(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``(N, 3, 2)``: ``a ∩ b`` row by row (headings modulo 2π); empty rows where they do not meet."""
-    a = np.ascontiguousarray(a, np.float64).reshape(-1, 3, 2)
-    b = np.ascontiguousarray(b, np.float64).reshape(-1, 3, 2)
-    if a.shape != b.shape:
-        raise ValueError("a and b must have the same shape")
-    out = np.empty_like(a)
-    _meet_all(a, b, out)
-    return out
 
 
 def _relative_graph(rp: RelativePoses, slices: int) -> dict[int, dict[int, list[np.ndarray]]]:

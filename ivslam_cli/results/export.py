@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ivslam_cli.results.atomic import refuse_existing, write_bytes_atomic, write_text_atomic
+from ivslam_cli.atomic import refuse_existing, write_bytes_atomic, write_text_atomic
 from ivslam_cli.results.model import CELL_EMPTY, CELL_OBSTACLE, MapGrid, Poses, box_is_empty
 
 # map_server trinary PGM values (negate = 0): p = (255 − value) / 255 is the occupancy.

@@ -21,7 +21,7 @@ import numpy as np
 
 from ivslam_cli.errors import IvslamError
 from ivslam_cli.logs.model import Dropped, GroundTruth
-from ivslam_cli.results.atomic import atomic_path
+from ivslam_cli.atomic import atomic_path
 from ivslam_cli.results.model import (
     Consistency,
     EmptyEvents,

@@ -175,7 +175,7 @@ class LogOddsGrid:
     probabilistic baseline the interval map is compared with. **Not an enclosure and not
     guaranteed**: scans at the centres of their pose boxes, rays with no width or range error,
     the inverse sensor model ``l_occ`` (return cell) / ``l_free`` (crossed cells), clamped to
-    ``[l_min, l_max]`` (see ``ivslam_cli.slam.lidar_logodds``).
+    ``[l_min, l_max]`` (see ``ivslam_cli.slam.lidar.logodds``).
 
     ``value[r, c]`` is the log-odds of cell (r, c) of the map grid: > 0 occupied (p > 0.5),
     < 0 free, 0 unknown. ``scans`` / ``beams``: how many went into it.

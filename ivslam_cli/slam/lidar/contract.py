@@ -40,7 +40,7 @@ from numba import njit
 from ivslam_cli.interval.arith import add
 from ivslam_cli.interval.rounding import down, up
 from ivslam_cli.paving.tiles import EMPTY, TILE, cell_flags
-from ivslam_cli.slam.lidar_geometry import beam_offset, range_bounds, sensor_box, sensor_offset
+from ivslam_cli.slam.lidar.geometry import beam_offset, range_bounds, sensor_box, sensor_offset
 
 #: an endpoint region over more cells than this is not tested (kept: sound, cheaper)
 MAX_REGION_CELLS = 64

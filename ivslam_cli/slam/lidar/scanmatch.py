@@ -23,7 +23,7 @@ moves endpoints into free space, rule B when it moves them behind a wall.
 Free space between beams: beam cones cover the bearings between two beams when the bearing
 bound is at least half the beam step; with narrower cones nothing between two beams is
 proven free unless ``fill_gaps`` states the assumption (as for the map, see
-:class:`ivslam_cli.slam.lidar_map.LidarBounds`); without either, neither rule excludes anything.
+:class:`ivslam_cli.slam.lidar.map_update.LidarBounds`); without either, neither rule excludes anything.
 
 Guarantee: if the true relative pose is in the box, the world is static but for at most ``q``
 beams of each scan, and the bounds hold, the true relative pose stays in the result. Every
@@ -39,7 +39,7 @@ from numba import njit
 
 from ivslam_cli.interval.arith import add
 from ivslam_cli.interval.rounding import down, up
-from ivslam_cli.slam.lidar_geometry import beam_offset, box_bearings, box_ranges, range_bounds, sensor_box
+from ivslam_cli.slam.lidar.geometry import beam_offset, box_bearings, box_ranges, range_bounds, sensor_box
 
 TWO_PI = 2.0 * math.pi
 #: margin on bearings shifted by whole turns (2π·n in floating point, |n| small)

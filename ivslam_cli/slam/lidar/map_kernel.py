@@ -63,7 +63,7 @@ from ivslam_cli.paving.tiles import (
     add_tile,
     find,
 )
-from ivslam_cli.slam.lidar_geometry import (
+from ivslam_cli.slam.lidar.geometry import (
     ATAN_ERR,
     atan2_fast,
     beam_window,

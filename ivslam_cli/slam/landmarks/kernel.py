@@ -37,21 +37,18 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ivslam_cli.contractors.ctc_difference import angle_difference_scalar
 from ivslam_cli.contractors.ctc_qinter import qinter_interval
 from ivslam_cli.contractors.ctc_range_bearing import range_bearing_scalar
-from ivslam_cli.contractors.ctc_unicycle import shrink
 from ivslam_cli.interval.angles import angle_meet, angle_meet_narrow
-from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO, INF, add, sub
-from ivslam_cli.interval.rounding import PI_HI, TWO_PI_HI, TWO_PI_LO, down, up
+from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO, INF
+from ivslam_cli.interval.rounding import TWO_PI_HI, TWO_PI_LO, down, up
 
-INCREMENT = 1  # the only step kind (``kind`` is kept for other step models)
+from ivslam_cli.slam.motion_kernel import INCREMENT, cap_heading, init_headings, step_contract  # noqa: F401
 
 OBS_USED = 0
 OBS_REJECTED_LANDMARK = 1  # its landmark candidate misses the q-relaxed landmark box
 OBS_REJECTED_POSE = 2  # its pose candidate misses the q-relaxed pose box
 
-INCREMENT_PASSES = 4
 BIG = 1e6
 MIN_SLICE = 1e-4  # headings narrower than this are not sliced  # widths are capped at this in the convergence measure (unbounded boxes)
 
@@ -62,69 +59,6 @@ def _box_ok(b):
         if not (b[d, 0] <= b[d, 1]):
             return False
     return True
-
-
-@njit(cache=True)
-def _empty12():
-    e, f = EMPTY_LO, EMPTY_HI
-    return (e, f, e, f, e, f, e, f, e, f, e, f)
-
-
-@njit(cache=True)
-def increment_scalar(x0l, x0h, y0l, y0h, t0l, t0h, x1l, x1h, y1l, y1h, t1l, t1h, rl, rh, al, ah, dl, dh):
-    """Contract one pose-increment step; the 12 pose bounds, all empty if no solution."""
-    b = (x0l, x0h, y0l, y0h, t0l, t0h, x1l, x1h, y1l, y1h, t1l, t1h)
-    for _ in range(INCREMENT_PASSES):
-        r = range_bearing_scalar(b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7], b[8], b[9], rl, rh, al, ah)
-        if not (r[0] <= r[1]):
-            return _empty12()
-        rl, rh, al, ah = r[10], r[11], r[12], r[13]
-        h = angle_difference_scalar(dl, dh, b[10], b[11], r[4], r[5])
-        if not (h[0] <= h[1]):
-            return _empty12()
-        dl, dh = h[0], h[1]
-        n = (r[0], r[1], r[2], r[3], h[4], h[5], r[6], r[7], r[8], r[9], h[2], h[3])
-        progress = 0.0
-        for j in range(6):
-            progress = max(progress, shrink(b[2 * j], b[2 * j + 1], n[2 * j], n[2 * j + 1]))
-        b = n
-        if progress < 1e-3:
-            break
-    return b
-
-
-@njit(cache=True)
-def _write_step(a, c, r):
-    """Write 12 pose bounds back to nodes ``a`` and ``c``; False (nothing written) if empty."""
-    for d in range(6):
-        if not (r[2 * d] <= r[2 * d + 1]):
-            return False
-    for d in range(3):
-        a[d, 0] = r[2 * d]
-        a[d, 1] = r[2 * d + 1]
-        c[d, 0] = r[6 + 2 * d]
-        c[d, 1] = r[6 + 2 * d + 1]
-    return True
-
-
-@njit(cache=True)
-def step_contract(P, k, kind, U):
-    """Contract nodes ``k`` and ``k + 1`` with motion step ``k``; False (nothing written) if empty."""
-    a = P[k]
-    c = P[k + 1]
-    u = U[k]
-    # headings in the branch where they are narrow (a heading wide over several turns keeps
-    # every copy of its neighbour's image and would not contract)
-    fl, fh = add(a[2, 0], a[2, 1], u[2, 0], u[2, 1])
-    c[2, 0], c[2, 1] = angle_meet_narrow(c[2, 0], c[2, 1], fl, fh)
-    bl, bh = sub(c[2, 0], c[2, 1], u[2, 0], u[2, 1])
-    a[2, 0], a[2, 1] = angle_meet_narrow(a[2, 0], a[2, 1], bl, bh)
-    if not (c[2, 0] <= c[2, 1]) or not (a[2, 0] <= a[2, 1]):
-        return False
-    r2 = increment_scalar(a[0, 0], a[0, 1], a[1, 0], a[1, 1], a[2, 0], a[2, 1],
-                          c[0, 0], c[0, 1], c[1, 0], c[1, 1], c[2, 0], c[2, 1],
-                          u[0, 0], u[0, 1], u[1, 0], u[1, 1], u[2, 0], u[2, 1])
-    return _write_step(a, c, r2)
 
 
 @njit(cache=True)
@@ -284,20 +218,6 @@ def _circular_hull(h_lo, h_hi, n, thl, thh):
 
 
 @njit(cache=True)
-def cap_heading(P, k):
-    """A heading interval wider than a turn says nothing beyond one turn: keep one turn,
-    ``[c − π, c + π]`` around its centre (every angle mod 2π is still in it). Headings are
-    angles everywhere they are used (matched modulo 2π), so this loses nothing; without it a
-    set inversion over heading slices keeps a copy in every turn and never contracts."""
-    tl = P[k, 2, 0]
-    th = P[k, 2, 1]
-    if tl <= th and th - tl > TWO_PI_HI and tl > -INF and th < INF:
-        c = 0.5 * (tl + th)
-        P[k, 2, 0] = down(c - PI_HI)
-        P[k, 2, 1] = up(c + PI_HI)
-
-
-@njit(cache=True)
 def pose_update(P, L, k, node_obs, node_stamp, obs_node_stamp, travel, turn, turn_err, window, q_pose, slices,
                 node, lm, rho, alpha, reach, status, buf, lo, hi, idx, agree):
     """``P_k ∩= hull over heading slices of qinter(pose candidates in the window, q_pose)``.
@@ -384,21 +304,6 @@ def pose_update(P, L, k, node_obs, node_stamp, obs_node_stamp, travel, turn, tur
         if not agree[s] and node[idx[s]] == k:
             status[idx[s]] = OBS_REJECTED_POSE
     return True
-
-
-@njit(cache=True)
-def init_headings(P, kind, U):
-    """Give every heading that covers the whole circle the dead-reckoned interval ``θ_k + u_k``.
-
-    A heading is an angle: an interval of width ≥ 2π says nothing, and replacing it by any
-    interval holding one representative of the true heading is sound. (The periodic contractors
-    cannot do this themselves: the copies of ``θ_k + u_k`` inside the whole line have no hull.)
-    """
-    for k in range(P.shape[0] - 1):
-        if not (P[k + 1, 2, 1] - P[k + 1, 2, 0] >= TWO_PI_HI) or not (P[k, 2, 0] <= P[k, 2, 1]):
-            continue
-        ul, uh = U[k, 2, 0], U[k, 2, 1]
-        P[k + 1, 2, 0], P[k + 1, 2, 1] = add(P[k, 2, 0], P[k, 2, 1], ul, uh)
 
 
 @njit(cache=True)

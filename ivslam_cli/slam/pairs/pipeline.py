@@ -1,4 +1,4 @@
-"""The pairs pipeline (seed 000): landmark displacement subpavings, intersected over time.
+"""The pairs pipeline (Mustafa, Codres & Stancu): landmark displacement subpavings, intersected over time.
 
 For every pair (i, j) of landmarks observed at the same step, the displacement
 ``dl = m_i − m_j`` lies in the displacement set ``S_dl(i,j),t`` built from the two range-bearing
@@ -16,14 +16,13 @@ proven to break that assumption and are left out.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ivslam_cli import interval as iv
-from ivslam_cli.config import Config
-from ivslam_cli.errors import ConfigError, IvslamError
-from ivslam_cli.logs.model import LogData
+from ivslam_cli.errors import IvslamError
+from ivslam_cli.logs.model import LogData, Observations
 from ivslam_cli.results.model import (
     LABEL_BOUNDARY,
     LABEL_INNER,
@@ -32,9 +31,12 @@ from ivslam_cli.results.model import (
     Landmarks,
     PairSubpavings,
     Rejections,
+    Result,
     WidthHistory,
 )
-from ivslam_cli.slam import pairs_kernel as K
+from ivslam_cli.slam.pairs import kernel as K
+from ivslam_cli.slam.pairs.params import Params
+from ivslam_cli.slam.pipeline import make_result
 
 MAX_NETWORK_SWEEPS = 200
 NETWORK_STOP = 1e-4
@@ -51,16 +53,16 @@ class PairsOutput:
     stats: dict
 
 
-def heading_interval(cfg: Config, log: LogData) -> tuple[float, float]:
+def heading_interval(params: Params, log: LogData) -> tuple[float, float]:
     """The heading interval: ``pairs.heading`` if set, else ±``heading`` the log states, else 0."""
-    lo, hi = cfg["pairs.heading"]
-    if cfg.sources.get("pairs.heading", "default") == "default" and "heading" in log.bounds:
+    lo, hi = params.heading
+    if not params.heading_given and "heading" in log.bounds:
         h = float(log.bounds["heading"])
         lo, hi = -h, h
     return float(lo), float(hi)
 
 
-def observation_intervals(log: LogData, cfg: Config) -> tuple[np.ndarray, np.ndarray]:
+def observation_intervals(log: LogData, params: Params) -> tuple[np.ndarray, np.ndarray]:
     """``rho`` and world-frame ``beta`` intervals (N, 2) of every observation, rounded outward.
 
     ``rho ∈ z ± (range_abs + range_rel z)`` (and ``rho >= 0``), ``beta ∈ z_alpha ± bearing + heading``.
@@ -75,17 +77,17 @@ def observation_intervals(log: LogData, cfg: Config) -> tuple[np.ndarray, np.nda
         lo, hi = iv.enclose(value)
         return np.tile([-hi, hi], (n, 1)) if value >= 0 else np.tile([lo, hi], (n, 1))
 
-    rel_lo, rel_hi = iv.enclose(cfg["bounds.range_rel"])
+    rel_lo, rel_hi = iv.enclose(params.range_rel)
     rel = iv.mul(z, np.tile([rel_lo, rel_hi], (n, 1)))
-    half = iv.add(rel, np.tile(list(iv.enclose(cfg["bounds.range_abs"])), (n, 1)))
+    half = iv.add(rel, np.tile(list(iv.enclose(params.range_abs)), (n, 1)))
     half_sym = np.column_stack([-half[:, 1], half[:, 1]])
     rho = iv.add(z, half_sym)
     rho[:, 0] = np.maximum(rho[:, 0], 0.0)
-    beta = iv.add(iv.add(a, const(cfg["bounds.bearing"])), heading_intervals(log, cfg))
+    beta = iv.add(iv.add(a, const(params.bearing)), heading_intervals(log, params))
     return rho, beta
 
 
-def heading_intervals(log: LogData, cfg: Config) -> np.ndarray:
+def heading_intervals(log: LogData, params: Params) -> np.ndarray:
     """The heading interval at every observation, (N, 2), rounded outward.
 
     ``heading_source = option``: the constant ``pairs.heading`` (or the log's stated bound).
@@ -97,13 +99,10 @@ def heading_intervals(log: LogData, cfg: Config) -> np.ndarray:
     """
     obs = log.observations
     n = len(obs)
-    h_lo, h_hi = heading_interval(cfg, log)
+    h_lo, h_hi = heading_interval(params, log)
     offset = np.tile([iv.enclose(h_lo)[0], iv.enclose(h_hi)[1]], (n, 1))
-    source = cfg["pairs.heading_source"]
-    if source == "option":
+    if params.heading_source == "option":
         return offset
-    if source != "odometry":
-        raise ConfigError(f"[pairs] heading_source must be 'option' or 'odometry', got {source!r}")
     odo = log.odometry
     if odo is None or odo.pose is None or len(odo) == 0:
         raise IvslamError("pairs.heading_source = odometry, but the log has no odometry poses", log.provenance.path)
@@ -169,7 +168,7 @@ def network_map(ids: np.ndarray, pair_i, pair_j, offsets, boxes, anchor_id, anch
 
 
 def _landmark_width_history(ids, pair_i, pair_j, snap_boxes, snap_offsets, checkpoints, cp_index, n_pairs,
-                            cfg, final_m, reference) -> WidthHistory:
+                            params: Params, final_m, reference) -> WidthHistory:
     """Width of every landmark box at each checkpoint (the network rebuilt from the pair sets then).
 
     The last checkpoint is the end of the log; its widths are those of the final map. A landmark
@@ -181,8 +180,8 @@ def _landmark_width_history(ids, pair_i, pair_j, snap_boxes, snap_offsets, check
         seg = snap_boxes[snap_offsets[c * n_pairs] : snap_offsets[(c + 1) * n_pairs]]
         try:
             m, _, _, _ = network_map(ids, pair_i, pair_j, np.ascontiguousarray(offs), np.ascontiguousarray(seg),
-                                     cfg["pairs.anchor_id"], cfg["pairs.anchor_xy"],
-                                     reference if cfg["pairs.anchor_id"] is None else None)
+                                     params.anchor_id, params.anchor_xy,
+                                     reference if params.anchor_id is None else None)
         except IvslamError:  # anchor/reference not yet observed at this time
             m = np.tile([-np.inf, np.inf, -np.inf, np.inf], (len(ids), 1))
         w = np.maximum(m[:, 1] - m[:, 0], m[:, 3] - m[:, 2])
@@ -200,15 +199,15 @@ def _landmark_width_history(ids, pair_i, pair_j, snap_boxes, snap_offsets, check
     )
 
 
-def run_pairs(log: LogData, cfg: Config, progress=None) -> PairsOutput:
+def solve(log: LogData, params: Params, progress=None) -> PairsOutput:
     """The pairs pipeline over a log's landmark observations (see the module docstring)."""
     obs = log.observations
     if obs is None or len(obs) == 0:
         raise IvslamError("no landmark observations: --mode pairs needs range-bearing observations", log.provenance.path)
     t0 = time.perf_counter()
-    q = int(cfg["robust.q_pair"])
-    eps = float(cfg["pairs.eps"])
-    rho, beta = observation_intervals(log, cfg)
+    q = params.q
+    eps = params.eps
+    rho, beta = observation_intervals(log, params)
     steps = _step_offsets(obs.stamp)
     pi, pj, pa, pb, rows = K.pair_rows(steps, obs.landmark_id.astype(np.int64), rho, beta)
     if rows.shape[0] == 0:
@@ -218,27 +217,26 @@ def run_pairs(log: LogData, cfg: Config, progress=None) -> PairsOutput:
     key_change = np.flatnonzero((np.diff(pi) != 0) | (np.diff(pj) != 0)) + 1
     pair_offsets = np.concatenate([[0], key_change, [pi.shape[0]]]).astype(np.int64)
     n_pairs = pair_offsets.shape[0] - 1
-    if n_pairs > int(cfg["pairs.max_pairs"]):
-        raise IvslamError(f"{n_pairs} landmark pairs exceed pairs.max_pairs = {cfg['pairs.max_pairs']}")
+    if n_pairs > params.max_pairs:
+        raise IvslamError(f"{n_pairs} landmark pairs exceed pairs.max_pairs = {params.max_pairs}")
     row_stamp = np.ascontiguousarray(obs.stamp[pa], dtype=np.float64)
     step_stamps = obs.stamp[steps[:-1]]
     cp_index = np.unique(np.linspace(0, step_stamps.shape[0] - 1, CHECKPOINTS).round().astype(np.int64))
     checkpoints = np.ascontiguousarray(step_stamps[cp_index], dtype=np.float64)
     boxes, inner, box_offsets, width, rejected, truncated, snap_boxes, snap_offsets = K.process_pairs(
-        rows, row_stamp, pair_offsets, q, eps, int(cfg["pairs.max_boxes"]), checkpoints
+        rows, row_stamp, pair_offsets, q, eps, params.max_boxes, checkpoints
     )
     if progress:
         progress(1.0)
     first_i = pi[pair_offsets[:-1]]
     first_j = pj[pair_offsets[:-1]]
     ids = np.unique(np.concatenate([first_i, first_j]))
-    anchor_id = cfg["pairs.anchor_id"]
     m, reference, sweeps, consistent = network_map(
-        ids, first_i, first_j, box_offsets, boxes, anchor_id, cfg["pairs.anchor_xy"], cfg["pairs.reference_id"]
+        ids, first_i, first_j, box_offsets, boxes, params.anchor_id, params.anchor_xy, params.reference_id
     )
     step_of_obs = np.repeat(np.arange(steps.shape[0] - 1), np.diff(steps))
     landmark_widths = _landmark_width_history(
-        ids, first_i, first_j, snap_boxes, snap_offsets, checkpoints, cp_index, n_pairs, cfg, m, reference
+        ids, first_i, first_j, snap_boxes, snap_offsets, checkpoints, cp_index, n_pairs, params, m, reference
     )
 
     # consistency record
@@ -267,8 +265,8 @@ def run_pairs(log: LogData, cfg: Config, progress=None) -> PairsOutput:
         width=width,
         definition="largest side of the bounding box of the pair's outer subpaving after the update, metres",
     )
-    h_lo, h_hi = heading_interval(cfg, log)
-    heading = (f"the true heading in [{h_lo}, {h_hi}] rad" if cfg["pairs.heading_source"] == "option" else
+    h_lo, h_hi = heading_interval(params, log)
+    heading = (f"the true heading in [{h_lo}, {h_hi}] rad" if params.heading_source == "option" else
                f"the true heading within [{h_lo}, {h_hi}] rad of the odometry heading, and between two odometry "
                f"samples between their headings")
     assumption = (
@@ -300,3 +298,31 @@ def run_pairs(log: LogData, cfg: Config, progress=None) -> PairsOutput:
         "eps": eps,
     }
     return PairsOutput(pairs=pairs, landmarks=landmarks, consistency=consistency, stats=stats)
+
+
+def observations_until(log: LogData, stamp: float) -> LogData:
+    """The log with its observations cut after ``stamp`` (indices of the kept ones unchanged)."""
+    obs = log.observations
+    keep = obs.stamp <= stamp
+    cut = Observations(stamp=obs.stamp[keep], landmark_id=obs.landmark_id[keep], range=obs.range[keep],
+                       bearing=obs.bearing[keep])
+    return replace(log, observations=cut)
+
+
+def run(log: LogData, params: Params, progress=None) -> Result:
+    """The pairs pipeline over ``log`` as a :class:`Result`. With ``params.strict`` the run stops
+    at the first empty intersection: the result covers the data up to it."""
+    out = solve(log, params, progress)
+    events = out.consistency.empty_events
+    if params.strict and len(events):
+        out = solve(observations_until(log, float(events.stamp[0])), params)
+    return make_result("pairs", log, pairs=out.pairs, landmarks=out.landmarks, consistency=out.consistency,
+                       stats=out.stats)
+
+
+def summary(result: Result) -> str:
+    """The CLI line: intersections, pairs, landmarks, empty events."""
+    s = result.stats
+    n_lm = len(result.landmarks) if result.landmarks is not None else 0
+    return (f"pairs: {s.get('intersections', 0)} intersections, {s.get('pairs', 0)} pairs, {n_lm} landmarks, "
+            f"{len(result.consistency.empty_events)} empty event(s)")

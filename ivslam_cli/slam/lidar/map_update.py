@@ -6,7 +6,7 @@
     >>> tmap.dense().data   # unknown / empty / obstacle per cell
 
 Guarantees (for every robot pose in its box, given the sensor model of
-:mod:`~ivslam_cli.slam.lidar_geometry` and the stated bounds):
+:mod:`~ivslam_cli.slam.lidar.geometry` and the stated bounds):
 
 - every cell of P_EMPTY^k is free of obstacles (inner approximation; cells are closed squares
   enclosed outward, so a wall touching a cell's border keeps it out of P_EMPTY);
@@ -21,7 +21,7 @@ P_OBSTACLE^k / P_OLD^k). The cheap form ``P_OBSTACLE^{i,k} ∩ P_UNKNOWN = ∅``
 the unmeasured cells (a dilation by one cell would make every beam new forever: the cells just
 behind a wall are never measured).
 
-The work is done by the fast path of :mod:`~ivslam_cli.slam.lidar_kernel` (one compiled call per
+The work is done by the fast path of :mod:`~ivslam_cli.slam.lidar.map_kernel` (one compiled call per
 ``update_map``, whatever the number of scans), whose cells, beams, flags and counts are those of
 its cell-by-cell reference, bit for bit (``tests/test_lidar_map.py``, ``bench/bench_lidar_map.py``).
 """
@@ -33,12 +33,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ivslam_cli.errors import ConfigError
+from ivslam_cli.errors import ConfigError, IvslamError
 from ivslam_cli.interval.rounding import ensure_round_to_nearest
 from ivslam_cli.logs.model import Scans
 from ivslam_cli.paving.tiles import TileMap
-from ivslam_cli.slam import lidar_kernel as K
-from ivslam_cli.slam.lidar_geometry import sensor_boxes_of
+from ivslam_cli.results.model import CELL_EMPTY, CELL_OBSTACLE, CELL_UNKNOWN, MapGrid
+from ivslam_cli.slam.lidar import map_kernel as K
+from ivslam_cli.slam.lidar.geometry import sensor_boxes_of
 
 STAT_FIELDS = ("nodes", "empty_cells", "obstacle_cells", "new_beams", "old_beams", "leaf_beam_tests")
 
@@ -152,7 +153,7 @@ def scan_sets(scans: Scans, k: int, robot_box, bounds: LidarBounds, eps: float,
 
 def inclusion_new(tmap: TileMap, scans: Scans, k: int, robot_box, bounds: LidarBounds) -> np.ndarray:
     """The seed's full old/new test for scan ``k`` against ``tmap``: ``new`` per beam (see
-    :func:`ivslam_cli.slam.lidar_kernel.inclusion_new`)."""
+    :func:`ivslam_cli.slam.lidar.map_kernel.inclusion_new`)."""
     ensure_round_to_nearest()
     bounds.check()
     box = _boxes(robot_box, scans.mount)[0]
@@ -160,3 +161,111 @@ def inclusion_new(tmap: TileMap, scans: Scans, k: int, robot_box, bounds: LidarB
     return K.inclusion_new(tmap.keys, tmap.slots, tmap.cells, r, v, a0, inc, box,
                            float(bounds.range_abs), float(bounds.range_rel), float(bounds.bearing),
                            tmap.eps)
+
+
+# a scan's map update visits the tiles within its reach: (2 reach / (64 eps))^2 tiles, and
+# per-column / per-row tables of 2 reach / eps rows (lidar_kernel). 2^16 cells (3.3 km at
+# 5 cm) is far beyond any 2D LiDAR; a return beyond it is a unit or encoding error.
+MAX_REACH_CELLS = 1 << 16
+
+
+def usable_scans(scans: Scans, bounds: LidarBounds, max_range: float, eps: float, path=None) -> tuple[Scans, int]:
+    """``scans`` with returns beyond ``max_range`` (``lidar.max_range``; 0: none) marked invalid;
+    how many were. Raises :class:`IvslamError` when a valid return reaches more than
+    ``MAX_REACH_CELLS`` cells of ``eps`` (``lidar.eps``)."""
+    cap = float(max_range)
+    far = scans.valid & (scans.ranges.astype(np.float64) > cap) if cap > 0.0 else None
+    k = 0 if far is None else int(far.sum())
+    if k:
+        from dataclasses import replace
+
+        scans = replace(scans, valid=scans.valid & ~far)
+    reach, i = scan_reach(scans, bounds)
+    eps = float(eps)
+    if i >= 0 and not reach <= MAX_REACH_CELLS * eps:
+        s = int(np.searchsorted(scans.offsets, i, side="right")) - 1
+        raise IvslamError(f"a valid return of {float(scans.ranges[i]):g} m (scan {s}, beam "
+                          f"{i - int(scans.offsets[s])}) reaches {reach / eps:,.0f} cells of lidar.eps = {eps:g} m, "
+                          f"beyond the {MAX_REACH_CELLS:,} one scan's map update may cover: set lidar.max_range to "
+                          "the sensor's reach (or a coarser lidar.eps)", path)
+    return scans, k
+
+
+def scan_reach(scans: Scans, bounds) -> tuple[float, int]:
+    """The largest range the map kernels give a valid beam (their ``range_bounds``) and that
+    beam's index; ``(0.0, -1)`` without valid beams."""
+    from ivslam_cli.slam.lidar.geometry import range_bounds
+
+    if not scans.valid.any():
+        return 0.0, -1
+    z = np.where(scans.valid, scans.ranges.astype(np.float64), 0.0)
+    i = int(np.argmax(z))
+    return float(range_bounds(float(z[i]), float(bounds.range_abs), float(bounds.range_rel))[1]), i
+
+
+def extent_limits(scans: Scans, bounds, eps: float) -> tuple[float, float, float, float, float]:
+    """What :func:`check_extent` compares with: ``(reach, pad, span_max, origin_max, eps)``."""
+    from ivslam_cli.paving.tiles import TILE
+    from ivslam_cli.slam.lidar.map_kernel import MAX_SPAN_TILES
+
+    reach = scan_reach(scans, bounds)[0]
+    side = TILE * eps
+    pad = math.hypot(float(scans.mount[0]), float(scans.mount[1])) + side + reach
+    return reach, pad, (MAX_SPAN_TILES - 16) * side, 2.0**29 * side, eps
+
+
+def check_extent(boxes: np.ndarray, rows: np.ndarray, limits, path=None) -> None:
+    """:class:`IvslamError` naming the first scan (``rows``) whose robot pose box (``boxes``,
+    (N, 6)) the map update cannot take (``limits``: :func:`extent_limits`): so wide that,
+    with its returns, one scan spans over the kernels' ``MAX_SPAN_TILES`` tiles a side, or so
+    far from the origin that its tiles leave the tile index (corrupt odometry). Margins cover
+    the laser mount. Rows with NaN / inf are left to update_map's own check."""
+    reach, pad, span_max, origin_max, eps = limits
+    b = np.atleast_2d(boxes)
+    for j in range(b.shape[0]) if b.shape[0] <= 1 else _extent_suspects(b, pad, span_max, origin_max):
+        x0, x1, y0, y1 = b[j, :4].tolist()
+        w = max(x1 - x0, y1 - y0)
+        far = max(abs(x0), abs(x1), abs(y0), abs(y1))
+        if not math.isfinite(w + far):
+            continue
+        if not w + 2.0 * pad < span_max:
+            raise IvslamError(f"scan {int(rows[j])}: its pose box is {w:.4g} m wide, and with returns up to "
+                              f"{reach:.4g} m one scan's map update cannot cover it (at most {span_max:.4g} m a side "
+                              f"at lidar.eps = {eps:g} m): set lidar.max_pose_width (0 maps every scan)", path)
+        if not far + pad < origin_max:
+            raise IvslamError(f"scan {int(rows[j])}: its pose box lies {far:.4g} m from the origin, beyond the map's "
+                              f"tile index ({origin_max:.4g} m at lidar.eps = {eps:g} m): corrupt odometry or poses?",
+                              path)
+
+
+def _extent_suspects(b: np.ndarray, pad: float, span_max: float, origin_max: float) -> np.ndarray:
+    """Rows of ``b`` that :func:`check_extent` must look at (numpy over all rows)."""
+    with np.errstate(invalid="ignore"):
+        w = np.maximum(b[:, 1] - b[:, 0], b[:, 3] - b[:, 2])
+        far = np.max(np.abs(b[:, :4]), axis=1)
+        return np.flatnonzero(~(w + 2.0 * pad < span_max) | ~(far + pad < origin_max))
+
+
+def map_scans(tmap, scans: Scans, used: np.ndarray, boxes: np.ndarray, bounds, path=None):
+    """Old/new test and map update for scans ``used`` (in that order) with robot boxes
+    ``boxes`` (one row per used scan)."""
+    from ivslam_cli.slam.lidar.map_update import update_map
+
+    check_extent(boxes, used, extent_limits(scans, bounds, tmap.eps), path)
+    all_boxes = np.zeros((len(scans), 6))
+    all_boxes[used] = boxes
+    return update_map(tmap, scans, all_boxes, bounds, order=used)
+
+
+def grid_of(tmap) -> MapGrid:
+    """The map as a :class:`MapGrid` (row = y index) over the bounding box of its tiles."""
+    from ivslam_cli.paving import tiles as T
+
+    d = tmap.dense()
+    state = np.zeros(d.data.shape[::-1], np.uint8)
+    data = d.data.T
+    state[data == T.EMPTY_STATE] = CELL_EMPTY
+    state[data == T.OBSTACLE] = CELL_OBSTACLE
+    state[data == T.UNKNOWN] = CELL_UNKNOWN
+    return MapGrid(origin=np.array([d.i0 * d.eps, d.j0 * d.eps], float), resolution=float(d.eps),
+                   state=np.ascontiguousarray(state))

@@ -1,0 +1,40 @@
+"""Parameters of the landmark CSP pipeline, read once from the resolved configuration."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ivslam_cli.slam.motion import InitialPose, MotionBounds
+
+
+@dataclass(frozen=True)
+class Params:
+    """``[bounds]`` (observation and odometry bounds), ``[robust]`` (q per landmark and per
+    pose, strict) and ``[landmarks]`` (see the configuration table)."""
+
+    range_abs: float
+    range_rel: float
+    bearing: float
+    odometry: MotionBounds
+    initial: InitialPose
+    q_landmark: int
+    q_landmark_frac: float
+    q_pose: int
+    strict: bool
+    pose_window: float
+    heading_slices: int
+    max_step: float
+    max_iterations: int
+    tolerance: float
+
+    @classmethod
+    def from_config(cls, cfg) -> Params:
+        return cls(
+            range_abs=float(cfg["bounds.range_abs"]), range_rel=float(cfg["bounds.range_rel"]),
+            bearing=float(cfg["bounds.bearing"]), odometry=MotionBounds.from_config(cfg),
+            initial=InitialPose.from_config(cfg), q_landmark=int(cfg["robust.q_landmark"]),
+            q_landmark_frac=float(cfg["robust.q_landmark_frac"]), q_pose=int(cfg["robust.q_pose"]),
+            strict=bool(cfg["robust.strict"]), pose_window=float(cfg["landmarks.pose_window"]),
+            heading_slices=int(cfg["landmarks.heading_slices"]), max_step=float(cfg["landmarks.max_step"]),
+            max_iterations=int(cfg["landmarks.max_iterations"]), tolerance=float(cfg["landmarks.tolerance"]),
+        )

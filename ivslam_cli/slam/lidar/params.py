@@ -1,0 +1,91 @@
+"""Parameters of the LiDAR pipeline, read once from the resolved configuration."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ivslam_cli.errors import ConfigError
+from ivslam_cli.interval.vector import bound_up
+from ivslam_cli.slam.lidar.map_update import LidarBounds
+from ivslam_cli.slam.motion import InitialPose, MotionBounds
+
+MOTIONS = ("auto", "twist", "pose")
+KNOWN_SOURCES = ("auto", "truth", "scan", "odometry")
+
+
+def beam_bounds(range_abs: float, range_rel: float, bearing: float, fill_gaps: bool) -> LidarBounds:
+    """The beam bounds of ``[bounds]`` in the map kernels' convention.
+
+    ``[bounds]`` states ``|ρ − z| ≤ range_abs + range_rel·z`` (measured range) and simulated logs
+    ``… + range_rel·ρ`` (true range); the map kernels take the second form, with
+    ``range_abs / (1 − range_rel)`` and ``range_rel / (1 − range_rel)``, which holds in both
+    conventions (rounded up)."""
+    a = bound_up(range_abs)
+    r = bound_up(range_rel)
+    if not r < 1.0 / 3.0:
+        raise ConfigError(f"[bounds] range_rel = {range_rel} must be < 1/3 in lidar mode")
+    den = float(np.nextafter(1.0 - r, -np.inf)) if r else 1.0
+    a2 = float(np.nextafter(a / den, np.inf)) if r else a
+    r2 = float(np.nextafter(r / den, np.inf)) if r else 0.0
+    b = LidarBounds(a2, r2, bound_up(bearing), fill_gaps=bool(fill_gaps))
+    b.check()
+    return b
+
+
+@dataclass(frozen=True)
+class Params:
+    """``[bounds]`` (beam and odometry bounds), ``[robust] strict``, the initial pose of
+    ``[landmarks]`` and ``[lidar]`` (see the configuration table for every key)."""
+
+    beams: LidarBounds  # in the map kernels' convention (see beam_bounds)
+    odometry: MotionBounds
+    initial: InitialPose
+    strict: bool
+    eps: float
+    max_range: float
+    motion: str  # auto / twist / pose
+    max_pose_width: float
+    max_step: float
+    contract: bool
+    q_beams: int
+    contract_boxes: int
+    contract_stride: int
+    contract_max_width: float
+    keyframes: bool
+    keyframe_distance: float
+    keyframe_turn: float
+    match_boxes: int
+    match_stride: int
+    poses_known: bool
+    known_poses: str
+    pose_margin: tuple[float, float, float]
+
+    @property
+    def tracking(self) -> bool:
+        """Scan by scan (contraction or scan matching), not prediction then mapping."""
+        return not self.poses_known and (self.contract or self.keyframes)
+
+    @classmethod
+    def from_config(cls, cfg) -> Params:
+        motion = cfg["lidar.motion"]
+        if motion not in MOTIONS:
+            raise ConfigError(f"[lidar] motion must be one of {', '.join(MOTIONS)}, got {motion!r}")
+        known = cfg["lidar.known_poses"]
+        if known not in KNOWN_SOURCES:
+            raise ConfigError(f"[lidar] known_poses must be one of {', '.join(KNOWN_SOURCES)}, got {known!r}")
+        return cls(
+            beams=beam_bounds(cfg["bounds.range_abs"], cfg["bounds.range_rel"], cfg["bounds.bearing"],
+                              cfg["lidar.fill_gaps"]),
+            odometry=MotionBounds.from_config(cfg), initial=InitialPose.from_config(cfg),
+            strict=bool(cfg["robust.strict"]), eps=float(cfg["lidar.eps"]), max_range=float(cfg["lidar.max_range"]),
+            motion=motion, max_pose_width=float(cfg["lidar.max_pose_width"]), max_step=float(cfg["lidar.max_step"]),
+            contract=bool(cfg["lidar.contract"]), q_beams=int(cfg["lidar.q_beams"]),
+            contract_boxes=int(cfg["lidar.contract_boxes"]), contract_stride=int(cfg["lidar.contract_stride"]),
+            contract_max_width=float(cfg["lidar.contract_max_width"]), keyframes=bool(cfg["lidar.keyframes"]),
+            keyframe_distance=float(cfg["lidar.keyframe_distance"]), keyframe_turn=float(cfg["lidar.keyframe_turn"]),
+            match_boxes=int(cfg["lidar.match_boxes"]), match_stride=int(cfg["lidar.match_stride"]),
+            poses_known=bool(cfg["lidar.poses_known"]), known_poses=known,
+            pose_margin=tuple(float(v) for v in cfg["lidar.pose_margin"]),
+        )

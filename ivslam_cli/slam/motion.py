@@ -1,0 +1,363 @@
+"""The motion model shared by the landmark and LiDAR pipelines: pose increments between the
+nodes of a trajectory, from a log's odometry, with their bounds; and the initial pose box.
+
+Motion, by the odometry the log has:
+
+- **twist** ``(v, ω)`` (MRCLAM's commanded velocities, simulated logs): zero-order hold, so an
+  event (observation, scan) between two odometry stamps splits the step exactly (a node at its
+  stamp). The true speed ``v`` satisfies ``|z_v − v| ≤ odom_v + odom_v_rel·|v|`` and the true
+  turn rate ``|z_ω − ω| ≤ odom_w + odom_w_rel·|v|`` at every instant of the step; each step is
+  the pose increment enclosing every unicycle path within those bounds (:func:`chord_steps`:
+  errors second order in ``dt``, steps cut at ``max_step``). The true pose stays within
+  ``odom_lag_xy``/``odom_lag_th`` of such a path (commands the drive follows late);
+- **pose increments** (``nav_msgs/Odometry``, CARMEN, Victoria Park): the increment between two
+  odometry poses in the frame of the first, translation within ``odom_trans_abs +
+  odom_trans_rel·|Δ|`` per axis and rotation within ``odom_rot_abs + odom_rot_rel·|Δθ|``. An
+  event between two odometry stamps is attached to the nearer node, widened by the step's
+  largest displacement and rotation (assumes the robot stays within its step's bound between
+  two odometry poses).
+
+The steps are contracted by :func:`ivslam_cli.slam.motion_kernel.step_contract` (the unicycle
+motion constraint of the "Guaranteed SLAM – practical considerations" slides, written as a
+range-bearing increment).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from ivslam_cli import interval as iv
+from ivslam_cli.errors import IvslamError
+from ivslam_cli.interval.vector import bound_up as _bound
+from ivslam_cli.interval.vector import point as _col
+from ivslam_cli.interval.vector import sym as _sym
+from ivslam_cli.logs.model import LogData
+from ivslam_cli.slam import motion_kernel as K
+
+TWIST_BOUNDS = ("odom_v", "odom_v_rel", "odom_w", "odom_w_rel", "odom_lag_xy", "odom_lag_th", "odom_lag_time")
+POSE_BOUNDS = ("odom_trans_abs", "odom_trans_rel", "odom_rot_abs", "odom_rot_rel")
+
+
+@dataclass(frozen=True)
+class MotionBounds:
+    """The odometry bounds of ``[bounds]`` (decimal values; the kernels enclose each outward)."""
+
+    odom_v: float = 0.0
+    odom_v_rel: float = 0.0
+    odom_w: float = 0.0
+    odom_w_rel: float = 0.0
+    odom_lag_xy: float = 0.0
+    odom_lag_th: float = 0.0
+    odom_lag_time: float = 0.0
+    odom_lag_memory: float = 2.0
+    odom_trans_abs: float = 0.0
+    odom_trans_rel: float = 0.0
+    odom_rot_abs: float = 0.0
+    odom_rot_rel: float = 0.0
+
+    @classmethod
+    def from_config(cls, cfg) -> MotionBounds:
+        return cls(**{f.name: float(cfg["bounds." + f.name]) for f in fields(cls)})
+
+    @property
+    def twist_set(self) -> bool:
+        """Some twist bound is set."""
+        return any(getattr(self, k) for k in TWIST_BOUNDS)
+
+    @property
+    def pose_set(self) -> bool:
+        """Some pose-increment bound is set."""
+        return any(getattr(self, k) for k in POSE_BOUNDS)
+
+
+@dataclass(frozen=True)
+class InitialPose:
+    """Where the first pose box comes from: ``pose`` ± ``margin``, else the truth at the first
+    stamp (``from_truth``), else the origin (the map frame is the first pose)."""
+
+    pose: tuple[float, float, float] | None = None
+    from_truth: bool = False
+    margin: tuple[float, float, float] = (0.01, 0.01, 0.01)
+
+    @classmethod
+    def from_config(cls, cfg) -> InitialPose:
+        p = cfg["landmarks.initial_pose"]
+        return cls(pose=None if p is None else tuple(float(v) for v in p),
+                   from_truth=bool(cfg["landmarks.initial_pose_from_truth"]),
+                   margin=tuple(float(v) for v in cfg["landmarks.initial_margin"]))
+
+
+def speed_interval(z: np.ndarray, a: float, r: float) -> np.ndarray:
+    """Every true ``v`` with ``|z − v| ≤ a + r·|v|`` (``r < 1``), rows ``(lo, hi)``, outward."""
+    if r >= 1.0:
+        raise IvslamError(f"bounds.odom_v_rel = {r} must be < 1 (a relative speed bound of 100 % bounds nothing)")
+    z = np.asarray(z, dtype=np.float64)
+    A = _col(np.full(z.shape, a))
+    lo_num = iv.sub(_col(z), A)  # z - a
+    hi_num = iv.add(_col(z), A)  # z + a
+    one_p = _col(np.full(z.shape, 1.0 + 0.0))
+    R = _col(np.full(z.shape, r))
+    den_plus = iv.add(one_p, R)  # 1 + r
+    den_minus = iv.sub(one_p, R)  # 1 - r
+    # lo = (z - a)/(1 + r) if z - a >= 0 else (z - a)/(1 - r); hi symmetric
+    lo_a = iv.div(lo_num, den_plus)[:, 0]
+    lo_b = iv.div(lo_num, den_minus)[:, 0]
+    hi_a = iv.div(hi_num, den_minus)[:, 1]
+    hi_b = iv.div(hi_num, den_plus)[:, 1]
+    lo = np.where(lo_num[:, 0] >= 0.0, lo_a, lo_b)
+    hi = np.where(hi_num[:, 1] > 0.0, hi_a, hi_b)
+    return np.column_stack([lo, hi])
+
+
+def _interp_truth(log: LogData, t: float) -> np.ndarray | None:
+    tr = log.truth
+    if tr is None or tr.pose is None or tr.pose_stamp is None or len(tr.pose_stamp) < 1:
+        return None
+    ts = np.asarray(tr.pose_stamp, float)
+    if t < ts[0] or t > ts[-1]:
+        return None
+    p = np.asarray(tr.pose, float)
+    th = np.unwrap(p[:, 2])
+    return np.array([np.interp(t, ts, p[:, 0]), np.interp(t, ts, p[:, 1]), np.interp(t, ts, th)])
+
+
+def initial_box(log: LogData, initial: InitialPose, t0: float) -> tuple[np.ndarray, str]:
+    """The initial pose box (3, 2) and where it comes from."""
+    margin = [_bound(m) for m in initial.margin]
+    if initial.pose is not None:
+        centre, source = np.array(initial.pose, float), "landmarks.initial_pose"
+    elif initial.from_truth:
+        centre = _interp_truth(log, t0)
+        if centre is None:
+            raise IvslamError(f"--initial-pose-from-truth: the log has no ground-truth pose at t={t0:.6f}",
+                              log.provenance.path)
+        source = "ground truth interpolated at the first odometry stamp"
+    else:
+        centre, source = np.zeros(3), "origin (the map frame is the first pose)"
+    box = iv.add(_col(centre), _sym(np.array(margin)))
+    return box, source
+
+
+def cumulative_up(step: np.ndarray) -> np.ndarray:
+    """Cumulative sums of non-negative step bounds, rounded up (relative float error ≤ n·2⁻⁵³)."""
+    c = np.concatenate([[0.0], np.cumsum(step)])
+    return np.nextafter(c * (1.0 + (len(c) + 2) * 2.0**-52), np.inf)
+
+
+def subdivide(stamps: np.ndarray, max_step: float) -> np.ndarray:
+    """``stamps`` (sorted) with evenly spaced stamps added so that no gap exceeds ``max_step``
+    (up to rounding; 0 or less: unchanged)."""
+    if max_step <= 0 or stamps.size < 2:
+        return stamps
+    gap = np.diff(stamps)
+    m = np.ceil(gap / max_step).astype(np.int64)  # pieces per gap
+    if np.all(m <= 1):
+        return stamps
+    k = np.repeat(np.arange(gap.size), np.maximum(m - 1, 0))
+    j = np.arange(k.size) - np.repeat(np.cumsum(np.maximum(m - 1, 0)) - np.maximum(m - 1, 0), np.maximum(m - 1, 0)) + 1
+    extra = stamps[k] + gap[k] * (j / m[k])
+    return np.unique(np.concatenate([stamps, extra]))
+
+
+def node_lags(t: np.ndarray, z: np.ndarray, node_stamp: np.ndarray, a_xy: float, a_th: float, tau: float,
+              memory: float) -> np.ndarray:
+    """Per node ``(position, heading)`` half-widths within which the true pose stays of the
+    modelled one: ``a_xy + tau·max|v|`` and ``a_th + tau·max|ω|``, the largest commands (rows of
+    ``z`` = ``(v, ω)``, held from each stamp of ``t`` to the next) over ``[stamp − memory,
+    stamp]``; before the first command, zero. A drive that follows its commands ``tau`` late
+    (or as a first-order lag of time constant ``tau``, ``memory`` a few ``tau``) trails the
+    commanded path by at most the distance and turn those commands make in ``tau``. Rounded up."""
+    n = node_stamp.shape[0]
+    lag = np.empty((n, 2))
+    lag[:, 0], lag[:, 1] = a_xy, a_th
+    if tau <= 0.0:
+        return lag
+    if memory <= 0.0:
+        raise IvslamError(f"bounds.odom_lag_memory = {memory} must be > 0 when bounds.odom_lag_time is set")
+    first = np.searchsorted(t, node_stamp - memory, side="right") - 1
+    last = np.searchsorted(t, node_stamp, side="right") - 1
+    pad = np.vstack([np.abs(z), np.zeros((1, 2))])
+    idx = np.ravel(np.column_stack([np.maximum(first, 0), np.maximum(last, 0) + 1]))
+    top = np.maximum.reduceat(pad, idx, axis=0)[::2]
+    top[last < 0] = 0.0  # the whole window before the first command
+    for d in range(2):
+        grow = iv.mul(_col(np.full(n, tau)), _col(top[:, d]))
+        lag[:, d] = iv.add(_col(lag[:, d]), grow)[:, 1]
+    return lag
+
+
+def chord_steps(V: np.ndarray, W: np.ndarray, dt: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pose increments ``(ρ, α, δθ)`` (in the frame of the step's start) that enclose every path
+    of the unicycle ``ẋ = v (cos θ, sin θ)``, ``θ̇ = ω`` over a step of duration ``dt`` with
+    ``v(t) ∈ V`` and ``ω(t) ∈ W`` at every instant (any variation within the intervals). Rows
+    ``(lo, hi)``, outward.
+
+    With ``ω̄`` the midpoint of ``W``, ``r`` its radius and ``φ = θ_0 + ω̄ dt/2`` (the chord
+    direction of the mean turn), ``|θ(t) − φ − ω̄ (t − dt/2)| ≤ r t``, so in the frame of ``φ``:
+    along ``∈ [v_lo (dt·sinc(ω̄ dt/2) − r dt²/2), v_hi (dt·sinc(ω̄ dt/2) + r dt²/2)]`` (``1 − x²/6 ≤
+    sinc x ≤ 1 − x²/6 + x⁴/120``; valid while
+    ``|ω̄| dt/2 + r dt < π/2``, else ``± max|v| dt``) and lateral ``∈ ± (v_hi r dt²/2 + (v_hi −
+    v_lo) |ω̄| dt²/8)``; when ``V`` holds negative speeds, along ``∈ ± max|v| dt`` and lateral
+    ``∈ ± max|v| (|ω̄| dt²/4 + r dt²/2)``. The rotation is ``W·dt`` exactly. The errors are
+    second order in ``dt`` (keep steps short: ``landmarks.max_step``)."""
+    n = V.shape[0]
+    wbar = np.ascontiguousarray(0.5 * (W[:, 0] + W[:, 1]))
+    WB = _col(wbar)
+    r = np.maximum(iv.sub(WB, _col(W[:, 0]))[:, 1], iv.sub(_col(W[:, 1]), WB)[:, 1])
+    R_ = _col(r)
+    half = iv.mul(iv.mul(WB, dt), _col(np.full(n, 0.5)))  # ω̄ dt / 2
+    dt2 = iv.sqr(dt)
+    vmaxabs = np.maximum(np.abs(V[:, 0]), np.abs(V[:, 1]))
+    # |θ − φ| ≤ |ω̄| dt/2 + r dt
+    delta = iv.add(iv.mul(_col(np.abs(wbar)), iv.mul(dt, _col(np.full(n, 0.5)))), iv.mul(R_, dt))[:, 1]
+    forward = (V[:, 0] >= 0.0) & (delta < 1.5)
+    # forward steps
+    sinc_lo = iv.sub(_col(np.ones(n)), iv.div(iv.sqr(half), _col(np.full(n, 6.0))))
+    along_lo = iv.sub(iv.mul(_col(V[:, 0]), iv.mul(dt, sinc_lo)),
+                      iv.mul(_col(V[:, 0]), iv.mul(R_, iv.mul(dt2, _col(np.full(n, 0.5))))))[:, 0]
+    x2 = iv.sqr(half)
+    sinc_hi = iv.add(sinc_lo, iv.div(iv.sqr(x2), _col(np.full(n, 120.0))))  # sinc x ≤ 1 − x²/6 + x⁴/120
+    along_hi = np.minimum(iv.mul(_col(V[:, 1]), dt)[:, 1],
+                          iv.add(iv.mul(_col(V[:, 1]), iv.mul(dt, sinc_hi)),
+                                 iv.mul(_col(V[:, 1]), iv.mul(R_, iv.mul(dt2, _col(np.full(n, 0.5))))))[:, 1])
+    lat_f = iv.add(iv.mul(_col(V[:, 1]), iv.mul(R_, iv.mul(dt2, _col(np.full(n, 0.5))))),
+                   iv.mul(iv.sub(_col(V[:, 1]), _col(V[:, 0])),
+                          iv.mul(_col(np.abs(wbar)), iv.mul(dt2, _col(np.full(n, 0.125))))))[:, 1]
+    # any other step
+    m_dt = iv.mul(_col(vmaxabs), dt)[:, 1]
+    lat_b = iv.mul(_col(vmaxabs), iv.add(iv.mul(_col(np.abs(wbar)), iv.mul(dt2, _col(np.full(n, 0.25)))),
+                                         iv.mul(R_, iv.mul(dt2, _col(np.full(n, 0.5))))))[:, 1]
+    along = np.where(forward[:, None], np.column_stack([along_lo, along_hi]), np.column_stack([-m_dt, m_dt]))
+    lat = np.where(forward, lat_f, lat_b)
+    LAT = np.column_stack([-lat, lat])
+    rho = iv.sqrt(iv.add(iv.sqr(along), iv.sqr(LAT)))
+    alpha = iv.add(half, iv.atan2(LAT, along))
+    return rho, alpha, iv.mul(W, dt)
+
+
+@dataclass
+class MotionSteps:
+    """Dead-reckoning steps between nodes, and where each event (observation, scan) sits.
+
+    ``node_stamp`` (N,); ``kind`` (N-1,) and ``U`` (N-1, 5, 2) as ``landmarks_kernel`` reads
+    them; ``step_travel`` (N-1,) upper bounds of each step's displacement and ``step_dth``
+    (N-1, 2) its heading change; ``lag`` (N, 2): true pose = modelled pose ± (lag_xy, lag_th)
+    at each node (twist odometry; zero for pose increments); ``node`` (M,) the node of each
+    event and ``reach`` (M, 2) the (position, heading) half-widths by which that node's box is
+    widened to hold the pose at the event's own stamp."""
+
+    motion: str
+    node_stamp: np.ndarray
+    kind: np.ndarray
+    U: np.ndarray
+    step_travel: np.ndarray
+    step_dth: np.ndarray
+    lag: np.ndarray
+    node: np.ndarray
+    reach: np.ndarray
+
+
+def motion_steps(odo, bounds: MotionBounds, s: np.ndarray, prefer: str = "twist", max_step: float = 0.0,
+                 path: str = "") -> MotionSteps:
+    """The motion model of ``odo`` (see the module docstring) with events at stamps ``s``
+    (sorted, within the odometry's span).
+
+    ``prefer``: ``"twist"`` uses the twist when the odometry has one, else the poses;
+    ``"pose"`` the reverse. Twist steps get a node at every event stamp (exact split of the
+    held twist) and are cut at ``max_step`` seconds; with pose increments an event between two
+    odometry stamps is attached to the nearer node, widened by its step's motion.
+    """
+    if prefer not in ("twist", "pose"):
+        raise ValueError(prefer)
+    t = np.asarray(odo.stamp, float)
+    use_twist = odo.twist is not None and (prefer == "twist" or odo.pose is None)
+    if use_twist:
+        motion = "twist"
+        # nodes: where the held twist changes (a run of equal twists is one exact step), the
+        # observation stamps, and the last odometry stamp
+        tw_all = np.asarray(odo.twist, float)
+        change = np.concatenate([[True], np.any(tw_all[1:] != tw_all[:-1], axis=1)])
+        change[-1] = True
+        node_stamp = subdivide(np.unique(np.concatenate([t[change], s])), max_step)
+        n = node_stamp.shape[0]
+        j = np.clip(np.searchsorted(t, node_stamp[:-1], side="right") - 1, 0, len(t) - 1)
+        zlo = zhi = tw_all[j]
+        a_v, r_v = _bound(bounds.odom_v), _bound(bounds.odom_v_rel)
+        V = np.column_stack([speed_interval(zlo[:, 0], a_v, r_v)[:, 0], speed_interval(zhi[:, 0], a_v, r_v)[:, 1]])
+        vmax = np.maximum(np.abs(V[:, 0]), np.abs(V[:, 1]))
+        w_half = iv.add(_col(np.full(n - 1, _bound(bounds.odom_w))),
+                        iv.mul(_col(np.full(n - 1, _bound(bounds.odom_w_rel))), _col(vmax)))[:, 1]
+        W = np.column_stack([iv.sub(_col(zlo[:, 1]), _sym(w_half))[:, 0], iv.add(_col(zhi[:, 1]), _sym(w_half))[:, 1]])
+        dt = iv.sub(_col(node_stamp[1:]), _col(node_stamp[:-1]))
+        dt[:, 0] = np.maximum(dt[:, 0], 0.0)
+        lag = node_lags(t, tw_all, node_stamp, _bound(bounds.odom_lag_xy), _bound(bounds.odom_lag_th),
+                        _bound(bounds.odom_lag_time), float(bounds.odom_lag_memory))
+        U = np.zeros((n - 1, 5, 2))
+        U[:, 0], U[:, 1], U[:, 2] = chord_steps(V, W, dt)
+        kind = np.full(n - 1, K.INCREMENT, np.int8)
+        step_travel = U[:, 0, 1].copy()
+        step_dth = iv.mul(W, dt)
+        node = np.searchsorted(node_stamp, s)
+        # the true pose at an observation is within the lag of the modelled one
+        reach = lag[node]
+    elif odo.pose is not None:
+        motion = "pose increments"
+        node_stamp = t.copy()
+        if np.any(np.diff(node_stamp) <= 0):
+            raise IvslamError("odometry stamps are not strictly increasing", path)
+        n = node_stamp.shape[0]
+        p = np.asarray(odo.pose, float)
+        d = p[1:, :2] - p[:-1, :2]
+        c, sn = np.cos(p[:-1, 2]), np.sin(p[:-1, 2])
+        bx, by = c * d[:, 0] + sn * d[:, 1], -sn * d[:, 0] + c * d[:, 1]
+        raw = p[1:, 2] - p[:-1, 2]
+        dth = raw - np.round(raw / (2 * np.pi)) * (2 * np.pi)
+        # float error of the increments: a few ulps of the coordinates involved
+        eps_xy = 8.0 * np.spacing(np.abs(p[1:, :2]).max(axis=1) + np.abs(p[:-1, :2]).max(axis=1) + 1.0)
+        eps_th = 8.0 * np.spacing(np.abs(p[1:, 2]) + np.abs(p[:-1, 2]) + 2 * np.pi)
+        norm = np.hypot(bx, by)
+        half_t = _bound(bounds.odom_trans_abs) + _bound(bounds.odom_trans_rel) * norm * (1 + 1e-15)
+        half_t = np.nextafter(half_t + eps_xy, np.inf)
+        half_r = _bound(bounds.odom_rot_abs) + _bound(bounds.odom_rot_rel) * np.abs(dth) * (1 + 1e-15)
+        half_r = np.nextafter(half_r + eps_th, np.inf)
+        BX, BY = iv.add(_col(bx), _sym(half_t)), iv.add(_col(by), _sym(half_t))
+        R = iv.sqrt(iv.add(iv.sqr(BX), iv.sqr(BY)))
+        A = iv.atan2(BY, BX)
+        U = np.zeros((n - 1, 5, 2))
+        U[:, 0], U[:, 1], U[:, 2] = R, A, iv.add(_col(dth), _sym(half_r))
+        kind = np.full(n - 1, K.INCREMENT, np.int8)
+        step_travel = R[:, 1]
+        step_dth = U[:, 2].copy()
+        step_turn = np.maximum(np.abs(U[:, 2, 0]), np.abs(U[:, 2, 1]))
+        # attach each observation to the nearer odometry node, widened by its step's motion
+        su = s
+        k = np.clip(np.searchsorted(t, su, side="right") - 1, 0, n - 2)
+        nearer_next = (t[k + 1] - su) < (su - t[k])
+        node = np.where(nearer_next, k + 1, k)
+        exact = t[node] == su
+        reach = np.column_stack([np.where(exact, 0.0, step_travel[k]), np.where(exact, 0.0, step_turn[k])])
+        lag = np.zeros((n, 2))
+    else:
+        raise IvslamError("the odometry has neither twist nor poses", path)
+
+    return MotionSteps(motion=motion, node_stamp=node_stamp, kind=kind, U=np.ascontiguousarray(U),
+                       step_travel=step_travel, step_dth=step_dth, lag=lag, node=node.astype(np.int64),
+                       reach=np.ascontiguousarray(reach, dtype=np.float64))
+
+
+def choose_motion(log: LogData, want: str, bounds: MotionBounds) -> str:
+    """``"twist"`` or ``"pose"``: the odometry stream to dead-reckon with. ``want`` is ``auto``
+    (the stream whose bounds are set; twist if both or neither are), ``twist`` or ``pose``."""
+    odo = log.odometry
+    has_t, has_p = odo.twist is not None, odo.pose is not None
+    if want == "twist" and not has_t:
+        raise IvslamError("lidar.motion = twist, but the odometry has no twist", log.provenance.path)
+    if want == "pose" and not has_p:
+        raise IvslamError("lidar.motion = pose, but the odometry has no poses", log.provenance.path)
+    if want != "auto":
+        return want
+    if has_t and has_p:
+        return "pose" if bounds.pose_set and not bounds.twist_set else "twist"
+    return "twist" if has_t else "pose"
