@@ -49,11 +49,11 @@ def test_unknown_command_fails_cleanly(cli_run):
     assert "Traceback" not in res.output
 
 
-def test_readme_generated_sections_are_current():
-    """The README's config table and HDF5 schema are generated from the code: never stale."""
+def test_readme_generated_docs_are_current():
+    """docs/config.md and docs/schema.md are generated from the code: never stale."""
     from pathlib import Path
 
     repo = Path(__file__).resolve().parents[1]
-    out = subprocess.run([sys.executable, str(repo / "scripts" / "sync_readme.py"), "--check"],
+    out = subprocess.run([sys.executable, str(repo / "scripts" / "sync_docs.py"), "--check"],
                          capture_output=True, text=True)
     assert out.returncode == 0, out.stdout + out.stderr
