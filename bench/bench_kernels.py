@@ -10,12 +10,21 @@ the real value. A truth counts as lost when ``lo > est + e`` or ``hi < est - e``
 value were still inside, neither could happen.
 
 (b) Throughput: our ``polar`` on ``N_POLAR`` boxes (compiled first, then timed), and Codac's
-``CtcPolar`` from Python on the first ``N_CODAC`` of them, in ``ROUNDS`` alternating chunks (the leanest honest loop: prebuilt
-``IntervalVector``\\ s, then ``c.contract(b)``), single-threaded. Target: >= 40x Codac.
+``CtcPolar`` from Python on the first ``N_CODAC`` of them, in ``ROUNDS`` alternating chunks (the
+leanest honest loop: prebuilt ``IntervalVector``\\ s, then ``c.contract(b)``), single-threaded.
 Mean widths and truth losses of both on the common subset, and the boxes where one of our
 bounds is looser than Codac's: by any amount (a few ulps almost everywhere: Codac rounds with
 the FPU's directed modes, we round to nearest and step out), and beyond rounding.
-The load average is printed beside the rates: the machine is shared, rerun when it is high.
+The load average is printed beside the rates: the machine may be shared, rerun when it is high.
+
+Reference: Codac 2's ``CtcPolar`` (``pip install codac``, the dev extra), measured in the same
+run; without Codac only (a) and our rate are printed.
+
+Targets (exit code 1 if one is missed): no truth lost; our rate >= 40x Codac's
+(``TARGET_RATIO``); no bound looser than Codac's beyond rounding.
+
+    python -m bench kernels           # as part of `make bench`
+    python -m bench.bench_kernels
 """
 
 from __future__ import annotations

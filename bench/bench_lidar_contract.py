@@ -17,13 +17,18 @@ against the reference (hash lookups cell by cell), on three cases:
 
 Settings as in the pipeline: ``lidar.contract_boxes`` = 1024, ``contract_stride`` = 2,
 ``q_beams`` = 5, ε = 5 cm. Warm (numba compiled first), one process, one core; each figure is
-the smallest wall time of ``--repeat`` runs over the case's scans (the machine is shared: the
-load average is printed). The reference runs on the same calls in the same process; kept
-count, hull and tested count must be the same for every call (FAIL otherwise).
+the smallest wall time of ``--repeat`` runs over the case's scans (the machine may be shared:
+the load average is printed).
+
+Reference: the cell-by-cell implementation on the same calls in the same process; kept count,
+hull and tested count must be the same for every call (FAIL otherwise).
 
 Target (issue #7): the whole LiDAR run at >= 100x real time, ~1 ms per scan in all, of which
 the map update takes ~0.3 ms: the contraction should take well under 1 ms per scan when
 boxes are a few decimetres wide (the ``sim`` and ``exp1`` cases).
+
+    python -m bench lidar_contract    # as part of `make bench`
+    python -m bench.bench_lidar_contract [--case sim|exp1|pipeline] [--no-reference]
 """
 
 from __future__ import annotations

@@ -4,49 +4,25 @@ A simulated URG-04LX log (``ivslam simulate``'s ``urg-04lx`` profile: 682 beams 
 10 Hz, 0.02-5.6 m) in the ``rooms`` world; every scan gets a robot pose box of half-widths
 0.2 m, 0.2 m, 3° holding the true pose at a random place. Map at ε = 5 cm. Warm (numba
 compiled on a short prefix first), one process, one core; each figure is the smallest wall
-time of ``--repeat`` runs, each from an empty map (the machine is shared: the load average is
-printed beside the rates).
+time of ``--repeat`` runs, each from an empty map (the machine may be shared: the load average
+is printed beside the rates). Peak memory is the process's peak RSS growth during the timed
+runs and the map's own arrays.
 
-Target (issue #7): >= 400x real time, i.e. >= 400 * 6,830 = 2.73 M beams/s (the URG-04LX's 683
-values at 10 Hz); the seed's own budget (the sensor's rate) is printed beside it. Peak memory
-is the process's peak RSS growth during the timed runs and the map's own arrays.
+Reference: the cell-by-cell implementation (``lidar_kernel.update_log_reference``) on the same
+log in the same process: its time gives the speed-up, and its map, old/new beams and counts
+must equal the fast path's bit for bit (FAIL otherwise), as must the truth check of the
+simulated log. Real time is the sensor's own rate (the URG-04LX's 683 values at 10 Hz, the
+real-time budget of the "Guaranteed SLAM – practical considerations" slides), printed beside
+the rates. Compare the ratio to the reference of the same run: the speed of a shared machine
+varies between runs.
 
-The cell-by-cell reference (``lidar_kernel.update_log_reference``) runs on the same log in the
-same process: its time gives the speed-up, and its map, old/new beams and counts must equal
-the fast path's bit for bit (FAIL otherwise), as must the truth check of the simulated log.
+Target (issue #7): >= 400x real time, i.e. >= 400 * 6,830 = 2.73 M beams/s.
 
-How the fast path got here (interleaved A/B runs of ``traverse`` alone, 1,200 scans, exact leaf
-test; equality with the reference checked on 1,000 random cases x 2 leaf modes each time):
+    python -m bench lidar_map         # as part of `make bench`
+    python -m bench.bench_lidar_map [--scans N] [--repeat N] [--no-reference] [--no-truth]
 
-- Session 7: the tiles of a scan visited together (chunks of 64), level by level; the
-  geometry of all blocks of a level (ranges, fast bearings, outer window, ``_inner``) and of
-  all cells in one pass written with selects only, which LLVM vectorises (AVX-512 on this
-  machine: 8 blocks at a time), then the decisions block by block, the tiles' slots put back
-  in the reference's order at the end. ``traverse`` 35 % faster (the leaves' geometry alone was
-  30 % of it, ~22 ns a cell scalar); a tile at a time gave 21 % (most of a tile's levels hold
-  under 8 blocks, which ran in the scalar remainder loops). The bench went from 367x to
-  470-536x real time, 11.5x to 15-18x the reference; the same 4,084 nodes a scan. Gathers from
-  the axis tables do not vectorise (a scalar pass fills contiguous arrays first); padding the
-  passes to whole vectors was slower.
-- Where the time goes now (perf, samples mapped onto the compiled functions, the whole
-  update on a growing map): ``traverse``'s decisions 45 %, ``_level_geom`` 15 %, ``_write``
-  13 % (spread out: no hot spot; skipping ``_flags`` calls for cells with no new beam in their
-  window gained nothing), ``_cell_geom`` 7 %, ``_fast_tables`` 7 %, ``_cell_window`` 4 % (the
-  unmeasured cells of blocks proven in P_OBSTACLE^k: the new-beam test).
-- Earlier: per-scan axis tables of the cells' sides and offsets (~4 %); helpers inlined and
-  taking scalars (an array passed to an inlined helper costs ~20 % in reference counting);
-  ``_nrt=False`` on the few helpers that stay calls (~25 %).
-- Measured without gain: the hull instead of the exact test on 2x2 blocks; table rows padded
-  to 64 bytes (slower); 4x4 blocks decided cell by cell (exact only on ``simple`` blocks: on
-  scans spanning over 2 pi a 2x2 block and one of its cells pick different branches for the
-  empty test); leaf cells decided from their block's windows (29 % decidable, no faster); a
-  structure-of-arrays sparse table (1.6x slower to build).
-
-Per scan: 41 tile roots, then 41 / 94 / 260 / 549 / 1,076 nodes at levels 5-1 and 2,024
-cells; ``_inner`` on 2x2 blocks pays for itself (of ~780 uses, 243 prove the block in
-P_OBSTACLE^k and 87 prune it: ~1,300 cell tests saved). What is left is the band's boundary at
-5 cm (a beam's endpoint region at ±0.2 m / ±3° is 0.4-0.7 m thick). The shared machine's speed
-varies by 25-45 % between runs: compare the ratio to the reference measured in the same run.
+Figures measured so far, with the commit of each, and the profile of the update:
+docs/results.md.
 """
 
 from __future__ import annotations

@@ -3,8 +3,8 @@ result), warm, one process, one core.
 
 Cases (each in its own process, so its peak memory is its own):
 
-- ``exp1``: the seeds' own sensor (URG-04LX, 683 values, 10 Hz) with wheel encoders,
-  ``configs/exp1.toml`` (74.6 s of log);
+- ``exp1``: a Hokuyo URG-04LX (683 values, 10 Hz: the sensor of the "Guaranteed SLAM –
+  practical considerations" slides) with wheel encoders, ``configs/exp1.toml`` (74.6 s of log);
 - ``sim600``: a simulated 10-minute URG-04LX log (``ivslam simulate --scenario lidar --world
   rooms --duration 600``; ray-cast beams, so ``lidar.fill_gaps``);
 - ``sim600_known``: the same log with ``--poses-known`` (truth ± ``lidar.pose_margin``): every
@@ -16,12 +16,15 @@ Cases (each in its own process, so its peak memory is its own):
 
 Each figure is the smallest wall time of ``--repeat`` runs after a warm-up run (numba
 compiled, caches filled). Printed: beams/s, the real-time factor (log duration / run time), the
-seed's budget (the sensor's own 6,830 beams/s: real time), peak RSS, and what the run achieved
-(scans mapped, contracted, too wide to contract, median pose width) so that a fast run that
-maps little is read as such.
+sensor's own budget (6,830 beams/s: real time), peak RSS, and what the run achieved (scans
+mapped, contracted, too wide to contract, median pose width) so that a fast run that maps
+little is read as such.
 
-Target (issue #7): the whole run at >= 100x real time on exp1 and on the simulated log (both
-cases of it).
+Reference: real time, the sensor's rate. Target (issue #7): the whole run at >= 100x real time
+on exp1 and on the simulated log (both cases of it).
+
+    python -m bench lidar_run         # as part of `make bench`: exp1, sim600, sim600_known
+    python -m bench.bench_lidar_run --all
 """
 
 from __future__ import annotations

@@ -4,7 +4,12 @@ Builds, in a temp dir, a 50,000-message ROS 2 MCAP (ros2 profile, CDR, zstd chun
 written with the ``mcap`` writer) and a ROS 1 bag (rosbags' writer) of 360-beam
 ``sensor_msgs/LaserScan`` (random ranges, 5% inf), then times ``read_log`` on each and
 measures the tracemalloc peak against the size of the resulting arrays.
-Target: >= 100,000 msgs/s and peak < 2x the arrays.
+
+Reference: the size of the arrays read. Targets: >= 100,000 msgs/s and peak < 2x the arrays
+(printed as ok / BELOW TARGET / ABOVE TARGET).
+
+    python -m bench readers           # as part of `make bench`
+    python -m bench.bench_readers
 """
 
 from __future__ import annotations

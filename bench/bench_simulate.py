@@ -2,6 +2,11 @@
 
 Times the simulation alone and simulation + writing MCAP (what ``ivslam simulate -o
 x.mcap`` does); the numba kernels are compiled (or loaded from cache) beforehand.
+
+Reference: none. Target (exit code 1 otherwise): simulation + write < 10 s.
+
+    python -m bench simulate          # as part of `make bench`
+    python -m bench.bench_simulate
 """
 
 from __future__ import annotations

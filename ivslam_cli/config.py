@@ -35,9 +35,9 @@ else:  # pragma: no cover
 SECTIONS: dict[str, str] = {
     "bounds": "noise bounds shared by every mode (the kernels widen each by one ulp outward)",
     "robust": "robust handling of inconsistent data (q-relaxed intersection, strictness)",
-    "pairs": "the pairs pipeline (seed 000): pairwise landmark displacement subpavings",
-    "landmarks": "the landmark CSP pipeline (seed 001 with landmarks)",
-    "lidar": "the feature-less LiDAR pipeline (seed 001)",
+    "pairs": "the pairs pipeline (Mustafa, Codres & Stancu): pairwise landmark displacement subpavings",
+    "landmarks": "the landmark CSP pipeline (the Guaranteed SLAM slides' CSP over all poses and landmarks)",
+    "lidar": "the feature-less LiDAR pipeline (the Guaranteed SLAM slides' P_EMPTY / P_OBSTACLE map)",
 }
 
 # Value types: "float" (int accepted), "int", "bool", "str", "int?" (int, unset = None),

@@ -6,7 +6,7 @@ OUT="${2:-out}"
 mkdir -p "$OUT"
 step() { printf '\n\033[1m== %s\033[0m\n' "$*"; }
 
-step "1. simulate a pairs log (seed 000's setting: holonomic robot, range-bearing landmarks)"
+step "1. simulate a pairs log (Mustafa, Codres & Stancu's setting: holonomic robot, range-bearing landmarks)"
 "$IVSLAM" simulate --scenario pairs --seed 7 --steps 120 --landmarks 15 -o "$OUT/demo_pairs.mcap" --force
 
 step "2. inspect it"
@@ -23,7 +23,7 @@ step "5. the committed sample log (sample_logs/pairs.mcap)"
 "$IVSLAM" run sample_logs/pairs.mcap --mode pairs -o "$OUT/sample_pairs.h5" --force
 "$IVSLAM" report "$OUT/sample_pairs.h5" | tail -n 6
 
-step "6. the landmark CSP (seed 001) on a simulated unicycle log with 1 % outliers: pose tube and landmark boxes"
+step "6. the landmark CSP on a simulated unicycle log with 1 % outliers: pose tube and landmark boxes"
 "$IVSLAM" simulate --scenario landmarks --seed 3 --steps 300 --outlier-rate 0.01 -o "$OUT/demo_landmarks.mcap" --force
 "$IVSLAM" run "$OUT/demo_landmarks.mcap" --mode landmarks --initial-pose-from-truth --q-landmark 2 --q-pose 1 \
     -o "$OUT/demo_landmarks.h5" --tum "$OUT/demo_landmarks.tum" --force

@@ -49,11 +49,34 @@ def test_unknown_command_fails_cleanly(cli_run):
     assert "Traceback" not in res.output
 
 
-def test_readme_generated_sections_are_current():
-    """The README's config table and HDF5 schema are generated from the code: never stale."""
+def test_readme_generated_docs_are_current():
+    """docs/config.md and docs/schema.md are generated from the code: never stale."""
     from pathlib import Path
 
     repo = Path(__file__).resolve().parents[1]
-    out = subprocess.run([sys.executable, str(repo / "scripts" / "sync_readme.py"), "--check"],
+    out = subprocess.run([sys.executable, str(repo / "scripts" / "sync_docs.py"), "--check"],
                          capture_output=True, text=True)
     assert out.returncode == 0, out.stdout + out.stderr
+
+
+def test_readme_and_docs_relative_links_exist():
+    """Every relative link in README.md and docs/*.md points to a file (or directory) that exists."""
+    import re
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    pages = [repo / "README.md", *sorted((repo / "docs").glob("*.md"))]
+    assert len(pages) > 1, "docs/ has no pages"
+    link = re.compile(r"!?\[[^\]]*\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"]*\")?\s*\)")
+    broken = []
+    for page in pages:
+        text = page.read_text(encoding="utf-8")
+        text = re.sub(r"^(```|~~~).*?^\1", "", text, flags=re.S | re.M)  # fenced code blocks
+        text = re.sub(r"`[^`\n]*`", "", text)  # inline code
+        for target in link.findall(text):
+            if re.match(r"^[a-z][a-z0-9+.-]*:", target, re.I) or target.startswith("#"):
+                continue  # URLs, mailto:, anchors within the page
+            path = target.split("#", 1)[0].split("?", 1)[0]
+            if not (page.parent / path).exists():
+                broken.append(f"{page.relative_to(repo)}: {target}")
+    assert not broken, "broken relative links:\n" + "\n".join(broken)

@@ -33,7 +33,7 @@ def polar(dx: np.ndarray, dy: np.ndarray, rho: np.ndarray, theta: np.ndarray) ->
 
 
 def difference(a: np.ndarray, b: np.ndarray, c: np.ndarray, periodic: bool = False) -> np.ndarray:
-    """``a = b - c`` (the seeds' Eq. (3)-(4)); modulo 2 pi when ``periodic`` (angles).
+    """``a = b - c`` (Mustafa, Codres & Stancu, Eq. (3)-(4)); modulo 2 pi when ``periodic``.
 
     One forward-backward pass, which for this linear constraint is the fixpoint: the result
     is the smallest box holding the solutions, up to an ulp of outward rounding per bound.
@@ -51,7 +51,8 @@ def unicycle(x0: np.ndarray, y0: np.ndarray, th0: np.ndarray,
              x1: np.ndarray, y1: np.ndarray, th1: np.ndarray,
              v: np.ndarray, w: np.ndarray, dt: np.ndarray,
              qx: np.ndarray, qy: np.ndarray, qth: np.ndarray) -> np.ndarray:
-    """One unicycle motion step (seed ``001``), all twelve variables contracted::
+    """One unicycle motion step (the kinematic model of the Guaranteed SLAM slides), all twelve
+    variables contracted::
 
         x1  = x0  + v dt cos(th0) + qx
         y1  = y0  + v dt sin(th0) + qy
@@ -74,7 +75,8 @@ def unicycle(x0: np.ndarray, y0: np.ndarray, th0: np.ndarray,
 
 def range_bearing(sx: np.ndarray, sy: np.ndarray, sth: np.ndarray, mx: np.ndarray,
                   my: np.ndarray, rho: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-    """A range-bearing observation of landmark ``m`` from pose ``s`` (seed ``001``)::
+    """A range-bearing observation of landmark ``m`` from pose ``s`` (the sensor model of the
+    Guaranteed SLAM slides)::
 
         rho   = |m - s|
         alpha = atan2(my - sy, mx - sx) - sth      (mod 2 pi)

@@ -1,4 +1,4 @@
-"""Linear difference contractor: ``a = b - c`` (the seeds' Eq. (3)-(4): ``dl = d_i - d_j``).
+"""Linear difference contractor: ``a = b - c`` (``dl = d_i - d_j``: Mustafa et al., Eq. (3)-(4)).
 
 Forward ``a ∩= b - c``, backward ``b ∩= a + c``, ``c ∩= b - a``. For a linear constraint with
 each variable occurring once, one forward-backward pass is the fixpoint (up to rounding): the

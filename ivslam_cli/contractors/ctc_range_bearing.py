@@ -1,4 +1,4 @@
-"""Range-bearing observation contractor (seed ``001``, the sensor model), composed from the others.
+"""Range-bearing observation contractor (the Guaranteed SLAM slides' sensor model), from the others.
 
 Constraint, for a robot pose ``(sx, sy, sth)`` and a landmark ``(mx, my)``::
 

@@ -1,4 +1,4 @@
-"""Unicycle motion step contractor (seed ``001``, the kinematic model).
+"""Unicycle motion step contractor (the kinematic model of the Guaranteed SLAM slides).
 
 Constraint, over the twelve variables of one step ``k-1 -> k``::
 

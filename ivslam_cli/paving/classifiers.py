@@ -145,10 +145,11 @@ def box_set(box) -> KernelClassifier:
 def polar_set(center, rho, theta) -> KernelClassifier:
     """``{p : |p - center| in [rho], arg(p - center) in [theta] + 2 pi Z}``.
 
-    The ring sector / the seeds' observation set (``P_OBSTACLE`` with ``[rho] = z + [r]``,
-    ``P_EMPTY`` with ``[rho] = [0, z - r_hi]``). ``[theta]`` is any real interval (across ±pi
-    is fine; width >= 2 pi is the full annulus). Bounds are exact doubles: enclose decimals
-    first (:func:`ivslam_cli.interval.enclose`) when the decimal is what you mean.
+    The ring sector / a beam's observation set in the Guaranteed SLAM slides (``P_OBSTACLE``
+    with ``[rho] = z + [r]``, ``P_EMPTY`` with ``[rho] = [0, z - r_hi]``). ``[theta]`` is any
+    real interval (across ±pi is fine; width >= 2 pi is the full annulus). Bounds are exact
+    doubles: enclose decimals first (:func:`ivslam_cli.interval.enclose`) when the decimal is
+    what you mean.
     """
     cx, cy = (float(center[0]), float(center[1]))
     if not (math.isfinite(cx) and math.isfinite(cy)):

@@ -465,7 +465,7 @@ def negate(s: GridPaving, **kw) -> GridPaving:
 
 
 def minkowski_sub(m, s: GridPaving, **kw) -> GridPaving:
-    """``[m] - S = {m - p : m in [m], p in S}``: the seeds' Eq. (6), ``m_j = m_i - S_dl``.
+    """``[m] - S = {m - p : m in [m], p in S}``: ``m_j = m_i - S_dl`` (Mustafa et al., Eq. (6)).
 
     ``m`` is a point ``(x, y)`` or a box ``[[xl, xh], [yl, yh]]``. Outer and inner
     (see :func:`affine`).

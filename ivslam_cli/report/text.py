@@ -133,7 +133,7 @@ def render_text(rep: Report, source: str = "") -> str:
         add("            " + ", ".join(f"{k} {rep.map_cells[k]} cells = {rep.map_area_m2[k]:.4g} m²" for k in rep.map_cells))
         if "explored" in rep.map_cells:
             add("            (explored: cells proven free or in some beam's P_OBSTACLE^k / P_OLD^k; the map's obstacle "
-                "state is their seed intersection)")
+                "state is (∪ P_OBSTACLE^k) ∩ (∪ P_OLD^k))")
         b = rep.map_beams
         if b:
             add(f"beams:      {b.get('scans_mapped', 0)} of {b.get('scans', 0)} scans mapped, {b.get('beams', 0)} beams, "

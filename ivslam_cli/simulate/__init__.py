@@ -6,7 +6,8 @@ Three scenarios (:func:`simulate` dispatches on ``SimConfig.scenario``):
   among point landmarks; range and bearing of every landmark within ``[min_range,
   max_range]`` all around; every step sees at least two landmarks, at least one of them
   already seen at an earlier step (landmarks are added by construction where needed and
-  the property is checked). No odometry (the seed's method needs none).
+  the property is checked). No odometry (the pairs method of
+  Mustafa, Codres & Stancu needs none).
 - ``landmarks``: unicycle robot (v, omega) with twist odometry, landmarks seen within a
   field of view ``|bearing| <= fov`` and ``[min_range, max_range]`` (MRCLAM's camera:
   fov 0.6 rad, 0.9-8 m).

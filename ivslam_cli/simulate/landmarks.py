@@ -1,4 +1,5 @@
-"""Scenario ``landmarks``: unicycle with twist odometry, landmarks in a field of view (seed 001)."""
+"""Scenario ``landmarks``: unicycle with twist odometry, landmarks in a field of view (the
+Guaranteed SLAM slides' setting)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""Scenario ``pairs``: holonomic robot without rotation among point landmarks (seed 000)."""
+"""Scenario ``pairs``: holonomic robot without rotation among point landmarks (the setting of
+Mustafa, Codres & Stancu)."""
 
 from __future__ import annotations
 

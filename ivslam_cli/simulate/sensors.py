@@ -3,9 +3,9 @@
 Every geometric field is a float32 value (LaserScan stores float32), kept as the float64
 image of that float32 so logs round-trip exactly.
 
-- ``urg-04lx`` (Hokuyo URG-04LX, the seeds' sensor): 682 beams, 360/1024 deg apart
-  (239.4 deg), 10 Hz, 0.02-5.6 m. No-return beams are written as ``0.0`` (the URG
-  error-code convention: any value below ``range_min`` is not a return).
+- ``urg-04lx`` (Hokuyo URG-04LX, the sensor of the Guaranteed SLAM slides): 682 beams,
+  360/1024 deg apart (239.4 deg), 10 Hz, 0.02-5.6 m. No-return beams are written as ``0.0``
+  (the URG error-code convention: any value below ``range_min`` is not a return).
 - ``sick`` (SICK LMS-like): 180 beams over 180 deg (1 deg apart, 179 deg span), 5 Hz,
   0.05-30 m. No-return beams follow REP 117: ``+inf`` (nothing within range_max),
   ``-inf`` (too close).
