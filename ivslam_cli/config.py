@@ -1,7 +1,8 @@
 """The resolved run configuration: documented defaults ← log-stated bounds ← TOML file ← options.
 
 Every key lives in one table, :data:`KEYS` (section, name, default, type, unit, one-line
-doc); the README table is generated from it (``python -m ivslam_cli.config --markdown``).
+doc); ``docs/config.md`` is generated from it (``python -m ivslam_cli.config --markdown``,
+``scripts/sync_docs.py``).
 Sections: shared ``[bounds]`` (noise bounds) and ``[robust]`` (q-relaxation, strictness),
 and one per mode: ``[pairs]``, ``[landmarks]``, ``[lidar]``. An unknown section or key, or a
 value of the wrong type, is a one-line :class:`ConfigError` naming the key and the file.

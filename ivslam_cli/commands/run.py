@@ -18,8 +18,8 @@ def _default_output(log: str, mode: str) -> Path:
 @click.command(name="run")
 @click.argument("log", type=click.Path(exists=False))
 @click.option("--mode", type=click.Choice(MODES), default="pairs", show_default=True,
-              help="pairs: landmark displacement subpavings (seed 000); landmarks: pose/landmark CSP; "
-                   "lidar: feature-less P_EMPTY/P_OBSTACLE (seed 001).")
+              help="pairs: landmark displacement subpavings (Mustafa et al.); landmarks: pose/landmark CSP; "
+                   "lidar: feature-less P_EMPTY/P_OBSTACLE map (Guaranteed SLAM slides).")
 @click.option("-o", "--output", type=click.Path(), default=None,
               help="Result file [default: LOG name + .MODE.h5 beside the log].")
 @click.option("--config", "config_file", type=click.Path(), default=None, help="TOML configuration file.")
@@ -72,7 +72,7 @@ def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, 
       ivslam run sample_logs/pairs.mcap --mode pairs -o pairs.h5
       ivslam run log.bag --mode pairs --q 1 --anchor 6 1.5 2.0 --force
       ivslam run sample_logs/landmarks.bag --mode landmarks --initial-pose-from-truth
-      ivslam run ../shared/datasets/mrclam/MRCLAM_Dataset6 --robot 1 --mode landmarks \
+      ivslam run ../shared/datasets/mrclam/MRCLAM_Dataset6 --robot 1 --mode landmarks
           --config configs/mrclam.toml --tum robot1.tum -o robot1.h5
       ivslam run sample_logs/lidar_rooms.h5 --mode lidar --initial-pose-from-truth
       ivslam run ../shared/datasets/carmen_corrected/aces-corrected.log.gz --mode lidar --poses-known

@@ -247,7 +247,7 @@ def _read(f: h5py.File) -> Result:
     if "poses" in f:
         g = f["poses"]
         r.poses = Poses(stamp=_get(g, "stamp", np.float64), box=_get(g, "box", np.float64))
-    if "relative" in f:  # optional (lidar with keyframes; results written before it existed have none)
+    if "relative" in f:  # optional (lidar with keyframes)
         g = f["relative"]
         r.relative = RelativePoses(pairs=_get(g, "pairs", np.int64), box=_get(g, "box", np.float64),
                                    definition=str(_attr(g, "definition")))
@@ -271,7 +271,7 @@ def _read(f: h5py.File) -> Result:
             resolution=float(_attr(g, "resolution")),
             state=_get(g, "state", np.uint8),
         )
-    if "logodds" in f:  # optional (results written before it existed have none)
+    if "logodds" in f:  # optional
         g = f["logodds"]
         r.logodds = LogOddsGrid(
             value=_get(g, "value", np.float32),

@@ -1,4 +1,4 @@
-"""Kernels of the landmark CSP (seed 001): forward-backward sweeps over a whole trajectory.
+"""Kernels of the landmark CSP: forward-backward sweeps over a whole trajectory.
 
 Variables: pose boxes ``P`` ``(N, 3, 2)`` (x, y, θ at every node) and landmark boxes ``L``
 ``(L, 2, 2)``. Constraints:

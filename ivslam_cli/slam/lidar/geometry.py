@@ -1,6 +1,6 @@
 """Geometry of a scan seen from a pose box (numba kernels, outward rounding).
 
-Sensor model (the second seed's): beam ``i`` of a scan points at ``a_i = angle_min + i Δ``
+Sensor model (the cone model of the "Guaranteed SLAM – practical considerations" slides): beam ``i`` of a scan points at ``a_i = angle_min + i Δ``
 (real arithmetic on the stored doubles) in the sensor frame, with a bearing error within
 ``[-r_α, r_α]``. A valid return ``z`` satisfies ``|z - d| <= abs + rel d`` for the true distance
 ``d`` (the convention of ``ivslam simulate``), hence ``d ∈ [(z - abs) / (1 + rel),
@@ -8,7 +8,7 @@ Sensor model (the second seed's): beam ``i`` of a scan points at ``a_i = angle_m
 
 - P_OBSTACLE^{i,k}: the endpoint lies at range ``d`` and bearing ``a_i + [r_α]``.
 - P_EMPTY^{i,k}: nothing lies in the cone ``a_i + [-h, h]`` closer than ``(z - abs) / (1 + rel)``,
-  with ``h = max(r_α, Δ/2)``. When ``r_α >= Δ/2`` this is the seed's cone model. When
+  with ``h = max(r_α, Δ/2)``. When ``r_α >= Δ/2`` this is the slides' cone model. When
   ``r_α < Δ/2`` (ray-like beams) the cones of two adjacent beams do not touch and an obstacle
   can hide in the gap (a thin pole, or a convex corner poking between two beams whose faces
   both cross the beams further out): such a scan proves no free space, unless the kernels are

@@ -1,5 +1,5 @@
 """The probabilistic baseline of the LiDAR pipeline: a log-odds occupancy grid, and where it
-disagrees with the interval map (issue #7, "comparison with a probabilistic map").
+disagrees with the interval map (the slides' "comparison between an interval map and a probabilistic map").
 
 **Nothing here is guaranteed.** This is the map a standard occupancy-grid mapper builds from the
 same scans, for comparison only: every scan is placed at the *centre* of its robot pose box (⊕

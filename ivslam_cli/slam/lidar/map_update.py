@@ -1,4 +1,5 @@
-"""The map update of the feature-less LiDAR SLAM (second seed): P_EMPTY, P_OBSTACLE, old/new.
+"""The map update of the feature-less LiDAR SLAM: P_EMPTY, P_OBSTACLE, old/new (the
+"Guaranteed SLAM – practical considerations" slides, University of Manchester).
 
     >>> tmap = TileMap(0.05)
     >>> res = update_map(tmap, scans, robot_boxes, LidarBounds(0.03, 0.01, 0.0))
@@ -11,10 +12,10 @@ Guarantees (for every robot pose in its box, given the sensor model of
 - every cell of P_EMPTY^k is free of obstacles (inner approximation; cells are closed squares
   enclosed outward, so a wall touching a cell's border keeps it out of P_EMPTY);
 - every endpoint of a valid beam lies in a cell of P_OBSTACLE^k (outer approximation);
-- the map accumulates them as in the seed (flags in :mod:`ivslam_cli.paving.tiles`):
+- the map accumulates them as the slides do (flags in :mod:`ivslam_cli.paving.tiles`):
   P_EMPTY = ∪ P_EMPTY^k, P_OBSTACLE = (∪ P_OBSTACLE^k) ∩ (∪ P_OLD^k).
 
-Old/new: the seed's inclusion test ``P_EMPTY^{i,k} ⊂ P_EMPTY ∪ P_OBSTACLE`` would never call a
+Old/new: the slides' inclusion test ``P_EMPTY^{i,k} ⊂ P_EMPTY ∪ P_OBSTACLE`` would never call a
 beam old with P_OBSTACLE defined through P_OLD (no old beam -> P_OLD empty -> P_OBSTACLE empty),
 so "included in the map" is read as *measured* (any flag: proven free, or in some
 P_OBSTACLE^k / P_OLD^k). The cheap form ``P_OBSTACLE^{i,k} ∩ P_UNKNOWN = ∅`` takes P_UNKNOWN =
@@ -152,7 +153,7 @@ def scan_sets(scans: Scans, k: int, robot_box, bounds: LidarBounds, eps: float,
 
 
 def inclusion_new(tmap: TileMap, scans: Scans, k: int, robot_box, bounds: LidarBounds) -> np.ndarray:
-    """The seed's full old/new test for scan ``k`` against ``tmap``: ``new`` per beam (see
+    """The slides' full old/new test for scan ``k`` against ``tmap``: ``new`` per beam (see
     :func:`ivslam_cli.slam.lidar.map_kernel.inclusion_new`)."""
     ensure_round_to_nearest()
     bounds.check()

@@ -4,7 +4,7 @@ each scan proves free.
 In the keyframe's robot frame the keyframe scan ``j`` was taken from the origin, exactly; the
 pose ``b`` of scan ``k`` in that frame is unknown within a box. A beam's return is the first
 surface along it, so everything nearer than the true distance, ``(z − r_abs)/(1 + r_rel)``,
-is free — in the whole beam cone (the seed's P_EMPTY^{i,k}). For a pose ``b``:
+is free — in the whole beam cone (P_EMPTY^{i,k} of the slides' sensor model). For a pose ``b``:
 
 - **rule A**: a beam of ``k`` whose endpoint region (``s_k(b) + [ρ]·(cos, sin)(θ_k + α ± r_α)``)
   lies in the free space of ``j`` cannot be explained by a static world;

@@ -1,4 +1,4 @@
-"""Kernels of the pairs pipeline (seed 000): displacement sets of landmark pairs.
+"""Kernels of the pairs pipeline (Mustafa, Codres & Stancu): displacement sets of landmark pairs.
 
 At a step where landmarks i and j are both observed, with ranges ``rho_i, rho_j`` and
 world-frame bearings ``beta_i, beta_j`` (bearing + heading, all intervals), the robot-to-
