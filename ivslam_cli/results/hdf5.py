@@ -33,12 +33,13 @@ from ivslam_cli.results.model import (
     Rejections,
     RelativePoses,
     Result,
+    Submaps,
     ResultProvenance,
     WidthHistory,
     _str_array,
 )
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 FORMAT_NAME = "ivslam-result"
 COMPRESS_MIN_BYTES = 4096
 _STR = h5py.string_dtype("utf-8")
@@ -80,8 +81,28 @@ def _write(f: h5py.File, r: Result) -> None:
 
     if r.poses is not None:
         g = f.create_group("poses")
+        g.attrs["frame"] = r.poses.frame
+        g.attrs["origin_stamp"] = np.float64(r.poses.origin_stamp)
         _put(g, "stamp", r.poses.stamp, np.float64)
         _put(g, "box", r.poses.box, np.float64)
+        if r.poses.submap is not None:
+            _put(g, "submap", r.poses.submap, np.int64)
+            _put(g, "relative", r.poses.relative, np.float64)
+    if r.submaps is not None:
+        sm = r.submaps
+        g = f.create_group("submaps")
+        g.attrs["resolution"] = np.float64(sm.resolution)
+        for name, dt in (("anchor", np.int64), ("anchor_box", np.float64), ("origin", np.float64),
+                         ("shape", np.int64), ("member_offsets", np.int64), ("member_row", np.int64),
+                         ("member_box", np.float64)):
+            _put(g, name, getattr(sm, name), dt)
+        _put(g, "member_mapped", np.asarray(sm.member_mapped, bool).astype(np.uint8), np.uint8)
+        st = np.ascontiguousarray(sm.state, dtype=np.uint8)
+        if st.size:
+            g.create_dataset("state", data=st, chunks=(min(1 << 16, st.size),), compression="gzip",
+                             compression_opts=4, shuffle=True)
+        else:
+            g.create_dataset("state", data=st)
     if r.relative is not None:
         g = f.create_group("relative")
         g.attrs["definition"] = r.relative.definition
@@ -103,6 +124,7 @@ def _write(f: h5py.File, r: Result) -> None:
         _put(g, "label", r.pairs.label, np.uint8)
     if r.grid is not None:
         g = f.create_group("map")
+        g.attrs["frame"] = r.grid.frame
         g.attrs["origin"] = np.asarray(r.grid.origin, dtype=np.float64)
         g.attrs["resolution"] = np.float64(r.grid.resolution)
         st = np.ascontiguousarray(r.grid.state, dtype=np.uint8)
@@ -247,6 +269,21 @@ def _read(f: h5py.File) -> Result:
     if "poses" in f:
         g = f["poses"]
         r.poses = Poses(stamp=_get(g, "stamp", np.float64), box=_get(g, "box", np.float64))
+        if "frame" in g.attrs:  # version 2
+            r.poses.frame = str(_attr(g, "frame"))
+            r.poses.origin_stamp = float(_attr(g, "origin_stamp"))
+        if "submap" in g:
+            r.poses.submap = _get(g, "submap", np.int64)
+            r.poses.relative = _get(g, "relative", np.float64)
+    if "submaps" in f:  # optional (lidar, version 2)
+        g = f["submaps"]
+        r.submaps = Submaps(
+            anchor=_get(g, "anchor", np.int64), anchor_box=_get(g, "anchor_box", np.float64),
+            resolution=float(_attr(g, "resolution")), origin=_get(g, "origin", np.float64).reshape(-1, 2),
+            shape=_get(g, "shape", np.int64).reshape(-1, 2), state=_get(g, "state", np.uint8).reshape(-1),
+            member_offsets=_get(g, "member_offsets", np.int64), member_row=_get(g, "member_row", np.int64),
+            member_box=_get(g, "member_box", np.float64).reshape(-1, 3, 2),
+            member_mapped=_get(g, "member_mapped", np.uint8).astype(bool))
     if "relative" in f:  # optional (lidar with keyframes)
         g = f["relative"]
         r.relative = RelativePoses(pairs=_get(g, "pairs", np.int64), box=_get(g, "box", np.float64),
@@ -270,6 +307,7 @@ def _read(f: h5py.File) -> Result:
             origin=np.asarray(_attr(g, "origin"), dtype=np.float64),
             resolution=float(_attr(g, "resolution")),
             state=_get(g, "state", np.uint8),
+            frame=str(_attr(g, "frame")) if "frame" in g.attrs else "proven",
         )
     if "logodds" in f:  # optional
         g = f["logodds"]

@@ -79,13 +79,29 @@ class Poses:
     θ is an interval on the real line (it may extend beyond ±π); the true heading modulo 2π
     is in it. Between two stamps the pipelines do not (yet) give a tube; ``report`` uses the
     hull of the two neighbouring boxes there (see ``report.core``).
+
+    ``frame``: :data:`FRAME_WORLD` (the boxes hold the pose in the log's world frame: an
+    initial pose was given or taken from the truth) or :data:`FRAME_FIRST_POSE` (the map frame
+    is the robot pose at ``origin_stamp``: the boxes hold the pose relative to it).
+
+    LiDAR submap runs add, per pose row, its home submap (``submap``, −1: none) and its box in
+    that submap's frame (``relative``: the robot pose relative to the submap's anchor pose).
     """
 
     stamp: np.ndarray  # (N,) float64, non-decreasing
     box: np.ndarray  # (N, 3, 2) float64
+    frame: str = "world"
+    origin_stamp: float = float("nan")
+    submap: np.ndarray | None = None  # (N,) int64
+    relative: np.ndarray | None = None  # (N, 3, 2) float64
 
     def __len__(self) -> int:
         return int(self.stamp.shape[0])
+
+
+FRAME_WORLD = "world"
+FRAME_FIRST_POSE = "first pose"
+FRAMES = (FRAME_WORLD, FRAME_FIRST_POSE)
 
 
 RELATIVE_DEFINITION = (
@@ -163,10 +179,61 @@ class MapGrid:
     origin: np.ndarray  # (2,) float64: x, y of the corner of cell (0, 0)
     resolution: float
     state: np.ndarray  # (H, W) uint8
+    #: :data:`GRID_PROVEN` (the states hold in the result's frame) or :data:`GRID_MOSAIC` (the
+    #: submaps drawn at their anchors' box centres, for display: the guarantees are per submap)
+    frame: str = "proven"
 
     @property
     def shape(self) -> tuple[int, int]:
         return (int(self.state.shape[0]), int(self.state.shape[1]))
+
+
+GRID_PROVEN = "proven"
+GRID_MOSAIC = "mosaic"
+
+
+@dataclass
+class Submaps:
+    """LiDAR submaps: local frames, each the robot pose at its anchor scan (pose row
+    ``anchor[m]``), where the scans tracked in it have tight relative boxes and its map is proven.
+
+    - ``anchor_box[m]`` holds the anchor's robot pose in the result's frame (the global tube);
+    - submap ``m``'s map: ``grid(m)`` (cells of side ``resolution`` from ``origin[m]``, shape
+      ``shape[m]``, states as :class:`MapGrid`), P_EMPTY and P_OBSTACLE in the anchor's frame;
+    - its members ``member_row[member_offsets[m]:member_offsets[m + 1]]`` (pose rows), each with
+      its box in the submap's frame ``member_box`` (outer: the true pose relative to the anchor's
+      is inside) and whether it was mapped into the submap (``member_mapped``).
+    """
+
+    anchor: np.ndarray  # (M,) int64 pose rows
+    anchor_box: np.ndarray  # (M, 3, 2) float64
+    resolution: float
+    origin: np.ndarray  # (M, 2) float64
+    shape: np.ndarray  # (M, 2) int64: H, W
+    state: np.ndarray  # (sum H·W,) uint8, row-major per submap
+    member_offsets: np.ndarray  # (M + 1,) int64
+    member_row: np.ndarray  # (K,) int64
+    member_box: np.ndarray  # (K, 3, 2) float64
+    member_mapped: np.ndarray  # (K,) bool
+
+    def __len__(self) -> int:
+        return int(self.anchor.shape[0])
+
+    @property
+    def cell_offsets(self) -> np.ndarray:
+        return np.concatenate([[0], np.cumsum(np.prod(self.shape, axis=1))]).astype(np.int64)
+
+    def grid(self, m: int) -> MapGrid:
+        """Submap ``m``'s map, in its anchor's frame."""
+        o = self.cell_offsets
+        h, w = (int(v) for v in self.shape[m])
+        return MapGrid(origin=np.asarray(self.origin[m], float), resolution=float(self.resolution),
+                       state=self.state[o[m]:o[m + 1]].reshape(h, w))
+
+    def members(self, m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(rows, boxes, mapped)`` of submap ``m``."""
+        a, b = int(self.member_offsets[m]), int(self.member_offsets[m + 1])
+        return self.member_row[a:b], self.member_box[a:b], self.member_mapped[a:b]
 
 
 @dataclass
@@ -272,7 +339,8 @@ class Result:
     pairs: PairSubpavings | None = None
     grid: MapGrid | None = None
     logodds: LogOddsGrid | None = None  # lidar: the probabilistic baseline (not guaranteed)
-    relative: RelativePoses | None = None  # lidar with keyframes: pose of one row in another's frame
+    relative: RelativePoses | None = None  # lidar: pose of one row in another's frame
+    submaps: Submaps | None = None  # lidar: local frames, their maps and members
     consistency: Consistency = field(default_factory=Consistency)
     truth: GroundTruth | None = None
     stats: dict[str, float | int | str] = field(default_factory=dict)
@@ -293,6 +361,27 @@ def _validate(r: Result) -> None:
         n = len(r.poses)
         _check(r.poses.stamp.shape == (n,), "poses.stamp must be (N,)")
         _check(r.poses.box.shape == (n, 3, 2), "poses.box must be (N, 3, 2)")
+        _check(r.poses.frame in FRAMES, f"poses.frame must be one of {FRAMES}")
+        if r.poses.submap is not None:
+            _check(r.poses.submap.shape == (n,) and r.poses.submap.dtype.kind == "i", "poses.submap must be (N,) int")
+            _check(r.poses.relative is not None and r.poses.relative.shape == (n, 3, 2), "poses.relative must be (N, 3, 2)")
+    if r.submaps is not None:
+        sm = r.submaps
+        m = len(sm)
+        _check(r.poses is not None, "submaps need the poses (anchors and members are pose rows)")
+        _check(sm.anchor_box.shape == (m, 3, 2), "submaps.anchor_box must be (M, 3, 2)")
+        _check(sm.origin.shape == (m, 2) and sm.shape.shape == (m, 2), "submaps.origin, shape must be (M, 2)")
+        _check(sm.state.ndim == 1 and sm.state.dtype == np.uint8 and sm.state.shape[0] == int(sm.cell_offsets[-1]),
+               "submaps.state must be flat uint8 of sum(H·W) cells")
+        _check(sm.member_offsets.shape == (m + 1,) and int(sm.member_offsets[0]) == 0
+               and int(sm.member_offsets[-1]) == sm.member_row.shape[0]
+               and bool(np.all(np.diff(sm.member_offsets) >= 0)), "submaps.member_offsets")
+        k = sm.member_row.shape[0]
+        _check(sm.member_box.shape == (k, 3, 2) and sm.member_mapped.shape == (k,), "submaps member columns")
+        npose = len(r.poses)
+        _check(bool(np.all((sm.anchor >= 0) & (sm.anchor < npose)) and np.all((sm.member_row >= 0)
+                                                                                & (sm.member_row < npose))),
+               "submaps rows must be pose rows")
     if r.relative is not None:
         rp = r.relative
         m = len(rp)
@@ -318,6 +407,7 @@ def _validate(r: Result) -> None:
         _check(bool(np.all(np.isin(p.label, (LABEL_INNER, LABEL_BOUNDARY)))), "pairs.label values")
     if r.grid is not None:
         _check(r.grid.state.ndim == 2 and r.grid.state.dtype == np.uint8, "grid.state must be (H, W) uint8")
+        _check(r.grid.frame in (GRID_PROVEN, GRID_MOSAIC), "grid.frame must be proven or mosaic")
         _check(np.asarray(r.grid.origin).shape == (2,), "grid.origin must be (2,)")
         _check(r.grid.resolution > 0, "grid.resolution must be > 0")
     if r.logodds is not None:

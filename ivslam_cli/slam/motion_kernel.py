@@ -18,6 +18,7 @@ boxes (every contractor rounds outward); a step with no solution is counted, nev
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from ivslam_cli.contractors.ctc_difference import angle_difference_scalar
@@ -186,8 +187,15 @@ def smooth_backward(P, kind, U, step_events, k_last):
     CSP): every node box meets what the next one allows through its step, so a contraction
     at a later scan narrows the boxes before it. In place; a step with no solution is counted
     in ``step_events`` and skipped. Returns the number of nodes that got narrower."""
+    return smooth_backward_range(P, kind, U, step_events, 0, k_last)
+
+
+@njit(cache=True)
+def smooth_backward_range(P, kind, U, step_events, k_first, k_last):
+    """:func:`smooth_backward` over the steps ``k_last - 1 .. k_first`` only (the nodes before
+    ``k_first`` are not touched). Returns the number of nodes that got narrower."""
     n = 0
-    for k in range(k_last - 1, -1, -1):
+    for k in range(k_last - 1, k_first - 1, -1):
         w0 = (P[k, 0, 1] - P[k, 0, 0]) + (P[k, 1, 1] - P[k, 1, 0]) + (P[k, 2, 1] - P[k, 2, 0])
         if not step_contract(P, k, kind, U):
             step_events[k] += 1
@@ -196,3 +204,44 @@ def smooth_backward(P, kind, U, step_events, k_last):
         if (P[k, 0, 1] - P[k, 0, 0]) + (P[k, 1, 1] - P[k, 1, 0]) + (P[k, 2, 1] - P[k, 2, 0]) < w0:
             n += 1
     return n
+
+
+@njit(cache=True)
+def propagate_boxes(node_box, boxes, reach0, kind, U, k0, k1, reach1, out):
+    """Each scan box ``boxes[i]`` (6,) of an event at node ``k0`` (``reach0``: its reach of the
+    node) carried through the motion steps ``k0 .. k1 - 1`` to an event at node ``k1`` (reach
+    ``reach1``), met with ``node_box`` (3, 2: what is known of node ``k0``): ``out[i]`` (6,).
+    Returns a mask of the boxes that have a solution (the others are proven impossible)."""
+    n = boxes.shape[0]
+    ok = np.zeros(n, np.bool_)
+    Q = np.empty((k1 - k0 + 1, 3, 2))
+    w = np.empty((1, 6))
+    node = np.zeros(1, np.int64)
+    r1 = np.empty((1, 2))
+    r1[0, 0], r1[0, 1] = reach1[0], reach1[1]
+    kk = kind[k0:]
+    uu = U[k0:]
+    for i in range(n):
+        for d in range(3):
+            Q[0, d, 0] = node_box[d, 0]
+            Q[0, d, 1] = node_box[d, 1]
+        for t in range(1, k1 - k0 + 1):
+            for d in range(3):
+                Q[t, d, 0] = -INF
+                Q[t, d, 1] = INF
+        if not meet_node(Q, 0, boxes[i], reach0[0], reach0[1]):
+            continue
+        good = True
+        for t in range(k1 - k0):
+            if not step_contract(Q, t, kk, uu):
+                good = False
+                break
+            cap_heading(Q, t + 1)
+        if not good:
+            continue
+        node[0] = k1 - k0
+        widen_boxes(Q, node, r1, w)
+        for d in range(6):
+            out[i, d] = w[0, d]
+        ok[i] = True
+    return ok

@@ -201,14 +201,6 @@ def build_logodds(scans: Scans, scan_idx: np.ndarray, robot_boxes: np.ndarray, g
                        l_min=float(l_min), l_max=float(l_max), scans=used, beams=int(beams))
 
 
-def logodds_of(out) -> LogOddsGrid:
-    """The log-odds grid of a :class:`~ivslam_cli.slam.lidar.LidarOutput`: its mapped scans, in
-    order, at the centres of their pose boxes, on the geometry of its interval map."""
-    used = np.asarray(out.used, np.int64)
-    rows = np.flatnonzero(np.isin(used, np.asarray(out.mapped, np.int64)))
-    return build_logodds(out.scans, used[rows], out.poses.box[rows], out.grid)
-
-
 # ---------------------------------------------------------------- comparison
 @dataclass
 class Disagreement:

@@ -53,19 +53,22 @@ class Params:
     contract_boxes: int
     contract_stride: int
     contract_max_width: float
-    keyframes: bool
-    keyframe_distance: float
-    keyframe_turn: float
+    submap_distance: float
+    submap_turn: float
+    submap_width: float
+    submap_overlap: float
     match_boxes: int
     match_stride: int
+    match_leaf: float
+    match_slices: int
     poses_known: bool
     known_poses: str
     pose_margin: tuple[float, float, float]
 
     @property
     def tracking(self) -> bool:
-        """Scan by scan (contraction or scan matching), not prediction then mapping."""
-        return not self.poses_known and (self.contract or self.keyframes)
+        """Scan by scan in submaps (dead reckoning), not given poses mapped in one frame."""
+        return not self.poses_known
 
     @classmethod
     def from_config(cls, cfg) -> Params:
@@ -83,9 +86,11 @@ class Params:
             motion=motion, max_pose_width=float(cfg["lidar.max_pose_width"]), max_step=float(cfg["lidar.max_step"]),
             contract=bool(cfg["lidar.contract"]), q_beams=int(cfg["lidar.q_beams"]),
             contract_boxes=int(cfg["lidar.contract_boxes"]), contract_stride=int(cfg["lidar.contract_stride"]),
-            contract_max_width=float(cfg["lidar.contract_max_width"]), keyframes=bool(cfg["lidar.keyframes"]),
-            keyframe_distance=float(cfg["lidar.keyframe_distance"]), keyframe_turn=float(cfg["lidar.keyframe_turn"]),
+            contract_max_width=float(cfg["lidar.contract_max_width"]),
+            submap_distance=float(cfg["lidar.submap_distance"]), submap_turn=float(cfg["lidar.submap_turn"]),
+            submap_width=float(cfg["lidar.submap_width"]), submap_overlap=float(cfg["lidar.submap_overlap"]),
             match_boxes=int(cfg["lidar.match_boxes"]), match_stride=int(cfg["lidar.match_stride"]),
+            match_leaf=float(cfg["lidar.match_leaf"]), match_slices=int(cfg["lidar.match_slices"]),
             poses_known=bool(cfg["lidar.poses_known"]), known_poses=known,
             pose_margin=tuple(float(v) for v in cfg["lidar.pose_margin"]),
         )

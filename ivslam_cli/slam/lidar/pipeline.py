@@ -6,11 +6,12 @@ Stages of :func:`solve` (one pass over the log, in this order):
 
 1. **pose prediction** (:mod:`.prediction`): a box holding the robot pose at every scan stamp,
    by dead reckoning or from given poses;
-2. **pose contraction** (``lidar.contract`` / ``lidar.keyframes``, :mod:`.tracking`): scan by
-   scan, the box predicted from the previous one is contracted against the last keyframe scan
-   (:mod:`.scanmatch`) and the map built so far (:mod:`.contract`: set inversion in pose
-   space, q-relaxed over the beams), written back into the trajectory, then the scan is
-   mapped; a backward pass over the motion steps carries the contractions to earlier scans;
+2. **tracking in submaps** (dead reckoning, :mod:`.submaps`): every scan's pose is tracked in
+   the frame of its submap's anchor scan, contracted there against the anchor scan
+   (:mod:`.scanmatch`) and the submap's map (:mod:`.contract`: set inversion in pose space,
+   q-relaxed over the beams), and mapped into the submap; global boxes are the anchors' boxes
+   composed with the relative ones, met with the global dead reckoning; with given poses
+   (``lidar.poses_known``) every scan is mapped in the result's frame;
 3. **map update** (:mod:`.map_update`, compiled kernels over the tiles): the laser mount
    (``Scans.mount``, from tf or the reader) is applied soundly to each box; beams are bounded by
    ``bounds.range_abs``/``range_rel``/``bearing`` (the bearing bound is the beam angle error);
@@ -33,17 +34,23 @@ from ivslam_cli.interval.pose import position_width
 from ivslam_cli.logs.model import Dropped, LogData, Scans
 from ivslam_cli.paving.tiles import TileMap
 from ivslam_cli.results.model import (
+    CELL_EMPTY,
+    CELL_OBSTACLE,
+    CELL_UNKNOWN,
+    FRAME_FIRST_POSE,
+    FRAME_WORLD,
     Consistency,
+    LogOddsGrid,
     MapGrid,
     Poses,
     RelativePoses,
     Result,
+    Submaps,
     WidthHistory,
 )
 from ivslam_cli.slam.lidar.map_update import grid_of, map_scans, usable_scans
 from ivslam_cli.slam.lidar.params import Params
 from ivslam_cli.slam.lidar.prediction import predict_poses
-from ivslam_cli.slam.lidar.tracking import track_and_map
 from ivslam_cli.slam.pipeline import empty_events, make_result
 
 
@@ -51,92 +58,32 @@ from ivslam_cli.slam.pipeline import empty_events, make_result
 @dataclass
 class LidarOutput:
     poses: Poses
-    grid: MapGrid
+    grid: MapGrid  # proven (given poses) or the submaps' mosaic (display)
     consistency: Consistency
     stats: dict
     dropped: list[Dropped]
     is_old: np.ndarray  # (B,) per beam of the log
-    tmap: object  # the TileMap (flags per cell: EMPTY, OBST_NEW, OBST_OLD)
-    mapped: np.ndarray  # indices of the scans that went into the map
+    mapped: np.ndarray  # indices of the scans that went into the map (a submap)
     used: np.ndarray  # indices of the scans that got a pose box (rows of ``poses``)
     scans: Scans  # the scans as used (returns beyond lidar.max_range marked invalid)
-    #: with lidar.keyframes: ``(pairs (R, 2), boxes (R, 6))``: the robot pose at pose row
-    #: ``pairs[r, 1]`` in the robot frame at pose row ``pairs[r, 0]`` (a keyframe), within ``boxes[r]``
-    #: (dead-reckoned in the keyframe's frame, matched where the scan was matched); else None
-    relative: tuple | None = None
+    logodds: LogOddsGrid | None = None
+    submaps: Submaps | None = None
+    relative: RelativePoses | None = None  # (anchor row, member row) for every submap membership
 
 
-def solve(log: LogData, params: Params) -> LidarOutput:
-    """The LiDAR pipeline over a log (see the module docstring)."""
-    path = log.provenance.path
-    scans = log.scans
-    if scans is None or len(scans) == 0:
-        raise IvslamError("no LiDAR scans: --mode lidar needs laser scans (sensor_msgs/LaserScan, FLASER, ...)", path)
-    t0 = time.perf_counter()
+def _median(w: np.ndarray) -> float:
+    w = np.asarray(w, float)
+    return float(np.nanmedian(w)) if np.isfinite(w).any() else float("nan")
+
+
+def _heading_width(b: np.ndarray) -> np.ndarray:
+    b = np.asarray(b, float).reshape(-1, 6)
+    return np.where(np.all(b[:, 0::2] <= b[:, 1::2], axis=1), b[:, 5] - b[:, 4], np.nan)
+
+
+def _assumption(params: Params, scans: Scans, pred, submaps: bool, not_mapped: int, n_events: int) -> str:
     bounds = params.beams
-    scans, far = usable_scans(scans, bounds, params.max_range, params.eps, path)
-    tmap = TileMap(params.eps)
     max_w = params.max_pose_width
-    tracking = None
-    if params.tracking:
-        pred, res, narrow, tracking = track_and_map(log, params, scans, tmap)
-        t1 = time.perf_counter()
-        widths = position_width(pred.boxes)
-    else:
-        pred = predict_poses(log, params, scans)
-        t1 = time.perf_counter()
-        widths = position_width(pred.boxes)
-        narrow = widths <= max_w if max_w > 0 else np.ones(widths.shape, bool)
-        res = map_scans(tmap, scans, pred.used[narrow], pred.boxes[narrow], bounds, path)
-    dropped = list(pred.dropped)
-    if (~narrow).any():
-        dropped.append(Dropped("scans", int((~narrow).sum()),
-                               f"robot pose box wider than lidar.max_pose_width = {max_w:g} m (not mapped)"))
-    t2 = time.perf_counter()
-    grid = grid_of(tmap)
-    counts = tmap.counts()
-    eps = tmap.eps
-
-    used = pred.used
-    stamp = np.asarray(scans.stamp, float)[used]
-    box3 = pred.boxes.reshape(-1, 3, 2)
-    n_beams = int(np.sum(np.diff(scans.offsets)[used]))
-    beam_scan = np.repeat(np.arange(len(scans)), np.diff(scans.offsets))
-    in_used = np.zeros(len(scans), bool)
-    in_used[used] = True
-    valid_used = int(np.count_nonzero(scans.valid & in_used[beam_scan]))
-    mapped = used[narrow]
-    valid_mapped = int(np.count_nonzero(scans.valid & np.isin(beam_scan, mapped)))
-    st = res.stats[mapped]
-    new_beams, old_beams = int(st[:, 3].sum()), int(st[:, 4].sum())
-    # areas: inner (empty) rounded down, outer (obstacle, unknown-or-worse) rounded up
-    area_empty = tmap.area("empty", upward=False)
-    area_obst = tmap.area("obstacle", upward=True)
-    measured_cells = int(np.count_nonzero(tmap.cells[: tmap.n]))
-    explored = float(np.nextafter(measured_cells * eps * eps, np.inf))
-
-    pose_hist = WidthHistory(
-        entity=np.column_stack([used, np.full(used.size, -1)]).astype(np.int64),
-        step=np.arange(used.size, dtype=np.int64), stamp=stamp, width=widths,
-        definition="largest side (x, y) of the robot pose box at each scan, metres",
-    )
-    rows = [(pred.node_stamp[k], int(k), "motion", (int(k), -1), -1,
-             f"motion step {k} -> {k + 1} (t={pred.node_stamp[k]:.3f} s) has no solution from the previous "
-             "box; skipped") for k in np.flatnonzero(pred.step_events)]
-    if tracking is not None:
-        rows += [(float(stamp[j]), int(used[j]), "scan_qinter", (int(used[j]), -1), -1,
-                  f"scan {int(used[j])} (t={float(stamp[j]):.3f} s): every pose of its box puts more than "
-                  f"q = {params.q_beams} beam ends in proven-free cells; its box kept uncontracted")
-                 for j in np.flatnonzero(tracking.contradicted)]
-        rows += [(float(stamp[j]), int(used[j]), kind, (int(used[j]), int(used[r])), -1,
-                  f"scan {int(used[j])} (t={float(stamp[j]):.3f} s) vs keyframe scan {int(used[r])}: "
-                  + ("no relative pose puts at most q beam ends of either scan in the other's free space"
-                     if kind == "keyframe_match" else
-                     "the keyframe's box composed with the matched relative box misses the predicted box")
-                  + "; its box kept unmatched")
-                 for j, kind, r in tracking.kf_empty]
-        rows.sort(key=lambda r: r[0])
-    events = empty_events(rows)
     if pred.motion == "known poses":
         pose_text = (f"every robot pose within ±{list(params.pose_margin)} (x, y, θ) of {pred.source}"
                      + (f"; at the {pred.interpolated} scan(s) between two given poses, within that margin of "
@@ -149,87 +96,202 @@ def solve(log: LogData, params: Params) -> LidarOutput:
         pose_text = (f"the initial pose in its box ({pred.source}); each odometry increment within "
                      "±(odom_trans_abs + odom_trans_rel·|Δ|) per axis and ±(odom_rot_abs + odom_rot_rel·|Δθ|), "
                      "the robot staying within its step's bound between two odometry poses")
-    assumption = (
+    text = (
         f"{pose_text}; the laser at mount {tuple(round(float(v), 6) for v in scans.mount)} (x, y, yaw) on the robot; "
-        f"every valid return within ±(range_abs + range_rel·range) of the true distance along its beam, whose "
-        f"direction is within ±bearing of its nominal angle (bounds used: range_abs {bounds.range_abs:.6g}, "
+        f"every valid return within ±(range_abs + range_rel·range) of the true distance to the nearest surface "
+        f"in its beam's cone, within ±bearing of its nominal angle (bounds used: range_abs {bounds.range_abs:.6g}, "
         f"range_rel {bounds.range_rel:.6g}, bearing {bounds.bearing:.6g}); invalid beams prove nothing; "
         + ("scans whose beam step exceeds twice the bearing bound (gaps between cones): "
            + ("nothing pokes between two adjacent beams (lidar.fill_gaps); " if bounds.fill_gaps else
               "no free space proven from them (an obstacle can hide between beams; see lidar.fill_gaps); ")
            if np.any(np.asarray(scans.angle_increment, float) > 2.0 * bounds.bearing) else "")
-        + ("no pose contraction (the boxes are the prediction)" if tracking is None else
-           f"the world static but for at most q = {params.q_beams} beams per scan ("
-           + "; ".join(([] if not params.contract else
-                        ["pose boxes contracted against the map: a pose is excluded when more than q beam ends of "
-                         "its scan fall in proven-free cells"])
-                       + ([] if not params.keyframes else
-                          ["relative poses matched against keyframe scans: one is excluded when more than q beam "
-                           "ends of either scan fall in the other's proven free space"]))
-           + ")")
-        + (f"; {int((~narrow).sum())} scan(s) with pose boxes wider than {max_w:g} m not mapped" if (~narrow).any() else "")
+        + ("no pose contraction (the boxes are the given ones)" if not submaps else
+           "every scan tracked in the frame of its submap's anchor scan, where each submap's map is proven"
+           + ("" if not params.contract else
+              f"; the world static but for at most q = {params.q_beams} beams per scan (a relative pose is "
+              "excluded when more than q beam ends fall in the anchor scan's or the submap's proven free space, "
+              "or the anchor scan's beam ends in the scan's)"))
+        + (f"; {not_mapped} scan(s) with pose boxes wider than {max_w:g} m not mapped" if not_mapped else "")
     )
-    if len(events):
-        assumption += f"; {len(events)} motion step(s) had no solution and were skipped (empty events)"
+    if n_events:
+        text += f"; {n_events} contradiction(s) of the data with the model were recorded as empty events (skipped)"
+    return text
+
+
+def solve(log: LogData, params: Params) -> LidarOutput:
+    """The LiDAR pipeline over a log (see the module docstring)."""
+    path = log.provenance.path
+    scans = log.scans
+    if scans is None or len(scans) == 0:
+        raise IvslamError("no LiDAR scans: --mode lidar needs laser scans (sensor_msgs/LaserScan, FLASER, ...)", path)
+    t0 = time.perf_counter()
+    bounds = params.beams
+    scans, far = usable_scans(scans, bounds, params.max_range, params.eps, path)
+    max_w = params.max_pose_width
+    tracking = None
+    submaps = None
+    relative = None
+    rel_boxes = None
+    if params.tracking:
+        from ivslam_cli.slam.lidar.submaps import track_submaps
+
+        tracking = track_submaps(log, params, scans)
+        pred = tracking.pred
+        t1 = time.perf_counter()
+        narrow = tracking.mapped
+        is_old, st_all = tracking.is_old, tracking.stats
+        rel_boxes = tracking.relative
+    else:
+        pred = predict_poses(log, params, scans)
+        t1 = time.perf_counter()
+        widths = position_width(pred.boxes)
+        narrow = widths <= max_w if max_w > 0 else np.ones(widths.shape, bool)
+        tmap = TileMap(params.eps)
+        res = map_scans(tmap, scans, pred.used[narrow], pred.boxes[narrow], bounds, path)
+        is_old, st_all = res.is_old, res.stats
+    used = pred.used
+    widths = position_width(pred.boxes)
+    dropped = list(pred.dropped)
+    if (~narrow).any():
+        dropped.append(Dropped("scans", int((~narrow).sum()),
+                               f"robot pose box wider than lidar.max_pose_width = {max_w:g} m (not mapped)"))
+    if tracking is not None:
+        from ivslam_cli.slam.lidar.mosaic import mosaic, submap_logodds, submaps_record
+
+        submaps = submaps_record(tracking.submaps, used, params.eps)
+        lo_sub = submap_logodds(scans, used, submaps)
+        grid, logodds = mosaic(submaps, lo_sub)
+        keep = submaps.member_row != submaps.anchor[np.repeat(np.arange(len(submaps)), np.diff(submaps.member_offsets))]
+        relative = RelativePoses(
+            pairs=np.column_stack([np.repeat(submaps.anchor, np.diff(submaps.member_offsets)),
+                                   submaps.member_row])[keep].astype(np.int64).reshape(-1, 2),
+            box=np.ascontiguousarray(submaps.member_box[keep]).reshape(-1, 3, 2))
+        cells = [submaps.grid(m).state for m in range(len(submaps))]
+        empty_cells = int(sum(int(np.count_nonzero(c == CELL_EMPTY)) for c in cells))
+        obstacle_cells = int(sum(int(np.count_nonzero(c == CELL_OBSTACLE)) for c in cells))
+        measured_cells = int(sum(int(np.count_nonzero(c != CELL_UNKNOWN)) for c in cells))
+        lo_free = int(sum(int(np.count_nonzero(x.value < 0)) for x in lo_sub))
+        lo_occ = int(sum(int(np.count_nonzero(x.value > 0)) for x in lo_sub))
+        tiles = int(sum(s.tmap.n_tiles for s in tracking.submaps))
+        nbytes = int(sum(s.tmap.nbytes for s in tracking.submaps))
+    else:
+        grid = grid_of(tmap)
+        from ivslam_cli.slam.lidar.logodds import build_logodds
+
+        mapped_rows = np.flatnonzero(narrow)
+        logodds = build_logodds(scans, used[mapped_rows], pred.boxes.reshape(-1, 3, 2)[mapped_rows], grid)
+        counts = tmap.counts()
+        empty_cells, obstacle_cells = int(counts["empty"]), int(counts["obstacle"])
+        measured_cells = int(np.count_nonzero(tmap.cells[: tmap.n]))
+        lo_free = int(np.count_nonzero(logodds.value < 0))
+        lo_occ = int(np.count_nonzero(logodds.value > 0))
+        tiles, nbytes = int(tmap.n_tiles), int(tmap.nbytes)
+    t2 = time.perf_counter()
+    eps = params.eps
+    stamp = np.asarray(scans.stamp, float)[used]
+    box3 = pred.boxes.reshape(-1, 3, 2)
+    n_beams = int(np.sum(np.diff(scans.offsets)[used]))
+    beam_scan = np.repeat(np.arange(len(scans)), np.diff(scans.offsets))
+    in_used = np.zeros(len(scans), bool)
+    in_used[used] = True
+    valid_used = int(np.count_nonzero(scans.valid & in_used[beam_scan]))
+    mapped = used[narrow]
+    valid_mapped = int(np.count_nonzero(scans.valid & np.isin(beam_scan, mapped)))
+    st = st_all[mapped]
+    new_beams, old_beams = int(st[:, 3].sum()), int(st[:, 4].sum())
+    area = eps * eps
+    area_empty = float(max(0.0, np.nextafter(np.nextafter(empty_cells * area, 0.0), 0.0))) if empty_cells else 0.0
+    area_obst = float(np.nextafter(np.nextafter(obstacle_cells * area, np.inf), np.inf)) if obstacle_cells else 0.0
+    explored = float(np.nextafter(measured_cells * area, np.inf))
+
+    pose_hist = WidthHistory(
+        entity=np.column_stack([used, np.full(used.size, -1)]).astype(np.int64),
+        step=np.arange(used.size, dtype=np.int64), stamp=stamp, width=widths,
+        definition="largest side (x, y) of the robot pose box at each scan (the result's frame), metres",
+    )
+    rows = [(pred.node_stamp[k], int(k), "motion", (int(k), -1), -1,
+             f"motion step {k} -> {k + 1} (t={pred.node_stamp[k]:.3f} s) has no solution from the previous "
+             "box; skipped") for k in np.flatnonzero(pred.step_events)]
+    if tracking is not None:
+        for j, sidx, kind in tracking.contradicted:
+            what = ("no relative pose puts at most q beam ends of the scan and of the anchor scan in the other's "
+                    "free space" if kind == "anchor_match" else
+                    "every relative pose puts more than q beam ends in the submap's proven-free cells")
+            rows.append((float(stamp[j]), int(used[j]), kind, (int(used[j]), int(sidx)), -1,
+                         f"scan {int(used[j])} (t={float(stamp[j]):.3f} s) in submap {sidx}: {what}; its box kept "
+                         "uncontracted"))
+        for j, sidx in tracking.compose_empty:
+            rows.append((float(stamp[j]), int(used[j]), "submap_compose", (int(used[j]), int(sidx)), -1,
+                         f"scan {int(used[j])} (t={float(stamp[j]):.3f} s): submap {sidx}'s anchor box composed with "
+                         "its relative box misses its global box; not met"))
+        rows.sort(key=lambda r: r[0])
+    events = empty_events(rows)
+    assumption = _assumption(params, scans, pred, tracking is not None, int((~narrow).sum()), len(events))
     consistency = Consistency(empty_events=events, q={}, widths={"pose": pose_hist}, assumption=assumption)
     duration = float(stamp[-1] - stamp[0]) if stamp.size > 1 else 0.0
     total = t2 - t0
+    hw = _heading_width(pred.boxes)
     stats = {
         "motion": pred.motion, "scans": int(len(scans)), "scans_used": int(used.size),
-        "scans_mapped": int(mapped.size), "beams": n_beams, "valid_beams": valid_used,
-        "beams_mapped": int(np.sum(np.diff(scans.offsets)[mapped])), "valid_beams_mapped": valid_mapped, "beyond_max_range": int(far),
-        "new_beams": new_beams, "old_beams": old_beams,
-        "eps": float(eps), "tiles": int(tmap.n_tiles), "map_bytes": int(tmap.nbytes),
-        "empty_cells": int(counts["empty"]), "obstacle_cells": int(counts["obstacle"]),
-        "measured_cells": measured_cells,
-        "area_empty_m2": float(area_empty), "area_obstacle_m2": float(area_obst), "area_explored_m2": explored,
-        "median_pose_width": float(np.nanmedian(widths)) if np.isfinite(widths).any() else float("nan"),
-        "max_pose_width": float(np.nanmax(widths)) if np.isfinite(widths).any() else float("nan"),
+        "scans_mapped": int(mapped.size), "mapped_fraction": float(mapped.size / max(used.size, 1)),
+        "beams": n_beams, "valid_beams": valid_used,
+        "beams_mapped": int(np.sum(np.diff(scans.offsets)[mapped])), "valid_beams_mapped": valid_mapped,
+        "beyond_max_range": int(far), "new_beams": new_beams, "old_beams": old_beams,
+        "eps": float(eps), "tiles": tiles, "map_bytes": nbytes,
+        "empty_cells": empty_cells, "obstacle_cells": obstacle_cells, "measured_cells": measured_cells,
+        "logodds_free_cells": lo_free, "logodds_occupied_cells": lo_occ,
+        "area_empty_m2": area_empty, "area_obstacle_m2": area_obst, "area_explored_m2": explored,
+        "median_pose_width": _median(widths), "max_pose_width": float(np.nanmax(widths)) if np.isfinite(widths).any()
+        else float("nan"), "median_pose_heading": _median(hw),
         "log_duration_s": duration, "predict_s": float(t1 - t0), "map_update_s": float(t2 - t1),
         "beams_per_s": float(n_beams / total) if total > 0 else float("nan"),
         "interpolated_poses": int(pred.interpolated),
     }
     if tracking is not None:
-        bw = position_width(tracking.before)
-        fw = position_width(tracking.forward)
         stats.update({
+            "submaps": int(len(submaps)),
+            "median_relative_width": _median(position_width(rel_boxes)),
+            "median_relative_heading": _median(_heading_width(rel_boxes)),
+            "max_relative_width": float(np.nanmax(position_width(rel_boxes))),
             "scans_contracted": int(tracking.contracted.sum()),
-            "scans_contradicting_map": int(tracking.contradicted.sum()),
+            "scans_contradicting": int(len({j for j, _, _ in tracking.contradicted})),
             "contraction_boxes_tested": int(tracking.tested),
-            "median_predicted_width": float(np.nanmedian(bw)) if np.isfinite(bw).any() else float("nan"),
-            "median_forward_width": float(np.nanmedian(fw)) if np.isfinite(fw).any() else float("nan"),
+            "median_predicted_width": _median(position_width(tracking.predicted)),
+            "median_forward_width": _median(position_width(tracking.forward)),
             "nodes_smoothed": int(tracking.smoothed),
-            "scans_too_wide_to_contract": int(tracking.too_wide),
-            "keyframes": int(tracking.keyframes),
-            "keyframes_matched": int(tracking.relative.sum()),
-            "keyframes_unmatched": int(tracking.unmatched),
         })
-    return LidarOutput(
-        poses=Poses(stamp=stamp, box=np.ascontiguousarray(box3)), grid=grid, consistency=consistency,
-        stats=stats, dropped=dropped, is_old=res.is_old, tmap=tmap, mapped=mapped, used=used, scans=scans,
-        relative=None if tracking is None or not params.keyframes else (tracking.rel_pairs, tracking.rel_boxes),
-    )
+    poses = Poses(stamp=stamp, box=np.ascontiguousarray(box3))
+    if tracking is not None:
+        poses.submap = tracking.home.astype(np.int64)
+        poses.relative = np.ascontiguousarray(rel_boxes.reshape(-1, 3, 2))
+    poses.frame, poses.origin_stamp = pose_frame(params, pred)
+    return LidarOutput(poses=poses, grid=grid, consistency=consistency, stats=stats, dropped=dropped, is_old=is_old,
+                       mapped=mapped, used=used, scans=scans, logodds=logodds, submaps=submaps, relative=relative)
+
+
+def pose_frame(params: Params, pred) -> tuple[str, float]:
+    """``(frame, origin stamp)`` of the pose boxes: the world when poses or an initial pose are
+    given or taken from the truth, else the robot pose at the first trajectory node."""
+    if pred.motion == "known poses" or params.initial.pose is not None or params.initial.from_truth:
+        return FRAME_WORLD, float("nan")
+    return FRAME_FIRST_POSE, float(pred.node_stamp[0])
 
 
 def run(log: LogData, params: Params, progress=None) -> Result:
-    """The LiDAR pipeline over ``log`` as a :class:`Result`: pose boxes, the interval map, the
-    log-odds baseline from the same scans, and the relative enclosures of a keyframes run."""
-    from ivslam_cli.slam.lidar.logodds import logodds_of
-
+    """The LiDAR pipeline over ``log`` as a :class:`Result`: pose boxes (global and, per submap,
+    relative), the submaps and their mosaic (or, with given poses, one proven map), and the
+    log-odds baseline from the same scans."""
     out = solve(log, params)
-    rel = None
-    if out.relative is not None:
-        pairs, boxes = out.relative
-        rel = RelativePoses(pairs=np.ascontiguousarray(pairs, np.int64).reshape(-1, 2),
-                            box=np.ascontiguousarray(boxes, np.float64).reshape(-1, 3, 2))
-    return make_result("lidar", log, dropped=out.dropped, poses=out.poses, grid=out.grid, logodds=logodds_of(out),
-                       relative=rel, consistency=out.consistency, stats=out.stats)
+    return make_result("lidar", log, dropped=out.dropped, poses=out.poses, grid=out.grid, logodds=out.logodds,
+                       relative=out.relative, submaps=out.submaps, consistency=out.consistency, stats=out.stats)
 
 
 def summary(result: Result) -> str:
-    """The CLI line: scans used and mapped, beams, old/new, the map's areas, empty events."""
+    """The CLI line: scans used and mapped, submaps, widths, the map's areas, empty events."""
     s = result.stats
-    return (f"lidar: {s['scans_used']}/{s['scans']} scans ({s['scans_mapped']} mapped), {s['beams']} beams "
-            f"({s['valid_beams_mapped']} valid mapped: {s['old_beams']} old, {s['new_beams']} new), {s['motion']}; "
-            f"map {s['area_empty_m2']:.4g} m² empty, {s['area_obstacle_m2']:.4g} m² obstacle, "
-            f"{s['area_explored_m2']:.4g} m² explored; {len(result.consistency.empty_events)} empty event(s)")
+    sub = (f"{s['submaps']} submaps, relative box median {s['median_relative_width']:.3g} m / "
+           f"{s['median_relative_heading']:.3g} rad, " if "submaps" in s else "")
+    return (f"lidar: {s['scans_used']}/{s['scans']} scans ({s['scans_mapped']} mapped), {sub}global box median "
+            f"{s['median_pose_width']:.3g} m, {s['motion']}; map {s['area_empty_m2']:.4g} m² proven free "
+            f"({s['empty_cells']} cells; log-odds free {s['logodds_free_cells']}), {s['area_obstacle_m2']:.4g} m² "
+            f"obstacle; {len(result.consistency.empty_events)} empty event(s)")

@@ -1,0 +1,365 @@
+"""Scan-to-submap matching: the set of poses of a scan, in its submap's frame, that agree with
+what the submap proves — a set inversion in ``(x, y, θ)`` by branch and bound.
+
+Two constraints, both ways (the static world but for at most ``q`` beams):
+
+- **rule A** (a return is a surface point): the endpoint region of a beam of the scan, over
+  every pose of a sub-box, cannot lie inside the submap's proven-free cells (P_EMPTY);
+- **rule B** (free space is free): the scan's free cones, over every pose of a sub-box, cannot
+  cover a region proven to hold a surface point — the endpoint region of a beam of an earlier
+  scan of the submap (its anchor scan, at the exact origin of the frame, and the last scan
+  mapped into it, with its box).
+
+A sub-box is excluded when more than ``q`` beams of the scan break rule A for all its poses, or
+more than ``q`` witnesses break rule B. The search starts from the prior (a union of boxes,
+e.g. one per heading slice), splits the widest of ``x``, ``y`` and ``reach·θ`` (so rotation is
+sliced first while ``θ``'s width times the scan's reach exceeds the translation's), breadth
+first, down to leaves of ``leaf`` metres; with the budget spent, the sub-boxes still queued are
+kept whole. What is kept is a union of boxes; the caller groups it by heading slice.
+
+Tables that make a large sub-box cost O(beams): the submap's cells not proven free are counted
+in a summed-area table over a window (a rectangle of cells is tested in O(1), whatever its
+size, as Cartographer's branch-and-bound scan matcher precomputes grids per level for the same
+reason — Hess, Kohler, Rapp & Andor 2016); the endpoint region of each beam over a sub-box is
+the sub-box's sensor box plus the beam's rotated polar region, from one cosine and sine per
+sub-box (no trigonometry per beam).
+
+Guarantee: if the true relative pose is in the prior, the bounds hold, the world is static but
+for at most ``q`` beams of the scan and ``q`` witnesses, and the submap's P_EMPTY is sound, the
+true pose is in the union kept. Interval bounds are rounded outward; the per-beam rotated
+regions are evaluated in floating point and widened by an explicit bound on their error
+(:data:`MARGIN_ABS` plus :data:`MARGIN_REL` of the range), which dominates the few roundings
+involved for coordinates below ``FIN_MAX``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ivslam_cli.paving.tiles import EMPTY, TILE
+from ivslam_cli.slam.lidar.geometry import (
+    beam_offset,
+    box_bearings,
+    box_ranges_fin,
+    dn,
+    range_bounds,
+    sensor_box,
+    sensor_offset,
+    upf,
+)
+from ivslam_cli.slam.lidar.scanmatch import covered_free
+
+#: absolute and relative (to the beam's range) error bound of a rotated endpoint region
+MARGIN_ABS = 1e-9
+MARGIN_REL = 1e-12
+#: windows of the summed-area table are at most this many cells (beyond: rule A is not used)
+MAX_WINDOW_CELLS = 1 << 24
+
+
+@njit(cache=True)
+def build_window(cells, coords, n, wx0, wy0, nx, ny, S):
+    """Summed-area table ``S`` ((nx + 1) · (ny + 1), int32) of the cells *not* proven free over
+    the window of cells ``[wx0, wx0 + nx) × [wy0, wy0 + ny)`` (cells of no tile are unknown):
+    ``S[a (ny + 1) + b]`` counts them over ``[wx0, wx0 + a) × [wy0, wy0 + b)``."""
+    m = ny + 1
+    F = np.ones((nx, ny), np.int32)
+    for t in range(n):
+        ox = coords[t, 0] * TILE - wx0
+        oy = coords[t, 1] * TILE - wy0
+        a0 = max(0, -ox)
+        a1 = min(TILE, nx - ox)
+        b0 = max(0, -oy)
+        b1 = min(TILE, ny - oy)
+        for a in range(a0, a1):
+            for b in range(b0, b1):
+                if cells[t, a, b] & EMPTY:
+                    F[ox + a, oy + b] = 0
+    for b in range(m):
+        S[b] = 0
+    for a in range(nx):
+        run = 0
+        S[(a + 1) * m] = 0
+        for b in range(ny):
+            run += F[a, b]
+            S[(a + 1) * m + b + 1] = S[a * m + b + 1] + run
+
+
+@njit(cache=True, inline="always")
+def _clear(S, m, wx0, wy0, nx, ny, eps, xl, xh, yl, yh):
+    """True if every cell that may meet ``[xl, xh] × [yl, yh]`` lies in the window and is proven
+    free (closed cells: a point on a border is in both cells, one proven free suffices)."""
+    ix0 = math.floor(dn(xl / eps)) - wx0
+    ix1 = math.floor(upf(xh / eps)) - wx0 + 1
+    iy0 = math.floor(dn(yl / eps)) - wy0
+    iy1 = math.floor(upf(yh / eps)) - wy0 + 1
+    if ix0 < 0 or iy0 < 0 or ix1 > nx or iy1 > ny:
+        return False
+    return S[ix1 * m + iy1] - S[ix0 * m + iy1] - S[ix1 * m + iy0] + S[ix0 * m + iy0] == 0
+
+
+@njit(cache=True)
+def witness_regions(ranges, valid, a0, inc, box, mx, my, myaw, r_abs, r_rel, r_alpha, stride, out):
+    """Endpoint regions ``out`` (k, 4) of the valid beams (every ``stride``-th) of a scan taken
+    from robot box ``box`` (6,) in the frame: each holds a surface point (rounded outward).
+    Returns k."""
+    sxl, sxh, syl, syh, stl, sth = sensor_box(box[0], box[1], box[2], box[3], box[4], box[5], mx, my, myaw)
+    k = 0
+    for i in range(0, ranges.shape[0], stride):
+        if not valid[i]:
+            continue
+        rl, rh = range_bounds(float(ranges[i]), r_abs, r_rel)
+        dxl, dxh, dyl, dyh = beam_offset(stl, sth, rl, rh, a0 + i * inc, r_alpha)
+        out[k, 0] = dn(sxl + dxl)
+        out[k, 1] = upf(sxh + dxh)
+        out[k, 2] = dn(syl + dyl)
+        out[k, 3] = upf(syh + dyh)
+        k += 1
+    return k
+
+
+@njit(cache=True)
+def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw, r_alpha,
+               cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid):
+    """True if the sub-box ``b`` (6,) is excluded (more than ``q`` beams break rule A, or more
+    than ``q`` witnesses rule B, for all its poses)."""
+    ox, oxh, oy, oyh, stl, sth = sensor_offset(b[4], b[5], mx, my, myaw)
+    sxl = dn(b[0] + ox)
+    sxh = upf(b[1] + oxh)
+    syl = dn(b[2] + oy)
+    syh = upf(b[3] + oyh)
+    if use_grid:
+        c = 0.5 * (stl + sth)
+        h = upf(upf(0.5 * (sth - stl)) + 1e-15 * abs(c) + 1e-300)
+        d = upf(h + r_alpha)
+        if d < 1.0:
+            cc = math.cos(c)
+            sc = math.sin(c)
+            shrink = 1.0 - upf(0.5 * upf(d * d))
+            na = 0
+            for i in range(n_beams):
+                u0x = cc * beam_ca[i] - sc * beam_sa[i]
+                u0y = sc * beam_ca[i] + cc * beam_sa[i]
+                rh = beam_rh[i]
+                al = beam_rl[i] * shrink
+                am = 0.5 * (al + rh)
+                ah = 0.5 * (rh - al)
+                ac = rh * d
+                marg = MARGIN_ABS + MARGIN_REL * rh
+                hx = ah * abs(u0x) + ac * abs(u0y) + marg
+                hy = ah * abs(u0y) + ac * abs(u0x) + marg
+                cx = am * u0x
+                cy = am * u0y
+                if _clear(S, m, wx0, wy0, nx, ny, eps, dn(sxl + (cx - hx)), upf(sxh + (cx + hx)),
+                          dn(syl + (cy - hy)), upf(syh + (cy + hy))):
+                    na += 1
+                    if na > q:
+                        return True
+    if cones:
+        nb = 0
+        for j in range(n_w):
+            dxl = dn(W[j, 0] - sxh)
+            dxh = upf(W[j, 1] - sxl)
+            dyl = dn(W[j, 2] - syh)
+            dyh = upf(W[j, 3] - syl)
+            bl, bh, full = box_bearings(dxl, dxh, dyl, dyh)
+            if full:
+                continue
+            rho_h = box_ranges_fin(dxl, dxh, dyl, dyh)[1]
+            if covered_free(free, a0, inc, dn(bl - sth), upf(bh - stl), rho_h):
+                nb += 1
+                if nb > q:
+                    return True
+    return False
+
+
+@njit(cache=True)
+def match_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_rel, r_alpha, cones, q, stride,
+                 W, n_w, S, m, wx0, wy0, nx, ny, eps, use_grid, leaf, reach, max_nodes, kept):
+    """Branch and bound from the prior ``roots[:n_roots]`` (6 each): the sub-boxes not excluded
+    are written to ``kept`` (rows, 6); returns ``(n_kept, tested)``. ``kept`` must hold
+    ``max_nodes + n_roots`` rows."""
+    nb_all = ranges.shape[0]
+    beam_rl = np.empty(nb_all)
+    beam_rh = np.empty(nb_all)
+    beam_ca = np.empty(nb_all)
+    beam_sa = np.empty(nb_all)
+    free = np.empty(nb_all)
+    n_beams = 0
+    for i in range(nb_all):
+        if valid[i]:
+            rl, rh = range_bounds(float(ranges[i]), r_abs, r_rel)
+            free[i] = rl
+            if i % stride == 0:
+                ang = a0 + i * inc
+                beam_rl[n_beams] = rl
+                beam_rh[n_beams] = rh
+                beam_ca[n_beams] = math.cos(ang)
+                beam_sa[n_beams] = math.sin(ang)
+                n_beams += 1
+        else:
+            free[i] = -1.0
+    cap = max_nodes + n_roots + 2
+    queue = np.empty((cap, 6))
+    head = 0
+    tail = 0
+    for r in range(n_roots):
+        queue[tail] = roots[r]
+        tail += 1
+    n_kept = 0
+    tested = 0
+    while head < tail:
+        b = queue[head]
+        head += 1
+        if tested >= max_nodes or tail + 2 > cap:
+            kept[n_kept] = b  # out of budget: kept whole
+            n_kept += 1
+            continue
+        tested += 1
+        if _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw, r_alpha,
+                      cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid):
+            continue
+        wx = b[1] - b[0]
+        wy = b[3] - b[2]
+        wt = (b[5] - b[4]) * reach
+        if wx <= leaf and wy <= leaf and wt <= leaf:
+            kept[n_kept] = b
+            n_kept += 1
+            continue
+        s = 0 if (wx >= wy and wx >= wt) else (1 if wy >= wt else 2)
+        mid = 0.5 * (b[2 * s] + b[2 * s + 1])
+        queue[tail] = b
+        queue[tail, 2 * s + 1] = mid
+        queue[tail + 1] = b
+        queue[tail + 1, 2 * s] = mid
+        tail += 2
+    return n_kept, tested
+
+
+def slices(kept: np.ndarray, max_boxes: int) -> np.ndarray:
+    """The union ``kept`` (n, 6) as at most ``max_boxes`` boxes, one per heading slice: boxes with
+    the same heading interval are joined (hull in x, y), then neighbouring slices (by heading)
+    are joined until at most ``max_boxes`` remain (each join keeps every kept pose)."""
+    if kept.shape[0] == 0:
+        return kept.reshape(0, 6)
+    keys = np.round(kept[:, 4:6], 15)
+    order = np.lexsort((keys[:, 1], keys[:, 0]))
+    k = kept[order]
+    kk = keys[order]
+    change = np.concatenate([[True], np.any(kk[1:] != kk[:-1], axis=1)])
+    starts = np.flatnonzero(change)
+    out = np.empty((starts.size, 6))
+    out[:, 0] = np.minimum.reduceat(k[:, 0], starts)
+    out[:, 1] = np.maximum.reduceat(k[:, 1], starts)
+    out[:, 2] = np.minimum.reduceat(k[:, 2], starts)
+    out[:, 3] = np.maximum.reduceat(k[:, 3], starts)
+    out[:, 4] = np.minimum.reduceat(k[:, 4], starts)
+    out[:, 5] = np.maximum.reduceat(k[:, 5], starts)
+    boxes = [row for row in out[np.argsort(out[:, 4], kind="stable")]]
+    while len(boxes) > max(1, max_boxes):
+        # join the neighbouring pair whose hull grows the least
+        best, bi = math.inf, 0
+        for i in range(len(boxes) - 1):
+            a, c = boxes[i], boxes[i + 1]
+            grow = ((max(a[1], c[1]) - min(a[0], c[0])) * (max(a[3], c[3]) - min(a[2], c[2]))
+                    - (a[1] - a[0]) * (a[3] - a[2]) - (c[1] - c[0]) * (c[3] - c[2]))
+            if grow < best:
+                best, bi = grow, i
+        a, c = boxes[bi], boxes[bi + 1]
+        boxes[bi:bi + 2] = [np.array([min(a[0], c[0]), max(a[1], c[1]), min(a[2], c[2]), max(a[3], c[3]),
+                                      min(a[4], c[4]), max(a[5], c[5])])]
+    return np.array(boxes).reshape(-1, 6)
+
+
+def hull(boxes: np.ndarray) -> np.ndarray:
+    """The hull (6,) of boxes (n, 6)."""
+    return np.array([boxes[:, 0].min(), boxes[:, 1].max(), boxes[:, 2].min(), boxes[:, 3].max(),
+                     boxes[:, 4].min(), boxes[:, 5].max()])
+
+
+class Matcher:
+    """Scan-to-submap matching with reusable buffers (one per tracker).
+
+    :meth:`match` returns ``(union (m, 6), kept_any, tested)``: the poses of the prior that agree
+    with the submap, as boxes; ``kept_any`` False when none agrees (the data contradict the
+    model beyond q: the caller keeps the prior and records it)."""
+
+    def __init__(self, params, scans) -> None:
+        b = params.beams
+        self.p = params
+        self.scans = scans
+        self.r_abs, self.r_rel, self.r_alpha = float(b.range_abs), float(b.range_rel), float(b.bearing)
+        self.fill = bool(b.fill_gaps)
+        self.mount = tuple(float(v) for v in scans.mount)
+        nb = int(np.max(np.diff(scans.offsets))) if len(scans) else 1
+        self.W = np.empty((2 * nb + 4, 4))
+        self.kept = np.empty((params.match_boxes + 64, 6))
+        self.S = np.zeros(1, np.int32)
+
+    def _scan(self, k: int):
+        sc = self.scans
+        b0, b1 = int(sc.offsets[k]), int(sc.offsets[k + 1])
+        return sc.ranges[b0:b1], sc.valid[b0:b1], float(sc.angle_min[k]), float(sc.angle_increment[k])
+
+    def witnesses(self, refs) -> int:
+        """Fill the witness regions from ``refs``: (scan index, robot box (6,)) pairs."""
+        n = 0
+        mx, my, myaw = self.mount
+        for k, box in refs:
+            r, v, a0, inc = self._scan(k)
+            if r.shape[0] + n > self.W.shape[0]:
+                self.W = np.concatenate([self.W, np.empty((r.shape[0] + n, 4))])
+            n += witness_regions(r, v, a0, inc, np.ascontiguousarray(box, float), mx, my, myaw, self.r_abs,
+                                 self.r_rel, self.r_alpha, int(self.p.match_stride), self.W[n:])
+        return n
+
+    def window(self, tmap, roots: np.ndarray, reach: float):
+        """The summed-area table over the cells the scan's endpoints can reach from ``roots``
+        (clipped to the submap's tiles). Returns ``(m, wx0, wy0, nx, ny, use_grid)``."""
+        eps = tmap.eps
+        if tmap.n_tiles == 0:
+            return 1, 0, 0, 0, 0, False
+        co = tmap.coords[: tmap.n]
+        tx0, ty0 = int(co[:, 0].min()) * TILE, int(co[:, 1].min()) * TILE
+        tx1, ty1 = (int(co[:, 0].max()) + 1) * TILE, (int(co[:, 1].max()) + 1) * TILE
+        pad = reach + math.hypot(self.mount[0], self.mount[1]) + 2 * eps
+        x0 = max(tx0, math.floor((roots[:, 0].min() - pad) / eps))
+        x1 = min(tx1, math.ceil((roots[:, 1].max() + pad) / eps))
+        y0 = max(ty0, math.floor((roots[:, 2].min() - pad) / eps))
+        y1 = min(ty1, math.ceil((roots[:, 3].max() + pad) / eps))
+        nx, ny = x1 - x0, y1 - y0
+        if nx <= 0 or ny <= 0 or nx * ny > MAX_WINDOW_CELLS:
+            return 1, 0, 0, 0, 0, False
+        need = (nx + 1) * (ny + 1)
+        if self.S.shape[0] < need:
+            self.S = np.zeros(max(need, 2 * self.S.shape[0]), np.int32)
+        build_window(tmap.cells, tmap.coords, tmap.n, x0, y0, nx, ny, self.S)
+        return ny + 1, x0, y0, nx, ny, True
+
+    def match(self, k: int, roots: np.ndarray, tmap, refs) -> tuple[np.ndarray, bool, int]:
+        p = self.p
+        r, v, a0, inc = self._scan(k)
+        roots = np.ascontiguousarray(roots, float).reshape(-1, 6)
+        if not np.all(np.isfinite(roots)) or not v.any():
+            return roots, True, 0
+        z = r[v].astype(np.float64)
+        reach = float(np.max(z)) + self.r_abs + self.r_rel * float(np.max(z)) + 1e-6
+        cones = self.fill or 2.0 * self.r_alpha >= inc * (1.0 + 1e-9)
+        n_w = self.witnesses(refs) if cones else 0
+        m, wx0, wy0, nx, ny, use_grid = self.window(tmap, roots, reach)
+        if not (use_grid or n_w):
+            return roots, True, 0
+        need = p.match_boxes + roots.shape[0] + 2
+        if self.kept.shape[0] < need:
+            self.kept = np.empty((need, 6))
+        mx, my, myaw = self.mount
+        split_reach = float(np.median(z)) if z.size else 1.0
+        n_kept, tested = match_kernel(roots, roots.shape[0], r, v, a0, inc, mx, my, myaw, self.r_abs, self.r_rel,
+                                      self.r_alpha, cones, int(p.q_beams), int(p.match_stride), self.W, n_w, self.S,
+                                      m, wx0, wy0, nx, ny, float(tmap.eps), use_grid, float(p.match_leaf),
+                                      split_reach, int(p.match_boxes), self.kept)
+        if n_kept == 0:
+            return roots, False, int(tested)
+        return slices(self.kept[:n_kept].copy(), int(p.match_slices)), True, int(tested)

@@ -1,0 +1,289 @@
+"""LiDAR tracking and mapping in local frames: submaps anchored at keyframe scans.
+
+Worst-case bounds add up along a path, so a pose box in one global frame grows without end
+while the robot explores, and a map built from wide boxes proves little. Here every scan's
+pose is tracked *relative to the robot pose of an anchor scan* (its submap's frame, where the
+anchor pose is exact), the way Cartographer keeps submaps (Hess et al. 2016) and interval
+LiDAR localisation keeps scans relative to keyframes:
+
+1. **dead reckoning in the anchor frame**: the motion steps of :mod:`ivslam_cli.slam.motion`
+   from the anchor's node (exact, up to the scan's reach of its node);
+2. **contraction** of that relative box against the anchor scan (interval scan matching,
+   both scans' continuous free space: :mod:`.scanmatch`) and against the submap's map built
+   so far (a set inversion in pose space: :mod:`.contract`), q-relaxed over the beams;
+3. **mapping** of the scan into its submap with its relative box (:mod:`.map_update`):
+   P_EMPTY (inner) and P_OBSTACLE (outer) proven *in the anchor's frame*.
+
+A new submap starts at the current scan when the robot is ``submap_distance`` away from the
+anchor, has turned ``submap_turn``, or the relative box is wider than ``submap_width``.
+Consecutive submaps overlap: the previous submap keeps tracking and mapping the scans of the
+next ``submap_overlap`` metres, so every place seen is mapped from tight relative boxes.
+
+**The global tube.** The anchor of submap ``j + 1`` is a scan of submap ``j``: its global box is
+``G_{j+1} = G_j ⊕ R`` (``R``: its relative box in submap ``j``, composed with outward rounding,
+:mod:`ivslam_cli.interval.pose`), met with the global dead-reckoned box. A scan's global box is
+its anchors' boxes ⊕ its relative boxes, met with the global dead reckoning, which each global
+box then contracts (forward), and a backward pass over the motion steps smooths.
+
+Guarantee: if the initial pose is in its box, the odometry within its bounds, every valid
+return within the range and bearing bounds (the static world but for at most ``q_beams`` beams
+per scan), then every relative box holds the true pose of its scan in its anchor's frame, every
+global box the true pose, and each submap's P_EMPTY is free in its anchor's frame.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ivslam_cli.interval.pose import compose, meet
+from ivslam_cli.logs.model import LogData, Scans
+from ivslam_cli.paving.tiles import TileMap
+from ivslam_cli.slam.lidar.map_update import check_extent, extent_limits, update_map
+from ivslam_cli.slam.lidar.matcher import Matcher, hull
+from ivslam_cli.slam.lidar.params import Params
+from ivslam_cli.slam.lidar.prediction import PosePrediction, trajectory
+from ivslam_cli.slam.motion_kernel import (
+    meet_node,
+    propagate,
+    propagate_boxes,
+    smooth_backward,
+    smooth_backward_range,
+    widen_boxes,
+)
+
+
+@dataclass
+class Submap:
+    """One local frame: the robot pose of its anchor scan, and what is proven in it."""
+
+    index: int
+    anchor_row: int  # row of the anchor among the used scans
+    anchor_scan: int  # scan index of the anchor
+    k0: int  # trajectory node of the anchor
+    G: np.ndarray  # (6,) global box of the anchor's robot pose
+    tmap: TileMap  # the map in the anchor's frame
+    P: np.ndarray  # (N - k0, 3, 2) node boxes relative to the anchor (row 0 = node k0)
+    events: np.ndarray  # (N - k0 - 1,) motion steps with no solution in this frame
+    k_prev: int  # last node propagated (absolute)
+    rows: list = field(default_factory=list)  # member rows (used-scan rows tracked here)
+    rel: list = field(default_factory=list)  # their relative boxes (6,), in step with ``rows``
+    mapped: list = field(default_factory=list)  # rows mapped into this submap
+    closes_at: float = math.inf  # travel at which the submap stops tracking (overlap end)
+    last_row: int = -1  # last row mapped (the "previous scan" of rule B)
+    last_box: np.ndarray | None = None  # its relative box
+    union: np.ndarray | None = None  # (m, 6) the last tracked scan's pose set (one box per heading slice)
+    union_row: int = -1  # ... of which row
+
+
+@dataclass
+class SubmapTracking:
+    """What the submap pass produced, per used scan row and per submap."""
+
+    pred: PosePrediction  # global boxes (after forward-backward) and the trajectory's stamps
+    submaps: list  # [Submap]
+    home: np.ndarray  # (S',) index of the submap that holds each scan's relative box (the newest)
+    relative: np.ndarray  # (S', 6) relative box in its home submap
+    mapped: np.ndarray  # (S',) bool: mapped into at least one submap
+    contracted: np.ndarray  # (S',) bool: some contraction narrowed the box
+    contradicted: list  # (row, submap, kind) of matches where no pose agreed with the data (box kept)
+    compose_empty: list  # (row, submap) where anchor box ⊕ relative box missed the global box
+    forward: np.ndarray  # (S', 6) global boxes before the backward pass
+    predicted: np.ndarray  # (S', 6) global dead-reckoned boxes before any contraction reached them
+    tested: int  # pose sub-boxes tested in all
+    smoothed: int  # global trajectory nodes the backward pass narrowed
+    stats: np.ndarray  # (S, 6) map update stats per scan (its home submap's update)
+    is_old: np.ndarray  # (B,) per beam: old in its home submap
+
+
+def _width(b: np.ndarray) -> float:
+    return max(b[1] - b[0], b[3] - b[2])
+
+
+def _centre(b: np.ndarray) -> tuple[float, float, float]:
+    return 0.5 * (b[0] + b[1]), 0.5 * (b[2] + b[3]), 0.5 * (b[4] + b[5])
+
+
+def _new_submap(index: int, row: int, scan: int, k: int, G: np.ndarray, n_nodes: int, reach, eps: float) -> Submap:
+    P = np.empty((n_nodes - k, 3, 2))
+    P[:, :, 0] = -np.inf
+    P[:, :, 1] = np.inf
+    rp, rt = float(reach[0]), float(reach[1])  # node k holds the modelled pose, within reach of the scan's
+    P[0] = [[-rp, rp], [-rp, rp], [-rt, rt]]
+    return Submap(index, row, scan, k, G.copy(), TileMap(eps), P, np.zeros(max(n_nodes - k - 1, 0), np.int64), k)
+
+
+def _relative_box(s: Submap, m, j: int, k: int) -> np.ndarray:
+    """Propagate submap ``s``'s trajectory to node ``k`` and return scan row ``j``'s box in its frame."""
+    propagate(s.P, m.kind[s.k0:], m.U[s.k0:], s.events, s.k_prev - s.k0, k - s.k0)
+    s.k_prev = k
+    out = np.empty((1, 6))
+    widen_boxes(s.P, np.array([k - s.k0]), m.reach[j:j + 1], out)
+    return out[0]
+
+
+def track_submaps(log: LogData, params: Params, scans: Scans) -> SubmapTracking:
+    """Track and map every scan in submaps (see the module docstring)."""
+    bounds = params.beams
+    path = log.provenance.path
+    used, dropped, m, Pg, source, events = trajectory(log, params, scans)
+    n_nodes = m.node_stamp.shape[0]
+    extent = extent_limits(scans, bounds, params.eps)
+    S = used.size
+    glob = np.empty((S, 6))
+    predicted = np.empty((S, 6))
+    home = np.full(S, -1, np.int64)
+    relative = np.full((S, 6), np.nan)
+    mapped = np.zeros(S, bool)
+    contracted = np.zeros(S, bool)
+    contradicted: list = []
+    compose_empty: list = []
+    stats = np.zeros((len(scans), 6), np.int64)
+    is_old = np.zeros(scans.ranges.shape[0], bool)
+    all_boxes = np.zeros((len(scans), 6))
+    one = np.zeros(1, np.int64)
+    matcher = Matcher(params, scans)
+    g = np.empty(6)
+    met = np.empty(6)
+    tested = 0
+    submaps: list[Submap] = []
+    active: list[Submap] = []
+    kg_prev = 0
+    travel = 0.0
+    last = None  # (x, y) of the previous relative centre in the newest submap, for the travel
+    for j in range(S):
+        k = int(m.node[j])
+        scan = int(used[j])
+        rp, rt = float(m.reach[j, 0]), float(m.reach[j, 1])
+        # the global dead-reckoned box
+        propagate(Pg, m.kind, m.U, events, kg_prev, k)
+        kg_prev = k
+        gb = np.empty((1, 6))
+        widen_boxes(Pg, m.node[j:j + 1], m.reach[j:j + 1], gb)
+        gb = gb[0]
+        predicted[j] = gb
+        if not submaps:  # the first scan anchors the first submap: its frame is the first pose's
+            s0 = _new_submap(0, j, scan, k, gb, n_nodes, m.reach[j], params.eps)
+            submaps.append(s0)
+            active.append(s0)
+        for s in list(active):
+            if s.anchor_row == j:
+                r = np.zeros(6)  # the frame is the anchor's pose
+            else:
+                r = _relative_box(s, m, j, k)
+                if params.contract and np.all(np.isfinite(r)):
+                    roots = r[None, :]
+                    if s.union is not None and s.union_row >= 0:
+                        jp = s.union_row
+                        kp = int(m.node[jp])
+                        prop = np.empty_like(s.union)
+                        ok = propagate_boxes(s.P[kp - s.k0], s.union, m.reach[jp], m.kind[s.k0:], m.U[s.k0:],
+                                             kp - s.k0, k - s.k0, m.reach[j], prop)
+                        prop = prop[ok]
+                        if prop.shape[0]:
+                            lo = np.maximum(prop[:, 0::2], r[0::2])
+                            hi = np.minimum(prop[:, 1::2], r[1::2])
+                            good = np.all(lo <= hi, axis=1)
+                            if good.any():
+                                roots = np.empty((int(good.sum()), 6))
+                                roots[:, 0::2], roots[:, 1::2] = lo[good], hi[good]
+                    refs = [(s.anchor_scan, np.zeros(6))]
+                    if s.last_row >= 0 and s.last_row != s.anchor_row:
+                        refs.append((int(used[s.last_row]), s.last_box))
+                    union, ok, nt = matcher.match(scan, roots, s.tmap, refs)
+                    tested += nt
+                    if not ok:
+                        contradicted.append((j, s.index, "submap_match"))
+                        s.union = r[None, :].copy()
+                    else:
+                        s.union = union
+                        h = hull(union)
+                        lo = np.maximum(h[0::2], r[0::2])
+                        hi = np.minimum(h[1::2], r[1::2])
+                        if np.all(lo <= hi) and not np.array_equal(np.column_stack([lo, hi]).reshape(6), r):
+                            r = np.column_stack([lo, hi]).reshape(6)
+                            contracted[j] = True
+                            meet_node(s.P, k - s.k0, r, rp, rt)
+                    s.union_row = j
+            s.rows.append(j)
+            s.rel.append(r.copy())
+            # global: anchor box ⊕ relative box, met with the global box
+            compose(s.G.reshape(3, 2), r.reshape(3, 2), 1, g.reshape(3, 2))
+            if meet(gb.reshape(3, 2), g.reshape(3, 2), met.reshape(3, 2)):
+                gb = met.copy()
+            else:
+                compose_empty.append((j, s.index))
+            # map the scan into the submap
+            if params.max_pose_width <= 0 or _width(r) <= params.max_pose_width:
+                check_extent(r, used[j:j + 1], extent, path)
+                all_boxes[scan] = r
+                one[0] = scan
+                res = update_map(s.tmap, scans, all_boxes, bounds, order=one)
+                s.mapped.append(j)
+                s.last_row = j
+                s.last_box = r.copy()
+                mapped[j] = True
+                if s is active[-1]:
+                    is_old[scans.offsets[scan]:scans.offsets[scan + 1]] = res.is_old[scans.offsets[scan]:
+                                                                                    scans.offsets[scan + 1]]
+                    stats[scan] = res.stats[scan]
+        newest = active[-1]
+        home[j] = newest.index
+        relative[j] = newest.rel[-1]
+        meet_node(Pg, k, gb, rp, rt)
+        glob[j] = gb
+        # travel along the newest submap's relative centres (for the overlap)
+        c = _centre(relative[j])
+        if last is not None and np.all(np.isfinite(c)):
+            travel += math.hypot(c[0] - last[0], c[1] - last[1])
+        last = c if newest.anchor_row != j else (0.0, 0.0, 0.0)
+        # overlap ends
+        for s in list(active[:-1]):
+            if travel >= s.closes_at:
+                active.remove(s)
+        # a new submap?
+        r = relative[j]
+        if j + 1 < S and newest.anchor_row != j and np.all(np.isfinite(r)) and np.all(np.isfinite(gb)) and (
+                math.hypot(c[0], c[1]) >= params.submap_distance or abs(c[2]) >= params.submap_turn
+                or _width(r) >= params.submap_width):
+            newest.closes_at = travel + params.submap_overlap
+            s_new = _new_submap(len(submaps), j, scan, k, gb, n_nodes, m.reach[j], params.eps)
+            # the new anchor is mapped into its own submap at once (exact pose in its frame)
+            all_boxes[scan] = 0.0
+            one[0] = scan
+            update_map(s_new.tmap, scans, all_boxes, bounds, order=one)
+            s_new.rows.append(j)
+            s_new.rel.append(np.zeros(6))
+            s_new.mapped.append(j)
+            s_new.last_row = j
+            s_new.last_box = np.zeros(6)
+            submaps.append(s_new)
+            active.append(s_new)
+            last = (0.0, 0.0, 0.0)
+    forward = glob.copy()
+    # backward passes: in every submap's frame, then globally
+    for s in submaps:
+        k1 = int(m.node[s.rows[-1]])
+        if k1 > s.k0 and contracted[s.rows].any():
+            smooth_backward_range(s.P, m.kind[s.k0:], m.U[s.k0:], s.events, 0, k1 - s.k0)
+            back = np.empty((len(s.rows), 6))
+            widen_boxes(s.P, np.asarray(m.node[s.rows], np.int64) - s.k0, m.reach[s.rows], back)
+            for i, row in enumerate(s.rows):
+                if row != s.anchor_row and meet(s.rel[i].reshape(3, 2), back[i].reshape(3, 2), met.reshape(3, 2)):
+                    s.rel[i] = met.copy()
+    for s in submaps:
+        for i, row in enumerate(s.rows):
+            if s.index == home[row]:
+                relative[row] = s.rel[i]
+    smoothed = int(smooth_backward(Pg, m.kind, m.U, events, kg_prev))
+    back = np.empty((S, 6))
+    widen_boxes(Pg, m.node, m.reach, back)
+    for j in range(S):
+        if meet(glob[j].reshape(3, 2), back[j].reshape(3, 2), met.reshape(3, 2)):
+            glob[j] = met
+    pred = PosePrediction(used=used, boxes=glob, source=source, motion=m.motion, step_events=events,
+                          node_stamp=m.node_stamp, dropped=dropped)
+    return SubmapTracking(pred, submaps, home, relative, mapped, contracted, contradicted, compose_empty, forward,
+                          predicted, tested, smoothed, stats, is_old)
