@@ -89,10 +89,10 @@ def test_the_pipeline_contracts_its_pose_boxes_against_the_map():
     from ivslam_cli.slam.lidar import Params as LidarParams
     from ivslam_cli.slam.lidar.pipeline import solve
 
-    log = simulate(SimConfig(scenario="lidar", seed=5, steps=200))
+    log = simulate(SimConfig(scenario="lidar", seed=5, steps=200, beam_model="ray"))
     widths = {}
     for contract in (False, True):
-        # the simulator ray-casts: state the gap assumption, or no free space is proven to contract with
+        # ray-cast beams: state the gap assumption, or no free space is proven to contract with
         cfg = resolve_config(None, {"landmarks.initial_pose_from_truth": True, "lidar.contract": contract,
                                     "lidar.fill_gaps": True}, log_bounds=log.bounds)
         out = solve(log, LidarParams.from_config(cfg))

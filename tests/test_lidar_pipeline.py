@@ -1,7 +1,8 @@
 """`ivslam run --mode lidar` end to end: pose boxes, P_EMPTY / P_OBSTACLE, old/new, result, report.
 
-Simulated logs (``ivslam simulate --scenario lidar``: a ray-cast LiDAR in a wall world, twist
-odometry with stated bounds) are checked against their truth:
+Simulated logs (``ivslam simulate --scenario lidar --beam-model ray``: a ray-cast LiDAR in a wall
+world, twist odometry with stated bounds) are checked against their truth (cone-beam logs, the
+simulator's default: ``test_simulate_cone.py``):
 
 - every true pose (at every scan stamp) is in its box;
 - every true wall point hit by a valid in-bound beam lies in a cell of ∪ P_OBSTACLE^k ∪
@@ -84,10 +85,11 @@ def hits_outside_obstacle(log, out) -> tuple[int, int]:
 
 
 def run_sim(seed, world, sensor="urg-04lx", noise="uniform", steps=60, overrides=None):
-    """The simulator ray-casts (beams with no width): without ``lidar.fill_gaps`` such scans prove
-    no free space, so these runs state the gap assumption to exercise P_EMPTY (it holds in these
-    worlds for the URG's 0.35° steps; the SICK pillars case below shows where it does not)."""
-    log = simulate(SimConfig(scenario="lidar", world=world, sensor=sensor, seed=seed, steps=steps, noise=noise))
+    """Ray-cast logs (beams with no width): without ``lidar.fill_gaps`` such scans prove no free
+    space, so these runs state the gap assumption to exercise P_EMPTY (it holds in these worlds
+    for the URG's 0.35° steps; the SICK pillars case below shows where it does not)."""
+    log = simulate(SimConfig(scenario="lidar", world=world, sensor=sensor, seed=seed, steps=steps, noise=noise,
+                             beam_model="ray"))
     cfg = resolve_config(None, {"landmarks.initial_pose_from_truth": True, "lidar.fill_gaps": True,
                                 **(overrides or {})}, log_bounds=log.bounds)
     return log, solve(log, LidarParams.from_config(cfg))

@@ -428,7 +428,7 @@ def test_simulated_keyframes_run_relations_use_the_relative_enclosures(tmp_path,
     from ivslam_cli.slam.lidar import Params as LidarParams
     from ivslam_cli.slam.lidar.pipeline import solve
 
-    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=4, steps=60))
+    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=4, steps=60, beam_model="ray"))
     cfg = resolve_config(None, {"landmarks.initial_pose_from_truth": True, "lidar.fill_gaps": True,
                                 "lidar.keyframes": True, "lidar.keyframe_distance": 0.3,
                                 "lidar.keyframe_turn": 0.2, "lidar.match_boxes": 300}, log_bounds=log.bounds)

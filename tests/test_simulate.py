@@ -146,8 +146,9 @@ def cast_numpy(origin, angles, segs):
 
 @pytest.mark.parametrize("sensor,world", [("urg-04lx", "rooms"), ("sick", "open"), ("urg-04lx", "pillars")])
 def test_lidar_beams_match_the_true_ray_cast(sensor, world):
+    """``--beam-model ray``; the cone model (the default) is checked in test_simulate_cone.py."""
     log = simulate(SimConfig(scenario="lidar", sensor=sensor, world=world, seed=4, steps=60,
-                             outlier_rate=0.01))
+                             outlier_rate=0.01, beam_model="ray"))
     sc, tr, b = log.scans, log.truth, log.bounds
     out = tr.outliers["scans"]
     assert out.shape == sc.ranges.shape and out.any()

@@ -43,6 +43,8 @@ def test_cli_format_option_overrides_suffix(cli_run, tmp_path):
     (["--scenario", "warp"], "warp"),
     (["--noise", "gauss"], "gauss"),
     (["--steps", "10", "--duration", "3"], "not both"),
+    (["--scenario", "lidar", "--beam-angle", "0.003"], "below half the beam step of urg-04lx"),
+    (["--scenario", "lidar", "--beam-model", "fan"], "fan"),
 ])
 def test_cli_bad_values_fail_on_one_line(cli_run, tmp_path, args, needle):
     out = tmp_path / "x.mcap"
@@ -68,3 +70,18 @@ def test_cli_refuses_to_overwrite(cli_run, tmp_path):
 def test_cli_help_has_example(cli_run):
     res = cli_run("simulate", "--help")
     assert res.exit_code == 0 and "ivslam simulate --scenario" in res.output
+
+
+def test_cli_beam_model_reaches_the_log_and_help_states_the_cones(cli_run, tmp_path):
+    from ivslam_cli.simulate.sensors import PROFILES
+
+    for model, h in (("cone", PROFILES["sick"].half_step()), ("ray", 0.0)):
+        out = tmp_path / f"{model}.h5"
+        res = cli_run("simulate", "--scenario", "lidar", "--sensor", "sick", "--steps", "5", "--beam-model", model,
+                      "-o", out)
+        assert res.exit_code == 0, res.output
+        log = read_ivslam_h5(out)
+        assert log.meta["beam_model"] == model and log.bounds["beam_angle"] == h
+    text = " ".join(cli_run("simulate", "--help").output.split())
+    for name, prof in PROFILES.items():
+        assert f"{name} {prof.half_step():.7f}" in text

@@ -6,14 +6,20 @@ import sys
 
 import click
 
-from ivslam_cli.simulate.config import DEFAULT_BOUNDS, NOISES, SCENARIOS
+from ivslam_cli.simulate.config import BEAM_MODELS, DEFAULT_BOUNDS, NOISES, SCENARIOS
 
 _BOUND_OPTIONS = sorted({k for b in DEFAULT_BOUNDS.values() for k in b})
+_BOUND_HELP = {
+    "beam_angle": "lidar bearing bound [rad], stated in the log (the pipelines read it as 'bearing'): the cone "
+                  "half-width of --beam-model cone [default: half the sensor's beam step, the smallest value "
+                  "whose adjacent cones touch: urg-04lx 0.0030680, sick 0.0087266; a smaller value is refused]; "
+                  "with ray, only stated (rays are exact) [default: 0].",
+}
 
 
 def _bound_option(key: str):
     return click.option(f"--{key.replace('_', '-')}", key, type=float, default=None, metavar="B",
-                        help=f"Noise bound '{key}' (half-width; default per scenario).")
+                        help=_BOUND_HELP.get(key, f"Noise bound '{key}' (half-width; default per scenario)."))
 
 
 def _options(f):
@@ -39,6 +45,10 @@ def _options(f):
               help="lidar world: rooms, corridor, pillars, open, or a TOML world file.")
 @click.option("--sensor", type=click.Choice(["urg-04lx", "sick"]), default="urg-04lx", show_default=True,
               help="lidar sensor profile.")
+@click.option("--beam-model", type=click.Choice(BEAM_MODELS), default="cone", show_default=True,
+              help="lidar beams: cone = the nearest wall within +-beam-angle of the nominal angle (every closer "
+                   "point of the cone is free: adjacent cones touch, so scans prove free space); ray = the first "
+                   "wall along the nominal angle (zero-width beams: gaps between them prove nothing).")
 @click.option("--min-range", type=float, default=None, help="Landmark sensor min range [m].")
 @click.option("--max-range", type=float, default=None, help="Landmark sensor max range [m].")
 @click.option("--fov", type=float, default=None, help="Landmark sensor half field of view [rad].")
@@ -54,7 +64,7 @@ def _options(f):
 @_options
 @click.option("--force", is_flag=True, help="Overwrite an existing output.")
 def command(scenario, output, fmt, seed, steps, duration, rate, landmarks, world_size, world, sensor,
-            min_range, max_range, fov, speed, noise, outlier_rate, outlier_magnitude,
+            beam_model, min_range, max_range, fov, speed, noise, outlier_rate, outlier_magnitude,
             wrong_association_rate, force, **bounds) -> None:
     """Simulate a log with ground truth (true poses, map, bounds, outliers).
 
@@ -62,6 +72,7 @@ def command(scenario, output, fmt, seed, steps, duration, rate, landmarks, world
     Examples:
       ivslam simulate --scenario pairs -o pairs.mcap --seed 1
       ivslam simulate --scenario lidar --world corridor --duration 600 -o urg.bag
+      ivslam simulate --scenario lidar --sensor sick --beam-model ray -o rays.mcap
       ivslam simulate --scenario landmarks --noise edges --outlier-rate 0.01 -o lm.h5
     """
     from pathlib import Path
@@ -75,7 +86,8 @@ def command(scenario, output, fmt, seed, steps, duration, rate, landmarks, world
     fmt = fmt or format_from_path(out)
     cfg = SimConfig(scenario=scenario, seed=seed, steps=steps, duration=duration, rate=rate,
                     landmarks=landmarks, world_size=world_size, world=world, sensor=sensor,
-                    min_range=min_range, max_range=max_range, fov=fov, speed=speed, noise=noise,
+                    beam_model=beam_model, min_range=min_range, max_range=max_range, fov=fov,
+                    speed=speed, noise=noise,
                     bounds={k: v for k, v in bounds.items() if v is not None},
                     outlier_rate=outlier_rate, outlier_magnitude=outlier_magnitude,
                     wrong_association_rate=wrong_association_rate)

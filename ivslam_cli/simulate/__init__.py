@@ -11,8 +11,8 @@ Three scenarios (:func:`simulate` dispatches on ``SimConfig.scenario``):
 - ``landmarks``: unicycle robot (v, omega) with twist odometry, landmarks seen within a
   field of view ``|bearing| <= fov`` and ``[min_range, max_range]`` (MRCLAM's camera:
   fov 0.6 rad, 0.9-8 m).
-- ``lidar``: unicycle robot in a world of wall segments (:mod:`.worlds`), ray-cast 2D
-  LiDAR (:mod:`.sensors`: ``urg-04lx``, ``sick``), twist odometry.
+- ``lidar``: unicycle robot in a world of wall segments (:mod:`.worlds`), 2D LiDAR
+  (:mod:`.sensors`: ``urg-04lx``, ``sick``) with cone or ray beams (below), twist odometry.
 
 Noise bound keys (config-style names, reused by the pipelines' config; all half-widths,
 the error ``e = z - g(truth)`` of an in-bound measurement satisfies ``|e| <= bound``):
@@ -32,8 +32,33 @@ the error ``e = z - g(truth)`` of an in-bound measurement satisfies ``|e| <= bou
 ``odom_w``      twist angular speed error, absolute part [rad/s]
 ``odom_w_rel``  ... proportional to distance travelled [rad/m]:
                 ``|z_w - w| <= odom_w + odom_w_rel * |v|``
-``beam_angle``  LiDAR beam angle error [rad] (0: beams are exactly at their nominal angle)
+``beam_angle``  LiDAR bearing bound [rad] (read as ``bearing`` by the pipelines): the
+                cone half-width ``h`` of the cone model (default: half the beam step);
+                with the ray model only stated, rays being exact (default 0)
 ==============  =====================================================================
+
+LiDAR beam models (``SimConfig.beam_model``, ``--beam-model``; recorded as
+``meta["beam_model"]``). Beam ``i`` of a scan has the nominal angle ``a_i = angle_min + i
+* angle_increment`` (float64 arithmetic on the stored float32 values) in the laser frame;
+its true distance ``d`` is, with ``e(d) = range_abs + range_rel * d``:
+
+- ``cone`` (default): the distance from the sensor to the nearest wall point within the
+  closed sector ``[a_i - h, a_i + h]`` (:mod:`.conecast`; ``inf`` if none), ``h`` the
+  stated ``beam_angle``. Guarantees, for an in-bound valid return ``z``: ``|z - d| <=
+  e(d)``, a wall point at distance ``d`` lies within ``+-h`` of ``a_i``, and every point of
+  the sector closer than ``d`` is free. ``h`` is at least half the beam step (the default is
+  the smallest double with ``2 h >= angle_increment``; a smaller ``beam_angle`` is refused),
+  so the sectors of adjacent beams touch and a scan proves free space without the
+  ``lidar.fill_gaps`` assumption (the pipeline's test ``angle_increment > 2 * bearing`` for
+  gaps is false on these logs).
+- ``ray``: the distance along the ray at exactly ``a_i`` to the first wall it meets
+  (:mod:`.raycast`). Guarantees ``|z - d| <= e(d)`` and a wall point at distance ``d`` on
+  that ray; nothing about the space between two rays, so with the default ``beam_angle``
+  = 0 a scan proves no free space unless the reader assumes ``lidar.fill_gaps``.
+
+Both models draw the same random numbers in the same order: for one seed the trajectory,
+the odometry and the noise draws are the same, only the true distances (and what follows
+from them: ranges, valid beams) differ.
 
 Bound semantics are exact in floating point: in-bound errors are drawn inside
 ``INSIDE * bound`` (``INSIDE = 0.999``), so the residual recomputed from the written

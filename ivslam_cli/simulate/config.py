@@ -9,8 +9,11 @@ from ivslam_cli.errors import ConfigError
 
 SCENARIOS = ("pairs", "landmarks", "lidar")
 NOISES = ("uniform", "triangular", "edges")
+BEAM_MODELS = ("cone", "ray")
 
-#: Default noise bounds per scenario (half-widths, see the package docstring).
+#: Default noise bounds per scenario (half-widths, see the package docstring). The lidar
+#: ``beam_angle`` is that of the ray model; the cone model's default is half the sensor's
+#: beam step (:meth:`~ivslam_cli.simulate.sensors.LidarProfile.half_step`).
 DEFAULT_BOUNDS: dict[str, dict[str, float]] = {
     "pairs": {"range_abs": 0.05, "range_rel": 0.0, "bearing": 0.02, "heading": 0.0},
     "landmarks": {
@@ -41,6 +44,7 @@ class SimConfig:
     world_size: float = 20.0  # side of the square landmark world [m]
     world: str = "rooms"  # built-in name or a file (lidar)
     sensor: str = "urg-04lx"  # lidar profile
+    beam_model: str = "cone"  # lidar: "cone" (nearest wall within +-beam_angle) or "ray"
     min_range: float | None = None
     max_range: float | None = None
     fov: float | None = None  # half field of view [rad] (landmarks)
@@ -60,6 +64,10 @@ class SimConfig:
             if key not in out:
                 raise ConfigError(f"bound '{key}' does not apply to scenario '{self.scenario}'")
             out[key] = float(value)
+        if self.scenario == "lidar" and self.beam_model == "cone" and self.bounds.get("beam_angle") is None:
+            from ivslam_cli.simulate.sensors import get_profile
+
+            out["beam_angle"] = get_profile(self.sensor).half_step()
         return out
 
     def resolved_rate(self, sensor_rate: float | None = None) -> float:
@@ -94,6 +102,8 @@ class SimConfig:
             raise ConfigError(f"unknown scenario '{self.scenario}' (choose from {', '.join(SCENARIOS)})")
         if self.noise not in NOISES:
             raise ConfigError(f"unknown noise '{self.noise}' (choose from {', '.join(NOISES)})")
+        if self.beam_model not in BEAM_MODELS:
+            raise ConfigError(f"unknown beam model '{self.beam_model}' (choose from {', '.join(BEAM_MODELS)})")
         if self.steps is not None and self.steps < 2:
             raise ConfigError(f"--steps must be >= 2, got {self.steps}")
         if self.steps is not None and self.duration is not None:
@@ -126,8 +136,15 @@ class SimConfig:
             from ivslam_cli.simulate.sensors import get_profile
             from ivslam_cli.simulate.worlds import load_world
 
-            get_profile(self.sensor)
+            prof = get_profile(self.sensor)
             load_world(self.world)
+            h = bounds["beam_angle"]
+            if self.beam_model == "cone" and not 2.0 * h >= prof.angle_increment:
+                raise ConfigError(f"--beam-angle {h:g} is below half the beam step of {prof.name} "
+                                  f"({prof.half_step():.17g} rad): cone beams that narrow leave gaps "
+                                  "between them; give at least that, or --beam-model ray")
+            if self.beam_model == "cone" and not h < 0.5:
+                raise ConfigError(f"--beam-angle must be < 0.5 rad for the cone model, got {h:g}")
         else:
             lo, hi = self.range_limits()
             if not (0 <= lo < hi and math.isfinite(hi)):

@@ -1,4 +1,9 @@
-"""Scenario ``lidar``: unicycle with twist odometry and a ray-cast 2D LiDAR in a wall world."""
+"""Scenario ``lidar``: unicycle with twist odometry and a 2D LiDAR in a wall world.
+
+The true distance of a beam is that of the nearest wall point within its cone (``cone``,
+:mod:`.conecast`, half-width the stated ``beam_angle``) or along its nominal ray (``ray``,
+:mod:`.raycast`); both draw the same random numbers in the same order.
+"""
 
 from __future__ import annotations
 
@@ -10,6 +15,7 @@ from ivslam_cli.errors import ConfigError
 from ivslam_cli.logs.model import GroundTruth, LogData, Provenance, Scans
 from ivslam_cli.simulate import noise
 from ivslam_cli.simulate.common import base_meta
+from ivslam_cli.simulate.conecast import cone_cast
 from ivslam_cli.simulate.config import SimConfig
 from ivslam_cli.simulate.motion import T0, make_stamps, step_scalar
 from ivslam_cli.simulate.odometry import measure_twist
@@ -108,7 +114,11 @@ def simulate_lidar(cfg: SimConfig, progress=None) -> LogData:
     pose, twist = wander(rngs[0], world, stamp, cfg.speed, progress)
     odo, odo_out = measure_twist(rngs[3], stamp, pose[0], twist, bounds, cfg.noise,
                                  cfg.outlier_rate, cfg.outlier_magnitude)
-    d = cast(laser_poses(pose, prof.mount), prof.beam_angles(), world.segments).ravel()
+    sensor_pose = laser_poses(pose, prof.mount)
+    if cfg.beam_model == "cone":
+        d = cone_cast(sensor_pose, prof.beam_angles(), bounds["beam_angle"], world.segments).ravel()
+    else:
+        d = cast(sensor_pose, prof.beam_angles(), world.segments).ravel()
     ranges, valid, out = scan(rngs[2], d, prof, bounds, cfg.noise, cfg.outlier_rate, cfg.outlier_magnitude)
     full = np.ones(n)
     scans = Scans(stamp=stamp.copy(), angle_min=full * prof.angle_min,
@@ -116,8 +126,8 @@ def simulate_lidar(cfg: SimConfig, progress=None) -> LogData:
                   range_max=full * prof.range_max,
                   offsets=np.arange(n + 1, dtype=np.int64) * prof.beams, ranges=ranges, valid=valid,
                   mount=prof.mount, frame_id="laser")
-    meta = base_meta(cfg, rate, n) | {"sensor": prof.as_dict(), "world": world.name,
-                                      "clearance": CLEARANCE}
+    meta = base_meta(cfg, rate, n) | {"sensor": prof.as_dict(), "beam_model": cfg.beam_model,
+                                      "world": world.name, "clearance": CLEARANCE}
     truth = GroundTruth(pose_stamp=stamp.copy(), pose=pose, world=world.segments.copy(),
                         outliers={"scans": out, "odometry": odo_out})
     if progress:

@@ -46,6 +46,19 @@ class LidarProfile:
         """Nominal beam angles in the laser frame, float64: ``angle_min + i * increment``."""
         return self.angle_min + np.arange(self.beams) * self.angle_increment
 
+    def half_step(self) -> float:
+        """The smallest double ``h`` with ``2 h >= angle_increment`` (the float64 image of the
+        float32 a LaserScan stores): cones of that half-width touch their neighbours'."""
+        inc = float(np.float32(self.angle_increment))
+        if inc != self.angle_increment:  # pragma: no cover - _profile stores float32 images
+            raise ValueError(f"profile '{self.name}': angle_increment is not a float32 value")
+        h = 0.5 * inc
+        while 2.0 * h < inc:
+            h = float(np.nextafter(h, np.inf))
+        while 2.0 * float(np.nextafter(h, -np.inf)) >= inc:
+            h = float(np.nextafter(h, -np.inf))
+        return h
+
     def as_dict(self) -> dict:
         return {k: getattr(self, k) for k in self.__dataclass_fields__} | {"mount": list(self.mount)}
 
