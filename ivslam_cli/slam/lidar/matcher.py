@@ -346,7 +346,7 @@ class Matcher:
             return roots, True, 0
         z = r[v].astype(np.float64)
         reach = float(np.max(z)) + self.r_abs + self.r_rel * float(np.max(z)) + 1e-6
-        cones = self.fill or 2.0 * self.r_alpha >= inc * (1.0 + 1e-9)
+        cones = self.fill or self.r_alpha >= 0.5 * inc  # as the map kernels decide (their _cos_gap)
         n_w = self.witnesses(refs) if cones else 0
         m, wx0, wy0, nx, ny, use_grid = self.window(tmap, roots, reach)
         if not (use_grid or n_w):

@@ -266,7 +266,7 @@ def match_scan(scans, j: int, k: int, rel_box, bounds, *, q: int = 0, stride: in
         b0, b1 = int(scans.offsets[s]), int(scans.offsets[s + 1])
         jk += [scans.ranges[b0:b1], scans.valid[b0:b1], float(scans.angle_min[s]), float(scans.angle_increment[s])]
     inc = max(float(scans.angle_increment[j]), float(scans.angle_increment[k]))
-    cones = bool(bounds.fill_gaps) or 2.0 * float(bounds.bearing) >= inc * (1.0 + 1e-9)
+    cones = bool(bounds.fill_gaps) or float(bounds.bearing) >= 0.5 * inc  # as the map kernels decide
     mx, my, myaw = (float(v) for v in scans.mount)
     kept, tested = match_kernel(*jk, box, mx, my, myaw, float(bounds.range_abs), float(bounds.range_rel),
                                 float(bounds.bearing), cones, int(q), int(stride), float(min_xy), float(min_th),
