@@ -41,22 +41,23 @@ from numba import njit
 
 from ivslam_cli.paving.tiles import EMPTY, TILE
 from ivslam_cli.slam.lidar.geometry import (
-    beam_offset,
-    box_bearings,
-    box_ranges_fin,
+    ATAN_ERR,
+    atan2_fast,
     dn,
     range_bounds,
     sensor_box,
     sensor_offset,
     upf,
 )
-from ivslam_cli.slam.lidar.scanmatch import covered_free
+from ivslam_cli.slam.lidar.scanmatch import covered_free, free_ranges
 
 #: absolute and relative (to the beam's range) error bound of a rotated endpoint region
 MARGIN_ABS = 1e-9
 MARGIN_REL = 1e-12
 #: windows of the summed-area table are at most this many cells (beyond: rule A is not used)
 MAX_WINDOW_CELLS = 1 << 24
+#: bearings from :func:`box_bearings_fast` are within ATAN_ERR (+ an ulp) of the true ones
+_BEAR_MARGIN = ATAN_ERR + 1e-12
 
 
 @njit(cache=True)
@@ -100,75 +101,117 @@ def _clear(S, m, wx0, wy0, nx, ny, eps, xl, xh, yl, yh):
     return S[ix1 * m + iy1] - S[ix0 * m + iy1] - S[ix1 * m + iy0] + S[ix0 * m + iy0] == 0
 
 
+@njit(cache=True, inline="always")
+def _rotated_region(ccx, ccy, cc, sc, ca, sa, rl, rh, d):
+    """A beam at angle ``α`` (``ca``, ``sa``: its cosine and sine) with true distance in
+    ``[rl, rh]``, from a sensor at ``(ccx, ccy)`` whose heading is within ``d`` (the bearing
+    error included) of ``c`` (``cc``, ``sc``): its end point lies in the rectangle of centre
+    ``(cx, cy)``, axis ``u`` (the beam's mid direction), half-length ``ah`` along ``u`` and
+    half-width ``ac`` across; ``hx``, ``hy``: the rectangle's half extents in x, y. Floating
+    point, widened by the error bound (:data:`MARGIN_ABS`, :data:`MARGIN_REL`)."""
+    ux = cc * ca - sc * sa
+    uy = sc * ca + cc * sa
+    al = rl * (1.0 - upf(0.5 * upf(d * d)))  # r cos t >= r (1 - t²/2)
+    am = 0.5 * (al + rh)
+    marg = MARGIN_ABS + MARGIN_REL * rh
+    ah = 0.5 * (rh - al) + marg
+    ac = rh * d + marg  # |r sin t| <= r |t|
+    hx = ah * abs(ux) + ac * abs(uy)
+    hy = ah * abs(uy) + ac * abs(ux)
+    return ccx + am * ux, ccy + am * uy, ux, uy, ah, ac, hx, hy
+
+
 @njit(cache=True)
-def witness_regions(ranges, valid, a0, inc, box, mx, my, myaw, r_abs, r_rel, r_alpha, stride, out):
-    """Endpoint regions ``out`` (k, 4) of the valid beams (every ``stride``-th) of a scan taken
-    from robot box ``box`` (6,) in the frame: each holds a surface point (rounded outward).
-    Returns k."""
+def witness_segments(ranges, valid, a0, inc, box, mx, my, myaw, r_abs, r_rel, r_alpha, stride, out):
+    """Rectangles ``out`` (k, 6: centre x, y, axis x, y, half-length, half-width) holding the end
+    points of the valid beams (every ``stride``-th) of a scan taken from robot box ``box`` (6,)
+    in the frame: each holds a surface point. Returns k."""
     sxl, sxh, syl, syh, stl, sth = sensor_box(box[0], box[1], box[2], box[3], box[4], box[5], mx, my, myaw)
+    c = 0.5 * (stl + sth)
+    d = upf(upf(upf(0.5 * (sth - stl)) + 1e-15 * abs(c) + 1e-300) + r_alpha)
+    if not d < 1.0:
+        return 0
+    cc, sc = math.cos(c), math.sin(c)
+    ccx, ccy = 0.5 * (sxl + sxh), 0.5 * (syl + syh)
+    rs = upf(0.5 * upf(math.hypot(sxh - sxl, syh - syl))) + MARGIN_ABS
     k = 0
     for i in range(0, ranges.shape[0], stride):
         if not valid[i]:
             continue
         rl, rh = range_bounds(float(ranges[i]), r_abs, r_rel)
-        dxl, dxh, dyl, dyh = beam_offset(stl, sth, rl, rh, a0 + i * inc, r_alpha)
-        out[k, 0] = dn(sxl + dxl)
-        out[k, 1] = upf(sxh + dxh)
-        out[k, 2] = dn(syl + dyl)
-        out[k, 3] = upf(syh + dyh)
+        ang = a0 + i * inc
+        cx, cy, ux, uy, ah, ac, _, _ = _rotated_region(ccx, ccy, cc, sc, math.cos(ang), math.sin(ang), rl, rh, d)
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = cx, cy, ux, uy
+        out[k, 4], out[k, 5] = upf(ah + rs), upf(ac + rs)
         k += 1
     return k
 
 
+@njit(cache=True, inline="always")
+def _seg_free(vx, vy, ux, uy, ah, ac, stl, sth, f, a0, inc):
+    """True if every point ``v + s u + t u⊥`` (``|s| <= ah``, ``|t| <= ac``; ``v`` relative to a
+    sensor whose heading is in ``[stl, sth]``) lies in the certain free space of that sensor's
+    scan (free ranges ``f``, beams at ``a0 + i·inc``)."""
+    dist = math.hypot(vx, vy)
+    if not dist > 0.0:
+        return False
+    ex, ey = vx / dist, vy / dist
+    cb = abs(ux * ex + uy * ey)
+    sb = abs(ux * ey - uy * ex)
+    along = upf(upf(ah * cb + ac * sb) * (1.0 + 1e-12)) + 1e-12  # extents along and across v
+    lat = upf(upf(ah * sb + ac * cb) * (1.0 + 1e-12)) + 1e-12
+    near = dn(dist * (1.0 - 1e-12)) - along
+    if not near > 2.0 * lat:
+        return False
+    half = upf(upf(lat / near) * (1.0 + 1e-12)) + 1e-12  # >= atan(lat / near)
+    bc = atan2_fast(vy, vx)
+    far = upf(dist * (1.0 + 1e-12)) + along
+    rho_h = upf(upf(math.hypot(far, lat)) * (1.0 + 1e-12))
+    return covered_free(f, a0, inc, bc - half - _BEAR_MARGIN - sth, bc + half + _BEAR_MARGIN - stl, rho_h)
+
+
 @njit(cache=True)
 def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw, r_alpha,
-               cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid):
-    """True if the sub-box ``b`` (6,) is excluded (more than ``q`` beams break rule A, or more
-    than ``q`` witnesses rule B, for all its poses)."""
+               cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref):
+    """True if the sub-box ``b`` (6,) is excluded: more than ``q`` beams break rule A (their end
+    points in the submap's proven-free cells, or in the free space of a reference scan: row
+    ``r`` of ``ref_*``, its sensor within ``ref_c[r, 2]`` of ``ref_c[r, :2]``, its heading in
+    ``ref_th[r]``), or more than ``q`` witnesses break rule B, for every pose of ``b``."""
     ox, oxh, oy, oyh, stl, sth = sensor_offset(b[4], b[5], mx, my, myaw)
     sxl = dn(b[0] + ox)
     sxh = upf(b[1] + oxh)
     syl = dn(b[2] + oy)
     syh = upf(b[3] + oyh)
-    if use_grid:
-        c = 0.5 * (stl + sth)
-        h = upf(upf(0.5 * (sth - stl)) + 1e-15 * abs(c) + 1e-300)
-        d = upf(h + r_alpha)
-        if d < 1.0:
-            cc = math.cos(c)
-            sc = math.sin(c)
-            shrink = 1.0 - upf(0.5 * upf(d * d))
-            na = 0
-            for i in range(n_beams):
-                u0x = cc * beam_ca[i] - sc * beam_sa[i]
-                u0y = sc * beam_ca[i] + cc * beam_sa[i]
-                rh = beam_rh[i]
-                al = beam_rl[i] * shrink
-                am = 0.5 * (al + rh)
-                ah = 0.5 * (rh - al)
-                ac = rh * d
-                marg = MARGIN_ABS + MARGIN_REL * rh
-                hx = ah * abs(u0x) + ac * abs(u0y) + marg
-                hy = ah * abs(u0y) + ac * abs(u0x) + marg
-                cx = am * u0x
-                cy = am * u0y
-                if _clear(S, m, wx0, wy0, nx, ny, eps, dn(sxl + (cx - hx)), upf(sxh + (cx + hx)),
-                          dn(syl + (cy - hy)), upf(syh + (cy + hy))):
-                    na += 1
-                    if na > q:
-                        return True
+    ccx, ccy = 0.5 * (sxl + sxh), 0.5 * (syl + syh)
+    hsx = upf(upf(0.5 * (sxh - sxl)) + 1e-15 * abs(ccx))
+    hsy = upf(upf(0.5 * (syh - syl)) + 1e-15 * abs(ccy))
+    rs = upf(math.hypot(hsx, hsy)) + MARGIN_ABS
+    c = 0.5 * (stl + sth)
+    d = upf(upf(upf(0.5 * (sth - stl)) + 1e-15 * abs(c) + 1e-300) + r_alpha)
+    if (use_grid or n_ref) and d < 1.0:
+        cc = math.cos(c)
+        sc = math.sin(c)
+        na = 0
+        for i in range(n_beams):
+            cx, cy, ux, uy, ah, ac, hx, hy = _rotated_region(ccx, ccy, cc, sc, beam_ca[i], beam_sa[i], beam_rl[i],
+                                                             beam_rh[i], d)
+            hit = use_grid and _clear(S, m, wx0, wy0, nx, ny, eps, dn(cx - hx - hsx), upf(cx + hx + hsx),
+                                      dn(cy - hy - hsy), upf(cy + hy + hsy))
+            r = 0
+            while not hit and r < n_ref:
+                extra = rs + ref_c[r, 2]
+                hit = _seg_free(cx - ref_c[r, 0], cy - ref_c[r, 1], ux, uy, ah + extra, ac + extra, ref_th[r, 0],
+                                ref_th[r, 1], ref_f[r], ref_a0[r], ref_inc[r])
+                r += 1
+            if hit:
+                na += 1
+                if na > q:
+                    return True
     if cones:
         nb = 0
         for j in range(n_w):
-            dxl = dn(W[j, 0] - sxh)
-            dxh = upf(W[j, 1] - sxl)
-            dyl = dn(W[j, 2] - syh)
-            dyh = upf(W[j, 3] - syl)
-            bl, bh, full = box_bearings(dxl, dxh, dyl, dyh)
-            if full:
-                continue
-            rho_h = box_ranges_fin(dxl, dxh, dyl, dyh)[1]
-            if covered_free(free, a0, inc, dn(bl - sth), upf(bh - stl), rho_h):
+            if _seg_free(W[j, 0] - ccx, W[j, 1] - ccy, W[j, 2], W[j, 3], W[j, 4] + rs, W[j, 5] + rs, stl, sth, free, a0,
+                         inc):
                 nb += 1
                 if nb > q:
                     return True
@@ -177,10 +220,13 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
 
 @njit(cache=True)
 def match_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_rel, r_alpha, cones, q, stride,
-                 W, n_w, S, m, wx0, wy0, nx, ny, eps, use_grid, leaf, reach, max_nodes, kept):
-    """Branch and bound from the prior ``roots[:n_roots]`` (6 each): the sub-boxes not excluded
-    are written to ``kept`` (rows, 6); returns ``(n_kept, tested)``. ``kept`` must hold
-    ``max_nodes + n_roots`` rows."""
+                 W, n_w, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref, coarse,
+                 fine, reach, max_nodes, kept):
+    """Branch and bound from the prior ``roots[:n_roots]`` (6 each) down to sub-boxes of
+    ``coarse`` metres in x, y (and ``fine`` in reach·θ: rotation is sliced finely), then each
+    kept sub-box's four sides shaved to ``fine`` metres (a slab at a side is cut off when it is
+    excluded). The sub-boxes not excluded are written to ``kept`` (rows, 6); returns
+    ``(n_kept, tested)``. ``kept`` must hold ``max_nodes + n_roots`` rows."""
     nb_all = ranges.shape[0]
     beam_rl = np.empty(nb_all)
     beam_rh = np.empty(nb_all)
@@ -219,23 +265,72 @@ def match_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_
             continue
         tested += 1
         if _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw, r_alpha,
-                      cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid):
+                      cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref):
             continue
         wx = b[1] - b[0]
         wy = b[3] - b[2]
         wt = (b[5] - b[4]) * reach
-        if wx <= leaf and wy <= leaf and wt <= leaf:
+        if wx <= coarse and wy <= coarse and wt <= fine:
             kept[n_kept] = b
             n_kept += 1
             continue
-        s = 0 if (wx >= wy and wx >= wt) else (1 if wy >= wt else 2)
+        # rotation first while it moves the beam ends more than the translation does
+        s = 2 if wt > fine and wt >= min(max(wx, wy), coarse) else (0 if wx >= wy else 1)
         mid = 0.5 * (b[2 * s] + b[2 * s + 1])
         queue[tail] = b
         queue[tail, 2 * s + 1] = mid
         queue[tail + 1] = b
         queue[tail + 1, 2 * s] = mid
         tail += 2
-    return n_kept, tested
+    # one box per heading slice: the hull in x, y of the kept sub-boxes of the same slice
+    if n_kept == 0:
+        return 0, tested
+    o1 = np.argsort(kept[:n_kept, 5], kind="mergesort")
+    order = o1[np.argsort(kept[o1, 4], kind="mergesort")]
+    out = 0
+    t = 0
+    while t < n_kept:
+        i = order[t]
+        tl, th = kept[i, 4], kept[i, 5]
+        h0, h1, h2, h3 = kept[i, 0], kept[i, 1], kept[i, 2], kept[i, 3]
+        t += 1
+        while t < n_kept and kept[order[t], 4] == tl and kept[order[t], 5] == th:
+            j = order[t]
+            h0, h1 = min(h0, kept[j, 0]), max(h1, kept[j, 1])
+            h2, h3 = min(h2, kept[j, 2]), max(h3, kept[j, 3])
+            t += 1
+        queue[out, 0], queue[out, 1], queue[out, 2], queue[out, 3], queue[out, 4], queue[out, 5] = h0, h1, h2, h3, tl, th
+        out += 1
+    # shaving: cut excluded slabs off the four sides of every slice's box
+    slab = np.empty(6)
+    n_out = 0
+    for t in range(out):
+        b = queue[t]
+        for side in range(4):
+            d = side // 2
+            lo_side = side % 2 == 0
+            w = 0.5 * (b[2 * d + 1] - b[2 * d])
+            while w >= fine and tested < 2 * max_nodes:
+                for e in range(6):
+                    slab[e] = b[e]
+                if lo_side:
+                    slab[2 * d + 1] = b[2 * d] + w
+                else:
+                    slab[2 * d] = b[2 * d + 1] - w
+                tested += 1
+                if _node_test(slab, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw,
+                              r_alpha, cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c,
+                              ref_th, n_ref):
+                    if lo_side:
+                        b[2 * d] = slab[2 * d + 1]
+                    else:
+                        b[2 * d + 1] = slab[2 * d]
+                    w = min(w, 0.5 * (b[2 * d + 1] - b[2 * d]))
+                else:
+                    w *= 0.5
+        kept[n_out] = b
+        n_out += 1
+    return n_out, tested
 
 
 def slices(kept: np.ndarray, max_boxes: int) -> np.ndarray:
@@ -294,7 +389,7 @@ class Matcher:
         self.fill = bool(b.fill_gaps)
         self.mount = tuple(float(v) for v in scans.mount)
         nb = int(np.max(np.diff(scans.offsets))) if len(scans) else 1
-        self.W = np.empty((2 * nb + 4, 4))
+        self.W = np.empty((2 * nb + 4, 6))
         self.kept = np.empty((params.match_boxes + 64, 6))
         self.S = np.zeros(1, np.int32)
 
@@ -303,17 +398,32 @@ class Matcher:
         b0, b1 = int(sc.offsets[k]), int(sc.offsets[k + 1])
         return sc.ranges[b0:b1], sc.valid[b0:b1], float(sc.angle_min[k]), float(sc.angle_increment[k])
 
-    def witnesses(self, refs) -> int:
-        """Fill the witness regions from ``refs``: (scan index, robot box (6,)) pairs."""
+    def references(self, refs):
+        """Witness disks (rule B) and the reference scans' free spaces (rule A) of ``refs``:
+        (scan index, robot box (6,)) pairs."""
         n = 0
         mx, my, myaw = self.mount
-        for k, box in refs:
+        nb = max(int(self.scans.offsets[k + 1] - self.scans.offsets[k]) for k, _ in refs) if refs else 1
+        R = len(refs)
+        ref_f = np.full((max(R, 1), nb), -1.0)
+        ref_a0 = np.zeros(max(R, 1))
+        ref_inc = np.ones(max(R, 1))
+        ref_c = np.zeros((max(R, 1), 3))
+        ref_th = np.zeros((max(R, 1), 2))
+        for t, (k, box) in enumerate(refs):
             r, v, a0, inc = self._scan(k)
             if r.shape[0] + n > self.W.shape[0]:
-                self.W = np.concatenate([self.W, np.empty((r.shape[0] + n, 4))])
-            n += witness_regions(r, v, a0, inc, np.ascontiguousarray(box, float), mx, my, myaw, self.r_abs,
-                                 self.r_rel, self.r_alpha, int(self.p.match_stride), self.W[n:])
-        return n
+                self.W = np.concatenate([self.W, np.empty((r.shape[0] + n, 6))])
+            box = np.ascontiguousarray(box, float)
+            n += witness_segments(r, v, a0, inc, box, mx, my, myaw, self.r_abs, self.r_rel, self.r_alpha,
+                               int(self.p.match_stride), self.W[n:])
+            ref_f[t, : r.shape[0]] = free_of(r, v, self.r_abs, self.r_rel)
+            ref_a0[t], ref_inc[t] = a0, inc
+            sb = sensor_box(*(float(x) for x in box), mx, my, myaw)
+            ref_c[t] = (0.5 * (sb[0] + sb[1]), 0.5 * (sb[2] + sb[3]),
+                        np.nextafter(0.5 * math.hypot(sb[1] - sb[0], sb[3] - sb[2]), np.inf) + 1e-12)
+            ref_th[t] = sb[4], sb[5]
+        return n, ref_f, ref_a0, ref_inc, ref_c, ref_th, R
 
     def window(self, tmap, roots: np.ndarray, reach: float):
         """The summed-area table over the cells the scan's endpoints can reach from ``roots``
@@ -339,6 +449,9 @@ class Matcher:
         return ny + 1, x0, y0, nx, ny, True
 
     def match(self, k: int, roots: np.ndarray, tmap, refs) -> tuple[np.ndarray, bool, int]:
+        """Match scan ``k`` from the prior ``roots`` against the submap ``tmap``'s proven-free
+        cells and the ``refs`` scans ((scan, robot box) pairs: their free space for rule A, their
+        beam ends for rule B)."""
         p = self.p
         r, v, a0, inc = self._scan(k)
         roots = np.ascontiguousarray(roots, float).reshape(-1, 6)
@@ -347,9 +460,10 @@ class Matcher:
         z = r[v].astype(np.float64)
         reach = float(np.max(z)) + self.r_abs + self.r_rel * float(np.max(z)) + 1e-6
         cones = self.fill or self.r_alpha >= 0.5 * inc  # as the map kernels decide (their _cos_gap)
-        n_w = self.witnesses(refs) if cones else 0
+        refs = refs if cones else []
+        n_w, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref = self.references(refs)
         m, wx0, wy0, nx, ny, use_grid = self.window(tmap, roots, reach)
-        if not (use_grid or n_w):
+        if not (use_grid or n_w or n_ref):
             return roots, True, 0
         need = p.match_boxes + roots.shape[0] + 2
         if self.kept.shape[0] < need:
@@ -358,8 +472,17 @@ class Matcher:
         split_reach = float(np.median(z)) if z.size else 1.0
         n_kept, tested = match_kernel(roots, roots.shape[0], r, v, a0, inc, mx, my, myaw, self.r_abs, self.r_rel,
                                       self.r_alpha, cones, int(p.q_beams), int(p.match_stride), self.W, n_w, self.S,
-                                      m, wx0, wy0, nx, ny, float(tmap.eps), use_grid, float(p.match_leaf),
-                                      split_reach, int(p.match_boxes), self.kept)
+                                      m, wx0, wy0, nx, ny, float(tmap.eps), use_grid, ref_f, ref_a0, ref_inc, ref_c,
+                                      ref_th, n_ref, float(p.match_leaf), float(p.match_resolution), split_reach,
+                                      int(p.match_boxes), self.kept)
         if n_kept == 0:
             return roots, False, int(tested)
         return slices(self.kept[:n_kept].copy(), int(p.match_slices)), True, int(tested)
+
+
+def free_of(ranges, valid, r_abs: float, r_rel: float) -> np.ndarray:
+    """Free ranges of a scan's beams (every point of a beam's cone nearer than this is free;
+    −1 for an invalid beam)."""
+    f = np.full(ranges.shape[0], -1.0)
+    free_ranges(ranges, valid, r_abs, r_rel, f)
+    return f

@@ -60,6 +60,7 @@ class Params:
     match_boxes: int
     match_stride: int
     match_leaf: float
+    match_resolution: float
     match_slices: int
     poses_known: bool
     known_poses: str
@@ -90,7 +91,8 @@ class Params:
             submap_distance=float(cfg["lidar.submap_distance"]), submap_turn=float(cfg["lidar.submap_turn"]),
             submap_width=float(cfg["lidar.submap_width"]), submap_overlap=float(cfg["lidar.submap_overlap"]),
             match_boxes=int(cfg["lidar.match_boxes"]), match_stride=int(cfg["lidar.match_stride"]),
-            match_leaf=float(cfg["lidar.match_leaf"]), match_slices=int(cfg["lidar.match_slices"]),
+            match_leaf=float(cfg["lidar.match_leaf"]), match_resolution=float(cfg["lidar.match_resolution"]),
+            match_slices=int(cfg["lidar.match_slices"]),
             poses_known=bool(cfg["lidar.poses_known"]), known_poses=known,
             pose_margin=tuple(float(v) for v in cfg["lidar.pose_margin"]),
         )
