@@ -1,4 +1,4 @@
-"""Shared fixtures: where the real datasets live, and a CLI runner."""
+"""Shared fixtures: where the real datasets live, and a CLI runner; the Hypothesis profile."""
 
 from __future__ import annotations
 
@@ -7,9 +7,25 @@ from pathlib import Path
 
 import pytest
 
+from tests.helpers.hyp import load_profile
+
 REPO = Path(__file__).resolve().parents[1]
 DATASETS = Path(os.environ.get("IVSLAM_DATASETS", REPO.parent / "shared" / "datasets")).resolve()
 SAMPLE_LOGS = REPO / "sample_logs"
+
+
+def pytest_configure(config):
+    """Load the Hypothesis profile named by ``$IVSLAM_HYPOTHESIS`` (default ``ci``) unless
+    ``--hypothesis-profile`` was given. Runs before any test module is imported, so counts
+    computed at import (``examples``, ``seeds``) see the loaded profile."""
+    if config.getoption("hypothesis_profile", None) is None:
+        load_profile()
+
+
+def pytest_report_header(config):
+    from hypothesis import settings
+
+    return f"hypothesis profile: {settings.get_current_profile_name()} (max_examples {settings.default.max_examples})"
 
 
 @pytest.fixture(scope="session")

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli.config import resolve_config
@@ -18,6 +18,7 @@ from ivslam_cli.report.core import landmark_containment, pose_containment
 from ivslam_cli.simulate import SimConfig, simulate
 from ivslam_cli.slam import landmarks_kernel as K
 from ivslam_cli.slam.landmarks import chord_steps, node_lags, run_landmarks, speed_interval, subdivide
+from tests.helpers.hyp import examples
 
 
 def _sim(seed: int, steps: int = 120, **kw):
@@ -40,7 +41,7 @@ def _check_sound(log, out):
     return pc, lc
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(ci=12))
 @given(seed=st.integers(0, 10_000), noise=st.sampled_from(["uniform", "edges", "triangular"]))
 def test_simulated_logs_keep_the_truth(seed, noise):
     log = _sim(seed, noise=noise)
@@ -202,7 +203,7 @@ def _in_angle(lo: float, hi: float, a: float) -> bool:
     return lo <= a - 2 * np.pi * k <= hi
 
 
-@settings(max_examples=1500, deadline=None)
+@settings(max_examples=examples(ci=1500))
 @given(v0=st.floats(-0.3, 1.0), vw=st.floats(0.0, 0.5), w0=st.floats(-1.5, 1.5), ww=st.floats(0.0, 0.6),
        dt=st.floats(1e-3, 2.0), pieces=st.integers(1, 12), seed=st.integers(0, 2**32 - 1))
 def test_chord_steps_enclose_every_path_within_the_twist_bounds(v0, vw, w0, ww, dt, pieces, seed):

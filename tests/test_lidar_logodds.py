@@ -13,7 +13,7 @@ import h5py
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli.cli import cli as main
@@ -39,6 +39,7 @@ from ivslam_cli.slam.lidar_logodds import (
     compare,
     laser_centres,
 )
+from tests.helpers.hyp import examples
 from test_results_hdf5 import assert_same
 
 REPO = Path(__file__).resolve().parents[1]
@@ -131,7 +132,7 @@ coord = st.floats(-3.0, 13.0, allow_nan=False)
 
 
 @given(coord, st.floats(-3.0, 9.0), coord, st.floats(-3.0, 9.0))
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(ci=300))
 def test_ray_traversal_is_the_cells_the_segment_meets(x0, y0, x1, y1):
     """One beam from (x0, y0) to (x1, y1) on a 12 × 6 grid at the origin (either end may be
     outside): every updated cell meets the segment, every cell a fine sampling of the segment

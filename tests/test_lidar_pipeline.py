@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli.cli import cli as main
@@ -31,6 +31,7 @@ from ivslam_cli.simulate import SimConfig, simulate
 from ivslam_cli.simulate.lidar import laser_poses
 from ivslam_cli.simulate.raycast import cast
 from ivslam_cli.slam.lidar import lidar_bounds, run_lidar
+from tests.helpers.hyp import examples
 from test_lidar_map import segments_meet_cells
 
 REPO = Path(__file__).resolve().parents[1]
@@ -103,7 +104,7 @@ def assert_truth_kept(log, out):
 
 # ---------------------------------------------------------------- simulated logs
 @given(st.integers(0, 2**31 - 1), st.sampled_from(WORLDS), st.sampled_from(["uniform", "edges"]))
-@settings(max_examples=50, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(ci=50))
 def test_simulated_urg_runs_keep_the_truth(seed, world, noise):
     """The seed's sensor (URG-04LX profile, 682 beams 0.35° apart) in every built-in world."""
     log, out = run_sim(seed, world, noise=noise)
@@ -113,7 +114,7 @@ def test_simulated_urg_runs_keep_the_truth(seed, world, noise):
 
 
 @given(st.integers(0, 2**31 - 1), st.sampled_from(WORLDS))
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(ci=12))
 def test_keyframe_scan_matching_keeps_the_truth(seed, world):
     """lidar.keyframes: scans matched to keyframes every 0.3 m / 0.2 rad (several per log)."""
     log, out = run_sim(seed, world, overrides={"lidar.keyframes": True, "lidar.keyframe_distance": 0.3,

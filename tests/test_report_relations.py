@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli.errors import IvslamError
@@ -28,6 +28,7 @@ from ivslam_cli.report.relations import (
 from ivslam_cli.results.example import example_result
 from ivslam_cli.results.hdf5 import write_result
 from ivslam_cli.results.model import Poses
+from tests.helpers.hyp import examples
 
 LD = np.longdouble
 
@@ -66,7 +67,7 @@ def box_around(draw):
     return p, box
 
 
-@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(ci=400))
 @given(box_around(), box_around(), st.sampled_from([1, 2, 16, 64]))
 def test_relative_enclosure_holds_the_true_relative_pose(a, b, slices):
     (p1, b1), (p2, b2) = a, b
@@ -75,7 +76,6 @@ def test_relative_enclosure_holds_the_true_relative_pose(a, b, slices):
     assert _inside(enc, p1, p2), (p1, b1, p2, b2, enc)
 
 
-@settings(max_examples=100, deadline=None)
 @given(box_around(), box_around(), st.integers(2, 40))
 def test_relative_enclosure_every_pose_of_the_boxes(a, b, seed):
     """Poses drawn all over the two boxes (corners included) stay inside the enclosure."""

@@ -26,6 +26,7 @@ from ivslam_cli.results.model import (
     ResultProvenance,
     box_is_empty,
 )
+from tests.helpers.hyp import examples
 
 
 def assert_same(a, b, where="result"):
@@ -83,7 +84,7 @@ def test_round_trip_minimal_result(tmp_path):
     assert back.poses is None and back.truth is None and back.grid is None
 
 
-@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=examples(ci=25), suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(
     counts=st.lists(st.integers(0, 40), min_size=0, max_size=6),
     seed=st.integers(0, 2**32 - 1),
