@@ -1,17 +1,16 @@
-"""Shared fixtures: where the real datasets live, and a CLI runner; the Hypothesis profile."""
+"""Shared fixtures (the real datasets, a CLI runner) and the Hypothesis profile.
+
+Shared code lives in ``tests/helpers`` (tests never import each other or this file).
+"""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import pytest
 
 from tests.helpers.hyp import load_profile
-
-REPO = Path(__file__).resolve().parents[1]
-DATASETS = Path(os.environ.get("IVSLAM_DATASETS", REPO.parent / "shared" / "datasets")).resolve()
-SAMPLE_LOGS = REPO / "sample_logs"
+from tests.helpers.paths import DATASETS
 
 
 def pytest_configure(config):

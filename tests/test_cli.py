@@ -7,6 +7,7 @@ import sys
 import time
 
 from ivslam_cli import __version__
+from tests.helpers.paths import REPO
 
 
 def test_version(cli_run):
@@ -51,9 +52,6 @@ def test_unknown_command_fails_cleanly(cli_run):
 
 def test_readme_generated_sections_are_current():
     """The README's config table and HDF5 schema are generated from the code: never stale."""
-    from pathlib import Path
-
-    repo = Path(__file__).resolve().parents[1]
-    out = subprocess.run([sys.executable, str(repo / "scripts" / "sync_readme.py"), "--check"],
+    out = subprocess.run([sys.executable, str(REPO / "scripts" / "sync_readme.py"), "--check"],
                          capture_output=True, text=True)
     assert out.returncode == 0, out.stdout + out.stderr

@@ -28,8 +28,8 @@ from bench.gtsam_baseline import (  # noqa: E402
 )
 from ivslam_cli.simulate import SimConfig, simulate  # noqa: E402
 
-from tests.conftest import REPO  # noqa: E402
 from tests.helpers.hyp import examples  # noqa: E402
+from tests.helpers.paths import REPO  # noqa: E402
 
 
 @pytest.fixture(scope="module")

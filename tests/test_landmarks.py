@@ -19,6 +19,7 @@ from ivslam_cli.simulate import SimConfig, simulate
 from ivslam_cli.slam import landmarks_kernel as K
 from ivslam_cli.slam.landmarks import chord_steps, node_lags, run_landmarks, speed_interval, subdivide
 from tests.helpers.hyp import examples
+from tests.helpers.paths import SAMPLE_LOGS
 
 
 def _sim(seed: int, steps: int = 120, **kw):
@@ -307,7 +308,7 @@ def test_headings_beyond_the_circle_are_replaced_by_dead_reckoning():
 
 def test_cli_run_report_and_tum(tmp_path: Path, cli_run):
     cli = cli_run
-    log = Path(__file__).resolve().parents[1] / "sample_logs" / "landmarks.bag"
+    log = SAMPLE_LOGS / "landmarks.bag"
     out = tmp_path / "lm.h5"
     tum = tmp_path / "lm.tum"
     # the sample has 1 % outliers and wrong associations: q-relaxed per landmark and per pose

@@ -1,7 +1,7 @@
 """Pose contraction against the map (second seed): soundness, how much it contracts, and the
 fast path equal to the reference.
 
-Worlds, the cone LiDAR and pose boxes come from ``test_lidar_map``: a map is built from scans
+Worlds, the cone LiDAR and pose boxes come from ``tests/helpers/lidar_world.py``: a map is built from scans
 at known poses (tight boxes), then a new scan from a true pose inside a wide box is
 contracted against it. The fast path (``contract_kernel``) must give the reference's
 (``contract_kernel_reference``) kept count, hull and tested count exactly, on those worlds and
@@ -13,13 +13,13 @@ from __future__ import annotations
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_lidar_map import make_scans, random_box, random_pose, random_world
 
 from ivslam_cli.logs.model import Scans
 from ivslam_cli.paving.tiles import EMPTY, OBST_NEW, OBST_OLD, TILE, TileMap
 from ivslam_cli.slam.lidar_contract import contract_pose
 from ivslam_cli.slam.lidar_map import LidarBounds, update_map
 from tests.helpers.hyp import examples
+from tests.helpers.lidar_world import make_scans, random_box, random_pose, random_world
 
 EPS = 0.05
 R_ABS, R_REL, HALF = 0.03, 0.01, 0.004

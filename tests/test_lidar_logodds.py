@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import h5py
 import numpy as np
@@ -40,11 +39,8 @@ from ivslam_cli.slam.lidar_logodds import (
     laser_centres,
 )
 from tests.helpers.hyp import examples
-from test_results_hdf5 import assert_same
-
-REPO = Path(__file__).resolve().parents[1]
-SAMPLES = REPO / "sample_logs"
-DATASETS = REPO.parent / "shared" / "datasets"
+from tests.helpers.paths import CONFIGS, DATASETS, SAMPLE_LOGS as SAMPLES
+from tests.helpers.results import assert_same
 
 
 def make_scans(ranges, valid=None, angle_min=0.0, inc=math.pi / 2, mount=(0.0, 0.0, 0.0), repeat=1) -> Scans:
@@ -309,7 +305,7 @@ def test_real_log_aces_with_known_poses(tmp_path):
         pytest.skip(f"dataset not present: {path}")
     out = tmp_path / "r.h5"
     r = CliRunner().invoke(main, ["run", str(path), "--mode", "lidar", "--poses-known", "--config",
-                                  str(REPO / "configs" / "carmen_corrected.toml"), "-o", str(out)])
+                                  str(CONFIGS / "carmen_corrected.toml"), "-o", str(out)])
     assert r.exit_code == 0, r.output
     res = read_result(out)
     lo, s = res.logodds, res.stats

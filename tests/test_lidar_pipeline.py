@@ -32,11 +32,9 @@ from ivslam_cli.simulate.lidar import laser_poses
 from ivslam_cli.simulate.raycast import cast
 from ivslam_cli.slam.lidar import lidar_bounds, run_lidar
 from tests.helpers.hyp import examples
-from test_lidar_map import segments_meet_cells
+from tests.helpers.lidar_world import segments_meet_cells
+from tests.helpers.paths import CONFIGS, DATASETS, SAMPLE_LOGS as SAMPLES
 
-REPO = Path(__file__).resolve().parents[1]
-SAMPLES = REPO / "sample_logs"
-DATASETS = REPO.parent / "shared" / "datasets"
 WORLDS = ("rooms", "corridor", "pillars", "open")
 
 
@@ -326,7 +324,7 @@ def _dataset(rel: str) -> Path:
 def test_real_datasets_end_to_end(tmp_path, rel, config, mapped_min):
     path = _dataset(rel)
     out = tmp_path / "r.h5"
-    r = CliRunner().invoke(main, ["run", str(path), "--mode", "lidar", "--config", str(REPO / "configs" / config),
+    r = CliRunner().invoke(main, ["run", str(path), "--mode", "lidar", "--config", str(CONFIGS / config),
                                   "-o", str(out)])
     assert r.exit_code == 0, r.output
     from ivslam_cli.results.hdf5 import read_result

@@ -30,6 +30,8 @@ from ivslam_cli.results.example import example_result
 from ivslam_cli.results.hdf5 import read_result, write_result
 from ivslam_cli.results.model import RELATIVE_DEFINITION, Poses, RelativePoses, box_is_empty
 from tests.helpers.hyp import examples
+from tests.helpers.results import assert_same
+from tests.helpers.strategies import pose_box_around
 
 LD = np.longdouble
 
@@ -79,17 +81,9 @@ half = st.one_of(st.just(0.0), st.floats(0, 1e-6), st.floats(0, 0.3), st.floats(
 ahalf = st.one_of(st.just(0.0), st.floats(0, 1e-6), st.floats(0, 0.2), st.floats(0, 4.0))
 
 
-@st.composite
-def box_around(draw, c=coord):
+def box_around(c=coord):
     """A pose (float64) and a box holding it anywhere (not only at its centre)."""
-    p = [draw(c), draw(c), draw(angle)]
-    box = np.empty((3, 2))
-    for d in range(3):
-        h = draw(ahalf if d == 2 else half)
-        f = draw(st.floats(0, 1))
-        lo = p[d] - 2 * h * f
-        box[d] = (min(lo, p[d]), max(lo + 2 * h, p[d]))
-    return p, box
+    return pose_box_around(c, angle, half, ahalf)
 
 
 # ---------------------------------------------------------------- kernels: soundness
@@ -326,8 +320,6 @@ def _with_relative(r):
 
 
 def test_round_trip_with_and_without_relative(tmp_path):
-    from test_results_hdf5 import assert_same
-
     r = _with_relative(example_result("lidar"))
     write_result(tmp_path / "r.h5", r)
     back = read_result(tmp_path / "r.h5")

@@ -29,6 +29,7 @@ from ivslam_cli.results.example import example_result
 from ivslam_cli.results.hdf5 import write_result
 from ivslam_cli.results.model import Poses
 from tests.helpers.hyp import examples
+from tests.helpers.strategies import pose_box_around
 
 LD = np.longdouble
 
@@ -51,20 +52,11 @@ coord = st.floats(-200, 200, allow_nan=False, allow_infinity=False)
 angle = st.floats(-20, 20, allow_nan=False, allow_infinity=False)
 half = st.one_of(st.just(0.0), st.floats(0, 1e-6), st.floats(0, 0.5), st.floats(0, 50))
 ahalf = st.one_of(st.just(0.0), st.floats(0, 1e-6), st.floats(0, 0.3), st.floats(0, 4.0))
-frac = st.floats(0, 1)
 
 
-@st.composite
-def box_around(draw):
+def box_around():
     """A true pose and a box holding it (the truth anywhere in the box, not only its centre)."""
-    p = [draw(coord), draw(coord), draw(angle)]
-    box = np.empty((3, 2))
-    for d in range(3):
-        h = draw(ahalf if d == 2 else half)
-        f = draw(frac)
-        lo = p[d] - 2 * h * f
-        box[d] = (min(lo, p[d]), max(lo + 2 * h, p[d]))
-    return p, box
+    return pose_box_around(coord, angle, half, ahalf)
 
 
 @settings(max_examples=examples(ci=400))
