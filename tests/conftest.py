@@ -1,4 +1,4 @@
-"""Shared fixtures (the real datasets, a CLI runner) and the Hypothesis profile.
+"""Shared fixtures (the real datasets, a CLI runner), the Hypothesis profile, marker checks.
 
 Shared code lives in ``tests/helpers`` (tests never import each other or this file).
 """
@@ -25,6 +25,16 @@ def pytest_report_header(config):
     from hypothesis import settings
 
     return f"hypothesis profile: {settings.get_current_profile_name()} (max_examples {settings.default.max_examples})"
+
+
+def pytest_collection_modifyitems(config, items):
+    """A test that uses the ``datasets`` fixture must be marked ``datasets`` (so that
+    ``-m "not datasets"`` is exact): refuse to run otherwise."""
+    unmarked = [i.nodeid for i in items if "datasets" in getattr(i, "fixturenames", ())
+                and i.get_closest_marker("datasets") is None]
+    if unmarked:
+        raise pytest.UsageError("tests using the datasets fixture without @pytest.mark.datasets: "
+                                + ", ".join(unmarked))
 
 
 @pytest.fixture(scope="session")

@@ -60,6 +60,7 @@ def test_intel_relations_end_to_end(datasets, cli_run, tmp_path):
     assert res.exit_code == 0 and f"inside:   {both}/{both} true relative poses" in res.output
 
 
+@pytest.mark.slow  # ~25 s warm (keyframe scan matching over the Intel log)
 def test_intel_relations_with_keyframe_matching(datasets, cli_run, tmp_path):
     """The same log with ``lidar.keyframes`` and every keyframe matched to the one before it
     (``keyframe_distance = keyframe_turn = 0``): the result holds one relative pose enclosure per

@@ -52,6 +52,7 @@ def test_simulated_logs_keep_the_truth(seed, noise):
     assert len(out.consistency.rejected) == 0  # honest bounds: nothing proven inconsistent
 
 
+@pytest.mark.slow  # ~16 s warm (105 simulated logs)
 def test_one_hundred_simulated_seeds_keep_the_truth():
     """Issue #6: 100+ simulated logs with honest bounds, containment 1.0 (poses at the truth's
     stamps, landmarks), nothing rejected, no empty event; and the boxes are not trivial."""
@@ -65,6 +66,7 @@ def test_one_hundred_simulated_seeds_keep_the_truth():
     assert np.median(widths) < 0.1 * 10.0  # a tenth of the world's side
 
 
+@pytest.mark.slow  # ~20 s warm (100+ simulated logs with outliers)
 def test_one_hundred_seeds_with_outliers_are_detected_or_absorbed():
     """Issue #6: outliers injected (3 %, up to 20 m / any bearing) in 100+ logs, q set to the
     stated assumption (the most outliers of a landmark, and of a pose): the truth is kept, no

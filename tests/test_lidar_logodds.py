@@ -39,7 +39,7 @@ from ivslam_cli.slam.lidar_logodds import (
     laser_centres,
 )
 from tests.helpers.hyp import examples
-from tests.helpers.paths import CONFIGS, DATASETS, SAMPLE_LOGS as SAMPLES
+from tests.helpers.paths import CONFIGS, SAMPLE_LOGS as SAMPLES
 from tests.helpers.results import assert_same
 
 
@@ -296,11 +296,12 @@ def test_cli_run_and_report_on_the_lidar_sample(tmp_path):
     assert j["disagreement"] == d.counts() and j["cells"] == d.logodds_cells
 
 
-def test_real_log_aces_with_known_poses(tmp_path):
+@pytest.mark.datasets
+def test_real_log_aces_with_known_poses(datasets, tmp_path):
     """ACES (SICK, 180 beams, GMapping-corrected poses ± 5 cm): the log-odds map at the box
     centres mostly agrees with the interval map; its occupied cells in proven-free space (a)
     are a small fraction of that space."""
-    path = DATASETS / "carmen_corrected" / "aces-corrected.log.gz"
+    path = datasets / "carmen_corrected" / "aces-corrected.log.gz"
     if not path.exists():
         pytest.skip(f"dataset not present: {path}")
     out = tmp_path / "r.h5"

@@ -8,7 +8,7 @@ odometry with stated bounds) are checked against their truth:
   P_OLD^k (the per-beam outer sets; the map's OBSTACLE state is their seed intersection);
 - no P_EMPTY cell meets a true wall.
 
-Real datasets run when ``../shared/datasets`` is there (skipped otherwise).
+Real datasets run when ``../shared/datasets`` is there (skipped otherwise; marked ``datasets``).
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from ivslam_cli.simulate.raycast import cast
 from ivslam_cli.slam.lidar import lidar_bounds, run_lidar
 from tests.helpers.hyp import examples
 from tests.helpers.lidar_world import segments_meet_cells
-from tests.helpers.paths import CONFIGS, DATASETS, SAMPLE_LOGS as SAMPLES
+from tests.helpers.paths import CONFIGS, SAMPLE_LOGS as SAMPLES
 
 WORLDS = ("rooms", "corridor", "pillars", "open")
 
@@ -307,22 +307,25 @@ def test_cli_run_report_exports_on_the_samples(tmp_path, sample):
 
 
 # ---------------------------------------------------------------- real data
-def _dataset(rel: str) -> Path:
-    p = DATASETS / rel
+def _dataset(datasets: Path, rel: str) -> Path:
+    p = datasets / rel
     if not p.exists():
         pytest.skip(f"dataset not present: {p}")
     return p
 
 
+@pytest.mark.datasets
 @pytest.mark.parametrize("rel,config,mapped_min", [
     ("carmen_corrected/aces-corrected.log.gz", "carmen_corrected.toml", 440),
     ("breezyslam_mines/exp1.dat.xz", "exp1.toml", 20),
-    ("ros2_turtlebot4_comprobo22/macfirst_floor_take_2", "ros_laserscan.toml", 50),
-    ("mcap_turtlebot4_comprobo22/macfirst_floor_take_2.mcap", "ros_laserscan.toml", 50),
+    pytest.param("ros2_turtlebot4_comprobo22/macfirst_floor_take_2", "ros_laserscan.toml", 50,
+                 marks=pytest.mark.slow),  # ~5-7 s warm each, the two TurtleBot logs
+    pytest.param("mcap_turtlebot4_comprobo22/macfirst_floor_take_2.mcap", "ros_laserscan.toml", 50,
+                 marks=pytest.mark.slow),
     ("ros1_neato_ksoltan/left_side.bag", "ros_laserscan.toml", 50),
 ])
-def test_real_datasets_end_to_end(tmp_path, rel, config, mapped_min):
-    path = _dataset(rel)
+def test_real_datasets_end_to_end(datasets, tmp_path, rel, config, mapped_min):
+    path = _dataset(datasets, rel)
     out = tmp_path / "r.h5"
     r = CliRunner().invoke(main, ["run", str(path), "--mode", "lidar", "--config", str(CONFIGS / config),
                                   "-o", str(out)])
