@@ -1,12 +1,16 @@
 # The two commands: `make demo` and `make test`. Both create/refresh .venv themselves.
+# `make test` runs every test (CI); `make test-fast` is the developer's loop: the Hypothesis `dev`
+# profile (a fifth of the examples, tests/helpers/hyp.py) and no test marked `slow` (~1 min warm).
+# PYTEST_ARGS passes more options to either, e.g. `make test-fast PYTEST_ARGS=-x`.
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
 IVSLAM := $(VENV)/bin/ivslam
 STAMP  := $(VENV)/.installed
 OUT    := out
+PYTEST_ARGS ?=
 
-.PHONY: demo test bench venv clean sample-logs
+.PHONY: demo test test-fast bench venv clean sample-logs
 
 venv: $(STAMP)
 
@@ -17,7 +21,10 @@ $(STAMP): pyproject.toml
 	@touch $(STAMP)
 
 test: $(STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q $(PYTEST_ARGS)
+
+test-fast: $(STAMP)
+	IVSLAM_HYPOTHESIS=dev $(PY) -m pytest -q -m "not slow" $(PYTEST_ARGS)
 
 demo: $(STAMP)
 	@bash scripts/demo.sh $(IVSLAM) $(OUT)

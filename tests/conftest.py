@@ -1,15 +1,40 @@
-"""Shared fixtures: where the real datasets live, and a CLI runner."""
+"""Shared fixtures (the real datasets, a CLI runner), the Hypothesis profile, marker checks.
+
+Shared code lives in ``tests/helpers`` (tests never import each other or this file).
+"""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
-DATASETS = Path(os.environ.get("IVSLAM_DATASETS", REPO.parent / "shared" / "datasets")).resolve()
-SAMPLE_LOGS = REPO / "sample_logs"
+from tests.helpers.hyp import load_profile
+from tests.helpers.paths import DATASETS
+
+
+def pytest_configure(config):
+    """Load the Hypothesis profile named by ``$IVSLAM_HYPOTHESIS`` (default ``ci``) unless
+    ``--hypothesis-profile`` was given. Runs before any test module is imported, so counts
+    computed at import (``examples``, ``seeds``) see the loaded profile."""
+    if config.getoption("hypothesis_profile", None) is None:
+        load_profile()
+
+
+def pytest_report_header(config):
+    from hypothesis import settings
+
+    return f"hypothesis profile: {settings.get_current_profile_name()} (max_examples {settings.default.max_examples})"
+
+
+def pytest_collection_modifyitems(config, items):
+    """A test that uses the ``datasets`` fixture must be marked ``datasets`` (so that
+    ``-m "not datasets"`` is exact): refuse to run otherwise."""
+    unmarked = [i.nodeid for i in items if "datasets" in getattr(i, "fixturenames", ())
+                and i.get_closest_marker("datasets") is None]
+    if unmarked:
+        raise pytest.UsageError("tests using the datasets fixture without @pytest.mark.datasets: "
+                                + ", ".join(unmarked))
 
 
 @pytest.fixture(scope="session")

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import subprocess
 import sys
-import time
 
 from ivslam_cli import __version__
+from tests.helpers.paths import REPO
 
 
 def test_version(cli_run):
@@ -51,10 +51,7 @@ def test_unknown_command_fails_cleanly(cli_run):
 
 def test_readme_generated_docs_are_current():
     """docs/config.md and docs/schema.md are generated from the code: never stale."""
-    from pathlib import Path
-
-    repo = Path(__file__).resolve().parents[1]
-    out = subprocess.run([sys.executable, str(repo / "scripts" / "sync_docs.py"), "--check"],
+    out = subprocess.run([sys.executable, str(REPO / "scripts" / "sync_docs.py"), "--check"],
                          capture_output=True, text=True)
     assert out.returncode == 0, out.stdout + out.stderr
 

@@ -14,14 +14,15 @@ from fractions import Fraction
 import mpmath
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli.contractors import difference, qinter, qinter_batch
 from ivslam_cli.interval.angles import angle_meet
+from tests.helpers.hyp import examples
 
 mpmath.mp.prec = 120
-SETTINGS = settings(max_examples=1500, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+SETTINGS = settings(max_examples=examples(ci=1500))
 INF = math.inf
 
 value = st.one_of(st.floats(-1e6, 1e6), st.just(0.0), st.floats(-1e-300, 1e-300))
@@ -150,7 +151,7 @@ def interval_sets(draw, max_m=9):
     return np.array(rows, dtype=float).reshape(m, 2)
 
 
-@settings(max_examples=1000, deadline=None)
+@settings(max_examples=examples(ci=1000))
 @given(iv=interval_sets(), q=st.integers(0, 10))
 def test_qinter_intervals_matches_brute_force(iv, q):
     res, rejected = qinter(iv, q)
@@ -161,7 +162,7 @@ def test_qinter_intervals_matches_brute_force(iv, q):
         assert rejected[i] == disjoint
 
 
-@settings(max_examples=400, deadline=None)
+@settings(max_examples=examples(ci=400))
 @given(d=st.integers(1, 3), m=st.integers(1, 7), q=st.integers(0, 4), data=st.data())
 def test_qinter_boxes_is_an_outer_approximation(d, m, q, data):
     bx = np.array(data.draw(st.lists(st.lists(st.tuples(ends, ends).map(sorted), min_size=d,

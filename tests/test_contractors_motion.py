@@ -13,13 +13,14 @@ import math
 import mpmath
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli.contractors import range_bearing, unicycle
+from tests.helpers.hyp import examples
 
 mpmath.mp.prec = 120
-SETTINGS = settings(max_examples=800, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+SETTINGS = settings(max_examples=examples(ci=800))
 INF = math.inf
 
 spread = st.one_of(st.just(0.0), st.floats(0.0, 1e-7), st.floats(0.0, 0.3), st.floats(0.0, 30.0),

@@ -28,7 +28,8 @@ from bench.gtsam_baseline import (  # noqa: E402
 )
 from ivslam_cli.simulate import SimConfig, simulate  # noqa: E402
 
-from tests.conftest import REPO  # noqa: E402
+from tests.helpers.hyp import examples  # noqa: E402
+from tests.helpers.paths import REPO  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -112,7 +113,7 @@ def test_truth_at_unwraps_heading_and_masks_gaps():
     assert ok.tolist() == [True, True, False, False]  # 3.0 in the 3 s gap; 6.0 after the end
 
 
-@settings(max_examples=50, deadline=None)
+@settings(max_examples=examples(ci=50))
 @given(st.lists(st.tuples(st.floats(-5, 5), st.floats(-5, 5), st.floats(-3.14, 3.14)), min_size=2, max_size=2))
 def test_relative_and_logmap_match_gtsam(poses):
     a, b = (np.array([p]) for p in poses)
@@ -123,7 +124,7 @@ def test_relative_and_logmap_match_gtsam(poses):
     np.testing.assert_allclose(_logmap(relative(a, b))[0], gtsam.Pose2.Logmap(r), atol=1e-8)
 
 
-@settings(max_examples=50, deadline=None)
+@settings(max_examples=examples(ci=50))
 @given(st.floats(-3.1, 3.1), st.floats(-10, 10), st.floats(-10, 10), st.integers(0, 2**32 - 1))
 def test_aligned_rmse_removes_exactly_a_rigid_motion(th, tx, ty, seed):
     rng = np.random.default_rng(seed)

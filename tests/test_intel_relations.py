@@ -12,12 +12,11 @@ from __future__ import annotations
 
 import json
 import lzma
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
+from tests.helpers.paths import CONFIGS
 
 pytestmark = pytest.mark.datasets
 
@@ -30,7 +29,7 @@ def test_intel_relations_end_to_end(datasets, cli_run, tmp_path):
     log = datasets / "intel_lab" / "intel_gfs.json.xz"
     relations = datasets / "intel_lab" / "intel.relations.xz"
     cfg = tmp_path / "intel_lab.toml"
-    text = (REPO / "configs" / "intel_lab.toml").read_text()
+    text = (CONFIGS / "intel_lab.toml").read_text()
     assert "\n[lidar]\n" in text and "contract" not in text.split("\n[lidar]\n", 1)[1]
     cfg.write_text(text.rstrip("\n") + "\ncontract = false\n")
     out = tmp_path / "intel.h5"
@@ -61,6 +60,7 @@ def test_intel_relations_end_to_end(datasets, cli_run, tmp_path):
     assert res.exit_code == 0 and f"inside:   {both}/{both} true relative poses" in res.output
 
 
+@pytest.mark.slow  # ~25 s warm (keyframe scan matching over the Intel log)
 def test_intel_relations_with_keyframe_matching(datasets, cli_run, tmp_path):
     """The same log with ``lidar.keyframes`` and every keyframe matched to the one before it
     (``keyframe_distance = keyframe_turn = 0``): the result holds one relative pose enclosure per
@@ -70,7 +70,7 @@ def test_intel_relations_with_keyframe_matching(datasets, cli_run, tmp_path):
     log = datasets / "intel_lab" / "intel_gfs.json.xz"
     relations = datasets / "intel_lab" / "intel.relations.xz"
     cfg = tmp_path / "intel_lab_keyframes.toml"
-    text = (REPO / "configs" / "intel_lab.toml").read_text()
+    text = (CONFIGS / "intel_lab.toml").read_text()
     tail = text.split("\n[lidar]\n", 1)[1]
     assert not any(ln.startswith("[") or ln.startswith("keyframe") for ln in tail.splitlines())
     cfg.write_text(text.rstrip("\n") + "\nkeyframes = true\nkeyframe_distance = 0.0\nkeyframe_turn = 0.0\n")

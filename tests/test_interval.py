@@ -15,13 +15,14 @@ from fractions import Fraction
 import mpmath
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli import interval as iv
+from tests.helpers.hyp import examples
 
 mpmath.mp.prec = 120
-SETTINGS = settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+SETTINGS = settings(max_examples=examples(ci=400))
 
 finite = st.floats(min_value=-1e12, max_value=1e12, allow_nan=False, allow_infinity=False)
 small = st.floats(min_value=-50.0, max_value=50.0, allow_nan=False, allow_infinity=False)

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli.config import resolve_config
@@ -20,6 +20,8 @@ from ivslam_cli.slam.landmarks import kernel as K
 from ivslam_cli.slam.landmarks import Params as LandmarksParams
 from ivslam_cli.slam.landmarks.pipeline import solve
 from ivslam_cli.slam.motion import chord_steps, node_lags, speed_interval, subdivide
+from tests.helpers.hyp import examples
+from tests.helpers.paths import SAMPLE_LOGS
 
 
 def _sim(seed: int, steps: int = 120, **kw):
@@ -42,7 +44,7 @@ def _check_sound(log, out):
     return pc, lc
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(ci=12))
 @given(seed=st.integers(0, 10_000), noise=st.sampled_from(["uniform", "edges", "triangular"]))
 def test_simulated_logs_keep_the_truth(seed, noise):
     log = _sim(seed, noise=noise)
@@ -52,6 +54,7 @@ def test_simulated_logs_keep_the_truth(seed, noise):
     assert len(out.consistency.rejected) == 0  # honest bounds: nothing proven inconsistent
 
 
+@pytest.mark.slow  # ~16 s warm (105 simulated logs)
 def test_one_hundred_simulated_seeds_keep_the_truth():
     """Issue #6: 100+ simulated logs with honest bounds, containment 1.0 (poses at the truth's
     stamps, landmarks), nothing rejected, no empty event; and the boxes are not trivial."""
@@ -65,6 +68,7 @@ def test_one_hundred_simulated_seeds_keep_the_truth():
     assert np.median(widths) < 0.1 * 10.0  # a tenth of the world's side
 
 
+@pytest.mark.slow  # ~20 s warm (100+ simulated logs with outliers)
 def test_one_hundred_seeds_with_outliers_are_detected_or_absorbed():
     """Issue #6: outliers injected (3 %, up to 20 m / any bearing) in 100+ logs, q set to the
     stated assumption (the most outliers of a landmark, and of a pose): the truth is kept, no
@@ -204,7 +208,7 @@ def _in_angle(lo: float, hi: float, a: float) -> bool:
     return lo <= a - 2 * np.pi * k <= hi
 
 
-@settings(max_examples=1500, deadline=None)
+@settings(max_examples=examples(ci=1500))
 @given(v0=st.floats(-0.3, 1.0), vw=st.floats(0.0, 0.5), w0=st.floats(-1.5, 1.5), ww=st.floats(0.0, 0.6),
        dt=st.floats(1e-3, 2.0), pieces=st.integers(1, 12), seed=st.integers(0, 2**32 - 1))
 def test_chord_steps_enclose_every_path_within_the_twist_bounds(v0, vw, w0, ww, dt, pieces, seed):
@@ -308,7 +312,7 @@ def test_headings_beyond_the_circle_are_replaced_by_dead_reckoning():
 
 def test_cli_run_report_and_tum(tmp_path: Path, cli_run):
     cli = cli_run
-    log = Path(__file__).resolve().parents[1] / "sample_logs" / "landmarks.bag"
+    log = SAMPLE_LOGS / "landmarks.bag"
     out = tmp_path / "lm.h5"
     tum = tmp_path / "lm.tum"
     # the sample has 1 % outliers and wrong associations: q-relaxed per landmark and per pose

@@ -1,7 +1,7 @@
 """Pose contraction against the map (second seed): soundness, how much it contracts, and the
 fast path equal to the reference.
 
-Worlds, the cone LiDAR and pose boxes come from ``test_lidar_map``: a map is built from scans
+Worlds, the cone LiDAR and pose boxes come from ``tests/helpers/lidar_world.py``: a map is built from scans
 at known poses (tight boxes), then a new scan from a true pose inside a wide box is
 contracted against it. The fast path (``contract_kernel``) must give the reference's
 (``contract_kernel_reference``) kept count, hull and tested count exactly, on those worlds and
@@ -13,12 +13,13 @@ from __future__ import annotations
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_lidar_map import SETTINGS, make_scans, random_box, random_pose, random_world
 
 from ivslam_cli.logs.model import Scans
 from ivslam_cli.paving.tiles import EMPTY, OBST_NEW, OBST_OLD, TILE, TileMap
 from ivslam_cli.slam.lidar.contract import contract_pose
 from ivslam_cli.slam.lidar.map_update import LidarBounds, update_map
+from tests.helpers.hyp import examples
+from tests.helpers.lidar_world import make_scans, random_box, random_pose, random_world
 
 EPS = 0.05
 R_ABS, R_REL, HALF = 0.03, 0.01, 0.004
@@ -43,7 +44,6 @@ def _inside(box, p) -> bool:
 
 
 @given(st.integers(0, 2**32 - 1), st.sampled_from([0, 3]))
-@settings(max_examples=100, **SETTINGS)
 def test_contraction_keeps_the_true_pose(seed, q):
     tmap, scans, truth, bounds, rng = _mapped_world(seed)
     box = random_box(rng, truth, 0.3, 0.08)
@@ -116,7 +116,6 @@ def _both(tmap, scans, k, box, bounds, **kw):
 
 @given(st.integers(0, 2**32 - 1), st.sampled_from([0, 2, 5]), st.sampled_from([1, 2, 3]),
        st.sampled_from([16, 200, 1024]), st.sampled_from([0.02, 0.3, 1.0, 5.0]), st.sampled_from([0.0, 0.08, 1.0, 4.0]))
-@settings(max_examples=100, **SETTINGS)
 def test_fast_path_equals_reference_on_mapped_worlds(seed, q, stride, budget, wxy, wth):
     tmap, scans, truth, bounds, rng = _mapped_world(seed, n_map=6)
     box = random_box(rng, truth, wxy, wth)
@@ -146,7 +145,7 @@ def _random_map(rng, eps, offset):
 @given(st.integers(0, 2**32 - 1), st.sampled_from([0.03, 0.05, 0.1]), st.sampled_from([0.0, 0.003, 0.05]),
        st.sampled_from([-1, 0, 1, 3, 8]), st.sampled_from([1, 2]), st.sampled_from([0.05, 0.5, 3.0, 20.0]),
        st.sampled_from([0.01, 0.2, 7.0]), st.booleans())
-@settings(max_examples=200, **SETTINGS)
+@settings(max_examples=examples(ci=200))
 def test_fast_path_equals_reference_on_random_maps(seed, eps, bearing, q, stride, wxy, wth, far):
     rng = np.random.default_rng(seed)
     offset = int(3e6 / eps) if far else 0  # far: beyond the fast path's skip guard (1e6 m)

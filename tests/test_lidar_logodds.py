@@ -7,13 +7,12 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli.cli import cli as main
@@ -39,11 +38,9 @@ from ivslam_cli.slam.lidar.logodds import (
     compare,
     laser_centres,
 )
-from test_results_hdf5 import assert_same
-
-REPO = Path(__file__).resolve().parents[1]
-SAMPLES = REPO / "sample_logs"
-DATASETS = REPO.parent / "shared" / "datasets"
+from tests.helpers.hyp import examples
+from tests.helpers.paths import CONFIGS, SAMPLE_LOGS as SAMPLES
+from tests.helpers.results import assert_same
 
 
 def make_scans(ranges, valid=None, angle_min=0.0, inc=math.pi / 2, mount=(0.0, 0.0, 0.0), repeat=1) -> Scans:
@@ -131,7 +128,7 @@ coord = st.floats(-3.0, 13.0, allow_nan=False)
 
 
 @given(coord, st.floats(-3.0, 9.0), coord, st.floats(-3.0, 9.0))
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(ci=300))
 def test_ray_traversal_is_the_cells_the_segment_meets(x0, y0, x1, y1):
     """One beam from (x0, y0) to (x1, y1) on a 12 × 6 grid at the origin (either end may be
     outside): every updated cell meets the segment, every cell a fine sampling of the segment
@@ -299,16 +296,17 @@ def test_cli_run_and_report_on_the_lidar_sample(tmp_path):
     assert j["disagreement"] == d.counts() and j["cells"] == d.logodds_cells
 
 
-def test_real_log_aces_with_known_poses(tmp_path):
+@pytest.mark.datasets
+def test_real_log_aces_with_known_poses(datasets, tmp_path):
     """ACES (SICK, 180 beams, GMapping-corrected poses ± 5 cm): the log-odds map at the box
     centres mostly agrees with the interval map; its occupied cells in proven-free space (a)
     are a small fraction of that space."""
-    path = DATASETS / "carmen_corrected" / "aces-corrected.log.gz"
+    path = datasets / "carmen_corrected" / "aces-corrected.log.gz"
     if not path.exists():
         pytest.skip(f"dataset not present: {path}")
     out = tmp_path / "r.h5"
     r = CliRunner().invoke(main, ["run", str(path), "--mode", "lidar", "--poses-known", "--config",
-                                  str(REPO / "configs" / "carmen_corrected.toml"), "-o", str(out)])
+                                  str(CONFIGS / "carmen_corrected.toml"), "-o", str(out)])
     assert r.exit_code == 0, r.output
     res = read_result(out)
     lo, s = res.logodds, res.stats

@@ -1,9 +1,10 @@
 """LiDAR map update (second seed): tiles, P_OBSTACLE outer, P_EMPTY inner, old/new, map update.
 
-Scans come from a cone LiDAR in random wall worlds: beam ``i`` returns the distance to the
-nearest wall point within its cone ``a_i + [-r_α, r_α]`` (the seed's sensor model), plus a
-bounded error ``|e| <= 0.999 (abs + rel d)``, as float32. The hit point is that nearest point.
-Pose boxes (up to ±0.2 m, ±3°) hold the true robot pose at a random place.
+Scans come from the cone LiDAR of ``tests/helpers/lidar_world.py`` in random wall worlds: beam
+``i`` returns the distance to the nearest wall point within its cone ``a_i + [-r_α, r_α]`` (the
+seed's sensor model), plus a bounded error ``|e| <= 0.999 (abs + rel d)``, as float32. The hit
+point is that nearest point. Pose boxes (up to ±0.2 m, ±3°) hold the true robot pose at a random
+place.
 """
 
 from __future__ import annotations
@@ -20,120 +21,19 @@ from ivslam_cli.paving.tiles import EMPTY, OBST_NEW, OBST_OLD, OBSTACLE, TILE, T
 from ivslam_cli.paving.tiles import EMPTY_STATE
 from ivslam_cli.slam.lidar.geometry import box_bearings, box_ranges, range_bounds, sensor_box
 from ivslam_cli.slam.lidar.map_update import LidarBounds, inclusion_new, scan_sets, update_map
-
-SETTINGS = dict(deadline=None, suppress_health_check=[HealthCheck.too_slow])
-BEAMS, INC = 683, 2 * math.pi / 1024  # URG-04LX-like: 683 beams over 240 degrees
-A0 = -0.5 * (BEAMS - 1) * INC
-RANGE_MIN, RANGE_MAX = 0.02, 5.6
-
-
-# ---------------------------------------------------------------- worlds and a cone LiDAR
-def random_world(rng: np.random.Generator) -> tuple[np.ndarray, tuple[float, float, float, float]]:
-    """A rectangular room with random inner walls and boxes: segments (K, 4) and the room."""
-    w, h = rng.uniform(3.0, 9.0), rng.uniform(3.0, 7.0)
-    x0, y0 = rng.uniform(-20, 20), rng.uniform(-20, 20)
-    segs = [[x0, y0, x0 + w, y0], [x0 + w, y0, x0 + w, y0 + h], [x0 + w, y0 + h, x0, y0 + h],
-            [x0, y0 + h, x0, y0]]
-    for _ in range(rng.integers(0, 5)):
-        ax, ay = x0 + rng.uniform(0, w), y0 + rng.uniform(0, h)
-        ang, ln = rng.uniform(0, math.pi), rng.uniform(0.3, 2.5)
-        segs.append([ax, ay, ax + ln * math.cos(ang), ay + ln * math.sin(ang)])
-    for _ in range(rng.integers(0, 3)):
-        cx, cy, s = x0 + rng.uniform(0, w), y0 + rng.uniform(0, h), rng.uniform(0.1, 0.5)
-        segs += [[cx - s, cy - s, cx + s, cy - s], [cx + s, cy - s, cx + s, cy + s],
-                 [cx + s, cy + s, cx - s, cy + s], [cx - s, cy + s, cx - s, cy - s]]
-    return np.asarray(segs, dtype=np.float64), (x0, y0, w, h)
-
-
-def seg_dist(p: np.ndarray, segs: np.ndarray) -> np.ndarray:
-    a, b = segs[:, :2], segs[:, 2:]
-    ab = b - a
-    t = np.clip(((p - a) * ab).sum(1) / np.maximum((ab * ab).sum(1), 1e-300), 0.0, 1.0)
-    return np.hypot(*(p - (a + t[:, None] * ab)).T)
-
-
-def random_pose(rng, segs, room) -> np.ndarray:
-    x0, y0, w, h = room
-    for _ in range(1000):
-        p = np.array([x0 + rng.uniform(0.4, w - 0.4), y0 + rng.uniform(0.4, h - 0.4)])
-        if seg_dist(p, segs).min() > 0.4:
-            return np.array([p[0], p[1], rng.uniform(-math.pi, math.pi)])
-    pytest.skip("no free pose in this world")  # pragma: no cover
-
-
-def cone_scan(origin: np.ndarray, yaw: float, segs: np.ndarray, half: float):
-    """Nearest wall point within each beam's cone: distances (B,) (inf: none) and points (B, 2)."""
-    beta = yaw + A0 + INC * np.arange(BEAMS)
-    rel = segs.reshape(-1, 2, 2) - origin  # (K, 2, 2)
-    a, b = rel[:, 0], rel[:, 1]
-    best = np.full(BEAMS, np.inf)
-    pts = np.zeros((BEAMS, 2))
-
-    def consider(p, ok):  # p (B, K, 2), ok (B, K)
-        d = np.where(ok, np.hypot(p[..., 0], p[..., 1]), np.inf)
-        k = d.argmin(1)
-        dk = d[np.arange(BEAMS), k]
-        better = dk < best
-        best[better] = dk[better]
-        pts[better] = p[np.arange(BEAMS), k][better]
-
-    def in_cone(p):
-        ang = np.arctan2(p[..., 1], p[..., 0]) - beta[:, None]
-        ang = (ang + math.pi) % (2 * math.pi) - math.pi
-        return np.abs(ang) <= half
-
-    for end in (a, b):  # end points inside the cone
-        p = np.broadcast_to(end, (BEAMS,) + end.shape)
-        consider(p, in_cone(p))
-    ab = b - a
-    t = np.clip(-(a * ab).sum(1) / np.maximum((ab * ab).sum(1), 1e-300), 0.0, 1.0)
-    foot = np.broadcast_to(a + t[:, None] * ab, (BEAMS,) + a.shape)  # nearest point of each segment
-    consider(foot, in_cone(foot))
-    for edge in (-half, half):  # crossings of the cone's two boundary rays
-        u = np.stack([np.cos(beta + edge), np.sin(beta + edge)], 1)[:, None, :]
-        den = u[..., 0] * ab[None, :, 1] - u[..., 1] * ab[None, :, 0]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            s = (a[None, :, 0] * u[..., 1] - a[None, :, 1] * u[..., 0]) / den
-            r = (a[None, :, 0] * ab[None, :, 1] - a[None, :, 1] * ab[None, :, 0]) / den
-        ok = (den != 0) & (s >= 0) & (s <= 1) & (r > 0)
-        consider(u * np.where(ok, r, 0.0)[..., None], ok)
-    pts = pts + origin
-    return best, pts
-
-
-def make_scans(rng, segs, poses, mount, half, r_abs, r_rel, noise="uniform"):
-    """Scans of the cone LiDAR from robot poses (T, 3); returns (Scans, hit points (T, B, 2), hit (T, B))."""
-    T = poses.shape[0]
-    ranges, valid, hits, hitmask = [], [], [], []
-    for k in range(T):
-        x, y, th = poses[k]
-        o = np.array([x + math.cos(th) * mount[0] - math.sin(th) * mount[1],
-                      y + math.sin(th) * mount[0] + math.cos(th) * mount[1]])
-        d, p = cone_scan(o, th + mount[2], segs, half)
-        b = r_abs + r_rel * np.where(np.isfinite(d), d, 0.0)
-        u = rng.uniform(-1, 1, BEAMS) if noise == "uniform" else np.where(rng.random(BEAMS) < 0.5, -1.0, 1.0)
-        z = np.where(np.isfinite(d), d + 0.999 * u * b, 0.0).astype(np.float32)
-        ok = np.isfinite(d) & (z >= np.float32(RANGE_MIN)) & (z <= np.float32(RANGE_MAX))
-        assert np.all(np.abs(z[ok].astype(np.float64) - d[ok]) <= b[ok])
-        ranges.append(np.where(ok, z, np.float32(0.0)))
-        valid.append(ok)
-        hits.append(p)
-        hitmask.append(ok)
-    ones = np.ones(T)
-    scans = Scans(stamp=np.arange(T) * 0.1, angle_min=ones * A0, angle_increment=ones * INC,
-                  range_min=ones * RANGE_MIN, range_max=ones * RANGE_MAX,
-                  offsets=np.arange(T + 1, dtype=np.int64) * BEAMS,
-                  ranges=np.concatenate(ranges).astype(np.float32), valid=np.concatenate(valid),
-                  mount=tuple(mount))
-    return scans, np.stack(hits), np.stack(hitmask)
-
-
-def random_box(rng, pose, wxy, wth, full=False) -> np.ndarray:
-    """A box of half-widths up to (exactly, with ``full``) (wxy, wxy, wth) holding ``pose``."""
-    hw = (1.0 if full else rng.uniform(0.3, 1.0, 3)) * np.array([wxy, wxy, wth])
-    f = rng.uniform(0, 1, 3)
-    lo = pose - 2 * hw * f
-    return np.array([lo[0], lo[0] + 2 * hw[0], lo[1], lo[1] + 2 * hw[1], lo[2], lo[2] + 2 * hw[2]])
+from tests.helpers.hyp import examples, seeds
+from tests.helpers.lidar_world import (
+    A0,
+    BEAMS,
+    INC,
+    RANGE_MAX,
+    RANGE_MIN,
+    make_scans,
+    random_box,
+    random_pose,
+    random_world,
+    segments_meet_cells,
+)
 
 
 # ---------------------------------------------------------------- truth checks
@@ -149,29 +49,6 @@ def cells_of_point(p: np.ndarray, eps: float) -> list[tuple[int, int]]:
     return out
 
 
-def segments_meet_cells(segs: np.ndarray, cells: np.ndarray, eps: float, margin: float = 1e-9) -> np.ndarray:
-    """Whether each cell (closed square, grown by ``margin``: the safe side) meets any segment."""
-    if cells.shape[0] == 0:
-        return np.zeros(0, bool)
-    lo = cells[:, None, :] * eps - margin  # (N, 1, 2)
-    hi = (cells[:, None, :] + 1) * eps + margin
-    a, d = segs[None, :, :2], segs[None, :, 2:] - segs[None, :, :2]  # (1, K, 2)
-    t0 = np.zeros(lo.shape[:1] + (segs.shape[0],))
-    t1 = np.ones_like(t0)
-    ok = np.ones_like(t0, dtype=bool)
-    for ax in range(2):  # Liang-Barsky clipping of a + t d, t in [0, 1]
-        dd = np.broadcast_to(d[..., ax], t0.shape)
-        aa = np.broadcast_to(a[..., ax], t0.shape)
-        par = dd == 0
-        ok &= ~par | ((aa >= lo[..., ax]) & (aa <= hi[..., ax]))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ta = (lo[..., ax] - aa) / dd
-            tb = (hi[..., ax] - aa) / dd
-        t0 = np.where(par, t0, np.maximum(t0, np.minimum(ta, tb)))
-        t1 = np.where(par, t1, np.minimum(t1, np.maximum(ta, tb)))
-    return np.any(ok & (t0 <= t1), axis=1)
-
-
 def assert_obstacle_outer(obst: np.ndarray, hits: np.ndarray, mask: np.ndarray, eps: float) -> None:
     marked = set(map(tuple, obst.tolist()))
     for p in hits[mask]:
@@ -180,8 +57,7 @@ def assert_obstacle_outer(obst: np.ndarray, hits: np.ndarray, mask: np.ndarray, 
 
 
 # ---------------------------------------------------------------- geometry kernels
-@given(st.integers(0, 2**32 - 1))
-@settings(max_examples=40, **SETTINGS)
+@pytest.mark.parametrize("seed", seeds(ci=40))
 def test_box_ranges_and_bearings_enclose_points(seed):
     rng = np.random.default_rng(seed)
     c = rng.uniform(-3, 3, 2)
@@ -202,8 +78,7 @@ def test_box_ranges_and_bearings_enclose_points(seed):
         assert np.all((bl <= ang) & (ang <= bh)), (bl, bh)
 
 
-@given(st.integers(0, 2**32 - 1))
-@settings(max_examples=30, **SETTINGS)
+@pytest.mark.parametrize("seed", seeds(ci=30))
 def test_sensor_box_encloses_mounted_poses(seed):
     rng = np.random.default_rng(seed)
     pose = np.array([*rng.uniform(-50, 50, 2), rng.uniform(-10, 10)])
@@ -219,7 +94,7 @@ def test_sensor_box_encloses_mounted_poses(seed):
 
 # ---------------------------------------------------------------- tiles
 @given(st.integers(0, 2**32 - 1), st.sampled_from([0.05, 0.1, 0.013]))
-@settings(max_examples=20, **SETTINGS)
+@settings(max_examples=examples(ci=20))
 def test_tiles_store_union_intersection_dense(seed, eps):
     rng = np.random.default_rng(seed)
     spread = int(rng.choice([50, 300, 1500]))
@@ -302,7 +177,7 @@ def _case(seed: int, wxy: float, wth: float, alpha_factor: float, eps: float, fu
 
 @given(st.integers(0, 2**32 - 1), st.floats(0.0, 0.2), st.floats(0.0, math.radians(3)),
        st.sampled_from([0.5, 0.75, 2.0]), st.sampled_from([0.05, 0.1]))
-@settings(max_examples=25, **SETTINGS)
+@settings(max_examples=examples(ci=25))
 def test_scan_sets_sound_against_truth(seed, wxy, wth, alpha_factor, eps):
     """Every true hit point is in P_OBSTACLE^k; no P_EMPTY^k cell meets a wall."""
     segs, pose, box, bounds, scans, hits, mask = _case(seed, wxy, wth, alpha_factor, eps)
@@ -324,9 +199,10 @@ def test_no_return_beams_prove_nothing():
     assert empty.shape[0] == 0 and obst.shape[0] == 0
 
 
+# a seed only, but not explicit seeds: assume() (below) makes Hypothesis draw until 12 worlds
+# have an oracle requiring >= 50 cells
 @given(st.integers(0, 2**32 - 1))
-@settings(max_examples=12, deadline=None,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@settings(max_examples=examples(ci=12), suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 def test_empty_is_nontrivial_with_uncertain_heading(seed):
     """With ±3° (17 beams) of heading no single beam cone holds a cell's bearings, yet the scan as
     a whole proves every cell that a generous independent bound says is clearly free: seen from
@@ -410,8 +286,7 @@ def test_tiles_grow_with_explored_area():
     assert m0.n_tiles == tiles[0]
 
 
-@given(st.integers(0, 2**32 - 1))
-@settings(max_examples=6, **SETTINGS)
+@pytest.mark.parametrize("seed", seeds(ci=6))
 def test_map_update_sound_and_old_new(seed):
     """Scans along a corridor, twice: first pass beams over new ground are new, a second pass
     over the same scans finds every valid beam old; P_EMPTY never meets a wall; every hit
@@ -537,8 +412,7 @@ def _random_scan_case(seed):
     return scans, box, bounds, eps
 
 
-@given(st.integers(0, 2**32 - 1))
-@settings(max_examples=60, **SETTINGS)
+@pytest.mark.parametrize("seed", seeds(ci=60))
 def test_fast_scan_cells_equal_reference(seed):
     """P_EMPTY^k and P_OBSTACLE^k (beam-by-beam and hull modes) of the fast path are the
     reference's, over scan geometries (240°, 360°, more than a turn, 180°), headings in
@@ -571,8 +445,7 @@ def _same_maps(a: TileMap, b: TileMap) -> None:
     assert np.array_equal(a.cells[: a.n], b.cells[: b.n])
 
 
-@given(st.integers(0, 2**32 - 1))
-@settings(max_examples=8, **SETTINGS)
+@pytest.mark.parametrize("seed", seeds(ci=8))
 def test_fast_update_log_equal_reference(seed):
     """The map update over a log (new ground, then the same ground again, in another order and
     without writing) gives the reference's map (flags, tiles and their order), old/new beams
@@ -675,8 +548,7 @@ def test_atan2_fast_error_bound():
     assert fast(np.zeros(1), np.zeros(1))[0] == 0.0
 
 
-@given(st.integers(0, 2**32 - 1))
-@settings(max_examples=40, **SETTINGS)
+@pytest.mark.parametrize("seed", seeds(ci=40))
 def test_window_meets_test_is_exact(seed):
     """The scan's table gives a window's hull, and ``_meets`` (hull, then the largest gap
     between consecutive valid beams, then a scan) answers "does a valid beam of [l, r] have

@@ -9,7 +9,7 @@ simulator's default: ``test_simulate_cone.py``):
   P_OLD^k (the per-beam outer sets; the map's OBSTACLE state is their seed intersection);
 - no P_EMPTY cell meets a true wall.
 
-Real datasets run when ``../shared/datasets`` is there (skipped otherwise).
+Real datasets run when ``../shared/datasets`` is there (skipped otherwise; marked ``datasets``).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli.cli import cli as main
@@ -33,11 +33,10 @@ from ivslam_cli.simulate.lidar import laser_poses
 from ivslam_cli.simulate.raycast import cast
 from ivslam_cli.slam.lidar import Params as LidarParams
 from ivslam_cli.slam.lidar.pipeline import solve
-from test_lidar_map import segments_meet_cells
+from tests.helpers.hyp import examples
+from tests.helpers.lidar_world import segments_meet_cells
+from tests.helpers.paths import CONFIGS, SAMPLE_LOGS as SAMPLES
 
-REPO = Path(__file__).resolve().parents[1]
-SAMPLES = REPO / "sample_logs"
-DATASETS = REPO.parent / "shared" / "datasets"
 WORLDS = ("rooms", "corridor", "pillars", "open")
 
 
@@ -106,7 +105,7 @@ def assert_truth_kept(log, out):
 
 # ---------------------------------------------------------------- simulated logs
 @given(st.integers(0, 2**31 - 1), st.sampled_from(WORLDS), st.sampled_from(["uniform", "edges"]))
-@settings(max_examples=50, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(ci=50))
 def test_simulated_urg_runs_keep_the_truth(seed, world, noise):
     """The seed's sensor (URG-04LX profile, 682 beams 0.35° apart) in every built-in world."""
     log, out = run_sim(seed, world, noise=noise)
@@ -116,7 +115,7 @@ def test_simulated_urg_runs_keep_the_truth(seed, world, noise):
 
 
 @given(st.integers(0, 2**31 - 1), st.sampled_from(WORLDS))
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(ci=12))
 def test_keyframe_scan_matching_keeps_the_truth(seed, world):
     """lidar.keyframes: scans matched to keyframes every 0.3 m / 0.2 rad (several per log)."""
     log, out = run_sim(seed, world, overrides={"lidar.keyframes": True, "lidar.keyframe_distance": 0.3,
@@ -311,24 +310,27 @@ def test_cli_run_report_exports_on_the_samples(tmp_path, sample):
 
 
 # ---------------------------------------------------------------- real data
-def _dataset(rel: str) -> Path:
-    p = DATASETS / rel
+def _dataset(datasets: Path, rel: str) -> Path:
+    p = datasets / rel
     if not p.exists():
         pytest.skip(f"dataset not present: {p}")
     return p
 
 
+@pytest.mark.datasets
 @pytest.mark.parametrize("rel,config,mapped_min", [
     ("carmen_corrected/aces-corrected.log.gz", "carmen_corrected.toml", 440),
     ("breezyslam_mines/exp1.dat.xz", "exp1.toml", 20),
-    ("ros2_turtlebot4_comprobo22/macfirst_floor_take_2", "ros_laserscan.toml", 50),
-    ("mcap_turtlebot4_comprobo22/macfirst_floor_take_2.mcap", "ros_laserscan.toml", 50),
+    pytest.param("ros2_turtlebot4_comprobo22/macfirst_floor_take_2", "ros_laserscan.toml", 50,
+                 marks=pytest.mark.slow),  # ~5-7 s warm each, the two TurtleBot logs
+    pytest.param("mcap_turtlebot4_comprobo22/macfirst_floor_take_2.mcap", "ros_laserscan.toml", 50,
+                 marks=pytest.mark.slow),
     ("ros1_neato_ksoltan/left_side.bag", "ros_laserscan.toml", 50),
 ])
-def test_real_datasets_end_to_end(tmp_path, rel, config, mapped_min):
-    path = _dataset(rel)
+def test_real_datasets_end_to_end(datasets, tmp_path, rel, config, mapped_min):
+    path = _dataset(datasets, rel)
     out = tmp_path / "r.h5"
-    r = CliRunner().invoke(main, ["run", str(path), "--mode", "lidar", "--config", str(REPO / "configs" / config),
+    r = CliRunner().invoke(main, ["run", str(path), "--mode", "lidar", "--config", str(CONFIGS / config),
                                   "-o", str(out)])
     assert r.exit_code == 0, r.output
     from ivslam_cli.results.hdf5 import read_result

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from ivslam_cli.slam.landmarks.kernel import INCREMENT
 from ivslam_cli.interval.pose import meet_or_keep
 from ivslam_cli.slam.motion_kernel import dead_reckon, meet_node, smooth_backward
+from tests.helpers.hyp import examples
 
 
 def _wrap(a):
@@ -46,7 +47,7 @@ def _trajectory(seed: int, n: int, err: float):
 
 
 @given(st.integers(0, 2**31 - 1), st.integers(4, 40), st.floats(0.005, 0.05))
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=examples(ci=300))
 def test_backward_pass_keeps_the_truth_and_carries_a_contraction_back(seed, n, err):
     truth, kind, U, P = _trajectory(seed, n, err)
     events = np.zeros(n - 1, np.int64)

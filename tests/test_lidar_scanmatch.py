@@ -13,12 +13,13 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli.slam.lidar.map_update import LidarBounds
 from ivslam_cli.slam.lidar.scanmatch import covered_free, match_scan
 from ivslam_cli.simulate import SimConfig, simulate
+from tests.helpers.hyp import examples
 
 WORLDS = ("rooms", "corridor", "pillars", "open")
 _LOGS: dict = {}
@@ -53,7 +54,7 @@ def _inside(box, t) -> bool:
 @given(st.sampled_from(WORLDS), st.integers(0, 3), st.booleans(), st.integers(0, 30), st.integers(1, 9),
        st.floats(0.02, 0.3), st.floats(0.01, 0.15), st.floats(0, 1), st.floats(0, 1), st.floats(0, 1),
        st.integers(0, 3), st.sampled_from([1, 2, 4]))
-@settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(ci=120))
 def test_the_true_relative_pose_stays_in_the_box(world, seed, tight, j, dk, hxy, hth, fx, fy, ft, q, stride):
     log = _log(world, seed, tight)
     k = j + dk

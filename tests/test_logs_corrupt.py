@@ -4,7 +4,6 @@ Only LogError may come out (never another exception), and never a hang (SIGALRM 
 from __future__ import annotations
 
 import gzip
-import shutil
 import signal
 from contextlib import contextmanager
 from pathlib import Path
@@ -14,6 +13,7 @@ import pytest
 
 from ivslam_cli.errors import LogError
 from ivslam_cli.logs import list_formats, read_log
+from tests.helpers.ros_logs import laserscan, random_ranges, write_bag, write_mcap
 
 
 @contextmanager
@@ -42,8 +42,6 @@ def _only_logerror(path: Path, **kw) -> None:
 @pytest.fixture(scope="module")
 def small_logs(tmp_path_factory):
     """Small synthetic bag / MCAP / CARMEN logs written with the real writers."""
-    from bench.bench_readers import write_bag, write_mcap
-
     d = tmp_path_factory.mktemp("logs")
     write_bag(d / "s.bag", n=40)
     write_mcap(d / "s.mcap", n=40)
@@ -150,7 +148,6 @@ def test_ros1_profile_mcap_with_odometry(tmp_path):
     """ros1-profile MCAP (which rosbags' AnyReader refuses) reads scans and odometry."""
     from mcap.writer import Writer
 
-    from bench.bench_readers import _ranges, _scan
     from ivslam_cli.logs.typestore import typestore
 
     store = typestore(1)
@@ -164,11 +161,11 @@ def test_ros1_profile_mcap_with_odometry(tmp_path):
             sid = w.register_schema(name=ty.replace("/msg/", "/"), encoding="ros1msg",
                                     data=store.generate_msgdef(ty)[0].encode())
             ids[topic] = w.register_channel(topic=topic, message_encoding="ros1", schema_id=sid)
-        ranges = _ranges(5)
+        ranges = random_ranges(5)
         for k in range(5):
             t = k * 100_000_000
             w.add_message(channel_id=ids["/scan"], log_time=t, publish_time=t,
-                          data=store.serialize_ros1(_scan(store, 1, k, ranges[k]),
+                          data=store.serialize_ros1(laserscan(store, 1, k, ranges[k]),
                                                     "sensor_msgs/msg/LaserScan"))
             odo = T["nav_msgs/msg/Odometry"](
                 header=T["std_msgs/msg/Header"](seq=k, stamp=T["builtin_interfaces/msg/Time"](

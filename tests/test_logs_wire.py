@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,6 +10,7 @@ from hypothesis import strategies as st
 
 from ivslam_cli.logs.laserscan_wire import decode_laserscans
 from ivslam_cli.logs.typestore import typestore
+from tests.helpers.hyp import examples
 
 SCAN = "sensor_msgs/msg/LaserScan"
 
@@ -57,7 +57,7 @@ def _msg(store, ros, sec, nsec, frame, ranges, intens):
 floats = st.floats(width=32, allow_nan=False)
 
 
-@settings(max_examples=60, deadline=None)
+@settings(max_examples=examples(ci=60))
 @given(ros=st.sampled_from([1, 2]),
        scans=st.lists(st.tuples(st.integers(0, 2**31 - 1), st.integers(0, 999_999_999),
                                 st.text("abc_/", max_size=9),

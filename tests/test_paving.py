@@ -12,13 +12,14 @@ import math
 import mpmath
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli import paving as P
+from tests.helpers.hyp import examples
 
 mpmath.mp.prec = 200
-SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+SETTINGS = settings(max_examples=examples(ci=40))
 DOMAIN = [[-10.0, 10.0], [-10.0, 10.0]]
 TWO_PI = 2 * mpmath.pi
 

@@ -7,13 +7,14 @@ import math
 import mpmath
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli.contractors import polar
+from tests.helpers.hyp import examples
 
 mpmath.mp.prec = 120
-SETTINGS = settings(max_examples=1500, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+SETTINGS = settings(max_examples=examples(ci=1500))
 
 
 def around(value: mpmath.mpf, below: float, above: float) -> list[float]:
@@ -119,7 +120,7 @@ from ivslam_cli.contractors import ctc_polar as cp  # noqa: E402
 from ivslam_cli.interval import arith  # noqa: E402
 from ivslam_cli.interval.angles import angle_meet  # noqa: E402
 
-FAST = settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FAST = settings(max_examples=examples(ci=400))
 QUADRANTS = [(0.0, cp.HALF_PI_HI), (-cp.HALF_PI_HI, 0.0), (-cp.PI_HI, -cp.HALF_PI_LO),
              (cp.HALF_PI_LO, cp.PI_HI)]
 
@@ -229,7 +230,7 @@ bound_w = st.one_of(st.just(0.0), st.floats(0.0, 1e-9), st.floats(0.0, 1e-3), st
                     st.just(math.inf))
 
 
-@settings(max_examples=600, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(ci=600))
 @given(
     rho=st.one_of(st.just(0.0), st.floats(0.0, 1e-6), st.floats(0.0, 100.0)),
     theta=centers,

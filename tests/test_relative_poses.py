@@ -11,7 +11,7 @@ import math
 import h5py
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli.errors import IvslamError
@@ -29,6 +29,9 @@ from ivslam_cli.report.relations import (
 from ivslam_cli.results.example import example_result
 from ivslam_cli.results.hdf5 import read_result, write_result
 from ivslam_cli.results.model import RELATIVE_DEFINITION, Poses, RelativePoses, box_is_empty
+from tests.helpers.hyp import examples
+from tests.helpers.results import assert_same
+from tests.helpers.strategies import pose_box_around
 
 LD = np.longdouble
 
@@ -78,21 +81,13 @@ half = st.one_of(st.just(0.0), st.floats(0, 1e-6), st.floats(0, 0.3), st.floats(
 ahalf = st.one_of(st.just(0.0), st.floats(0, 1e-6), st.floats(0, 0.2), st.floats(0, 4.0))
 
 
-@st.composite
-def box_around(draw, c=coord):
+def box_around(c=coord):
     """A pose (float64) and a box holding it anywhere (not only at its centre)."""
-    p = [draw(c), draw(c), draw(angle)]
-    box = np.empty((3, 2))
-    for d in range(3):
-        h = draw(ahalf if d == 2 else half)
-        f = draw(st.floats(0, 1))
-        lo = p[d] - 2 * h * f
-        box[d] = (min(lo, p[d]), max(lo + 2 * h, p[d]))
-    return p, box
+    return pose_box_around(c, angle, half, ahalf)
 
 
 # ---------------------------------------------------------------- kernels: soundness
-@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(ci=400))
 @given(box_around(), st.sampled_from([1, 2, 16]))
 def test_inverse_holds_the_inverse_pose(pb, slices):
     p, box = pb
@@ -100,7 +95,7 @@ def test_inverse_holds_the_inverse_pose(pb, slices):
     assert _in(enc, _inv_ld(p))
 
 
-@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(ci=400))
 @given(box_around(), box_around(small), st.sampled_from([1, 2, 16]))
 def test_composition_holds_the_composed_pose(pb, rb, slices):
     (p, bp), (r, br) = pb, rb
@@ -108,7 +103,7 @@ def test_composition_holds_the_composed_pose(pb, rb, slices):
     assert _in(enc, _compose_ld(p, r))
 
 
-@settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(ci=200))
 @given(box_around(), st.integers(0, 2**31 - 1))
 def test_inverse_and_composition_hold_every_pose_of_the_boxes(pb, seed):
     """Not only the drawn pose: random poses anywhere in the boxes (corners included)."""
@@ -189,7 +184,7 @@ def chain(draw):
     return n, rp, _compose_all_ld(fwd), _compose_all_ld(bwd[::-1])
 
 
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(ci=300))
 @given(chain())
 def test_chains_hold_the_composed_truth(ch):
     n, rp, truth, truth_back = ch
@@ -281,7 +276,7 @@ def test_relations_check_relative_enclosure_that_misses_the_truth_is_a_failure()
     assert rc.contained == 0 and not rc.sound and "(relative)" in rc.failures[0]
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(ci=60))
 @given(st.integers(0, 2**31 - 1), st.integers(3, 8))
 def test_relations_check_with_random_relative_boxes_keeps_the_truth(seed, n):
     """Random trajectories, random boxes around them, random relative boxes (given or
@@ -325,8 +320,6 @@ def _with_relative(r):
 
 
 def test_round_trip_with_and_without_relative(tmp_path):
-    from test_results_hdf5 import assert_same
-
     r = _with_relative(example_result("lidar"))
     write_result(tmp_path / "r.h5", r)
     back = read_result(tmp_path / "r.h5")

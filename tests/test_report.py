@@ -24,6 +24,7 @@ from ivslam_cli.report.text import render_text
 from ivslam_cli.results.example import TRUE_LANDMARKS, example_result
 from ivslam_cli.results.hdf5 import write_result
 from ivslam_cli.results.model import WidthHistory
+from tests.helpers.hyp import examples
 
 
 def test_consistent_example_is_fully_contained():
@@ -129,7 +130,7 @@ def test_truth_outside_the_time_span_is_not_checked():
     assert c.not_checked == 2 and c.checked == 9
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=examples(ci=200))
 @given(
     lo=st.floats(-20, 20),
     w=st.floats(0, 8),

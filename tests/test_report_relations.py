@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli.errors import IvslamError
@@ -28,6 +28,8 @@ from ivslam_cli.report.relations import (
 from ivslam_cli.results.example import example_result
 from ivslam_cli.results.hdf5 import write_result
 from ivslam_cli.results.model import Poses
+from tests.helpers.hyp import examples
+from tests.helpers.strategies import pose_box_around
 
 LD = np.longdouble
 
@@ -50,23 +52,14 @@ coord = st.floats(-200, 200, allow_nan=False, allow_infinity=False)
 angle = st.floats(-20, 20, allow_nan=False, allow_infinity=False)
 half = st.one_of(st.just(0.0), st.floats(0, 1e-6), st.floats(0, 0.5), st.floats(0, 50))
 ahalf = st.one_of(st.just(0.0), st.floats(0, 1e-6), st.floats(0, 0.3), st.floats(0, 4.0))
-frac = st.floats(0, 1)
 
 
-@st.composite
-def box_around(draw):
+def box_around():
     """A true pose and a box holding it (the truth anywhere in the box, not only its centre)."""
-    p = [draw(coord), draw(coord), draw(angle)]
-    box = np.empty((3, 2))
-    for d in range(3):
-        h = draw(ahalf if d == 2 else half)
-        f = draw(frac)
-        lo = p[d] - 2 * h * f
-        box[d] = (min(lo, p[d]), max(lo + 2 * h, p[d]))
-    return p, box
+    return pose_box_around(coord, angle, half, ahalf)
 
 
-@settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(ci=400))
 @given(box_around(), box_around(), st.sampled_from([1, 2, 16, 64]))
 def test_relative_enclosure_holds_the_true_relative_pose(a, b, slices):
     (p1, b1), (p2, b2) = a, b
@@ -75,7 +68,6 @@ def test_relative_enclosure_holds_the_true_relative_pose(a, b, slices):
     assert _inside(enc, p1, p2), (p1, b1, p2, b2, enc)
 
 
-@settings(max_examples=100, deadline=None)
 @given(box_around(), box_around(), st.integers(2, 40))
 def test_relative_enclosure_every_pose_of_the_boxes(a, b, seed):
     """Poses drawn all over the two boxes (corners included) stay inside the enclosure."""

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import os
 import re
 from pathlib import Path
@@ -26,33 +25,8 @@ from ivslam_cli.results.model import (
     ResultProvenance,
     box_is_empty,
 )
-
-
-def assert_same(a, b, where="result"):
-    """Deep equality: dataclasses field by field, arrays by dtype kind, shape and value."""
-    if dataclasses.is_dataclass(a):
-        assert type(a) is type(b), where
-        for f in dataclasses.fields(a):
-            assert_same(getattr(a, f.name), getattr(b, f.name), f"{where}.{f.name}")
-    elif isinstance(a, np.ndarray):
-        assert isinstance(b, np.ndarray), where
-        assert a.shape == b.shape, f"{where}: shape {a.shape} != {b.shape}"
-        assert a.dtype.kind == b.dtype.kind, f"{where}: dtype {a.dtype} != {b.dtype}"
-        if a.dtype.kind == "f":
-            assert a.dtype == b.dtype, where
-            assert np.array_equal(a, b, equal_nan=True), where
-        else:
-            assert np.array_equal(a, b), where
-    elif isinstance(a, dict):
-        assert isinstance(b, dict) and set(a) == set(b), f"{where}: keys {set(a)} != {set(b)}"
-        for k in a:
-            assert_same(a[k], b[k], f"{where}[{k!r}]")
-    elif isinstance(a, (list, tuple)):
-        assert len(a) == len(b), where
-        for k, (x, y) in enumerate(zip(a, b)):
-            assert_same(x, y, f"{where}[{k}]")
-    else:
-        assert type(a) is type(b) and a == b, f"{where}: {a!r} != {b!r}"
+from tests.helpers.hyp import examples
+from tests.helpers.results import assert_same
 
 
 def test_round_trip_every_field(tmp_path):
@@ -83,7 +57,7 @@ def test_round_trip_minimal_result(tmp_path):
     assert back.poses is None and back.truth is None and back.grid is None
 
 
-@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=examples(ci=25), suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(
     counts=st.lists(st.integers(0, 40), min_size=0, max_size=6),
     seed=st.integers(0, 2**32 - 1),

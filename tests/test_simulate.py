@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from ivslam_cli.errors import ConfigError
 from ivslam_cli.simulate import SimConfig, simulate
 from ivslam_cli.simulate.noise import INSIDE
+from tests.helpers.hyp import examples
 
 
 def wrap(a):
@@ -121,7 +122,7 @@ def test_edges_noise_sits_at_the_bound():
     assert np.allclose(e_alpha, INSIDE * log.bounds["bearing"], rtol=1e-9, atol=1e-12)
 
 
-@settings(max_examples=15, deadline=None)
+@settings(max_examples=examples(ci=15))
 @given(seed=st.integers(0, 2**32 - 1), noise=st.sampled_from(["uniform", "triangular", "edges"]),
        rate=st.sampled_from([1.0, 7.0, 30.0]), out=st.sampled_from([0.0, 0.1]))
 def test_landmarks_property(seed, noise, rate, out):

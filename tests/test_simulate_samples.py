@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from ivslam_cli.logs.ivslam_h5 import read_ivslam_h5
-from tests.conftest import SAMPLE_LOGS
+from tests.helpers.paths import SAMPLE_LOGS
+from tests.helpers.ros_messages import decode
 
 
 def _commands() -> dict[str, list[str]]:
@@ -42,7 +43,5 @@ def test_h5_sample_matches_its_command(cli_run, tmp_path):
 
 @pytest.mark.parametrize("name,fmt", [("pairs.mcap", "mcap"), ("landmarks.bag", "ros1")])
 def test_ros_samples_decode_with_truth(name, fmt):
-    from tests.test_writers import decode
-
     d = decode(SAMPLE_LOGS / name, fmt)
     assert d["meta"].meta["scenario"] in name and d["truth"] and d["obs"]
