@@ -29,4 +29,10 @@ step "6. the landmark CSP on a simulated unicycle log with 1 % outliers: pose tu
     -o "$OUT/demo_landmarks.h5" --tum "$OUT/demo_landmarks.tum" --force
 "$IVSLAM" report "$OUT/demo_landmarks.h5" --plot "$OUT/demo_landmarks.png" --force | tail -n 12
 
-printf '\nDone. Results in %s/: demo_pairs.h5 / demo_landmarks.h5 (HDF5 results), demo_pairs.png / demo_landmarks.png (plots), demo_pairs.json (report), demo_landmarks.tum (TUM trajectory).\n' "$OUT"
+step "7. feature-less LiDAR SLAM in submaps: a simulated URG-04LX log (30 s), every scan tracked and mapped in its submap's frame"
+"$IVSLAM" simulate --scenario lidar --world rooms --sensor urg-04lx --duration 30 --seed 5 -o "$OUT/demo_lidar.h5" --force
+"$IVSLAM" run "$OUT/demo_lidar.h5" --mode lidar -o "$OUT/demo_lidar.res.h5" --force
+"$IVSLAM" report "$OUT/demo_lidar.res.h5" --plot "$OUT/demo_lidar.png" --force | grep -E "containment|pose|map_free|submaps|proven free|scans mapped|SOUNDNESS"
+"$IVSLAM" report "$OUT/demo_lidar.res.h5" --plot "$OUT/demo_lidar_submap0.png" --submap 0 --force > /dev/null
+
+printf '\nDone. Results in %s/: demo_pairs.h5 / demo_landmarks.h5 / demo_lidar.res.h5 (HDF5 results), demo_pairs.png / demo_landmarks.png / demo_lidar.png / demo_lidar_submap0.png (plots), demo_pairs.json (report), demo_landmarks.tum (TUM trajectory).\n' "$OUT"

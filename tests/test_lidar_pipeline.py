@@ -1,185 +1,155 @@
-"""`ivslam run --mode lidar` end to end: pose boxes, P_EMPTY / P_OBSTACLE, old/new, result, report.
+"""`ivslam run --mode lidar` end to end: submaps, pose boxes, P_EMPTY / P_OBSTACLE, result, report.
 
-Simulated logs (``ivslam simulate --scenario lidar --beam-model ray``: a ray-cast LiDAR in a wall
-world, twist odometry with stated bounds) are checked against their truth (cone-beam logs, the
-simulator's default: ``test_simulate_cone.py``):
+Simulated logs (``ivslam simulate --scenario lidar``: a cone-beam LiDAR in a wall world, twist
+odometry with stated bounds; ``--beam-model ray`` where ray-cast beams are the point) are checked
+against their truth, each in its frame:
 
-- every true pose (at every scan stamp) is in its box;
-- every true wall point hit by a valid in-bound beam lies in a cell of ∪ P_OBSTACLE^k ∪
-  P_OLD^k (the per-beam outer sets; the map's OBSTACLE state is their seed intersection);
-- no P_EMPTY cell meets a true wall.
+- every true pose (at every scan stamp) is in its global box, the truth expressed in the result's
+  frame (the first pose's when no initial pose is given);
+- every scan's box in its submap's frame holds its true pose relative to the anchor's;
+- no P_EMPTY cell of any submap meets a true wall in that submap's true frame;
+- every true wall point hit by a valid in-bound beam lies in a cell of ∪ P_OBSTACLE^k ∪ P_OLD^k
+  of the submaps the scan was mapped into.
 
 Real datasets run when ``../shared/datasets`` is there (skipped otherwise; marked ``datasets``).
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 from ivslam_cli.cli import cli as main
 from ivslam_cli.config import resolve_config
 from ivslam_cli.errors import IvslamError
-from ivslam_cli.results.model import CELL_EMPTY, CELL_OBSTACLE
+from ivslam_cli.results.model import CELL_EMPTY, CELL_OBSTACLE, FRAME_FIRST_POSE, FRAME_WORLD
 from ivslam_cli.simulate import SimConfig, simulate
-from ivslam_cli.simulate.lidar import laser_poses
-from ivslam_cli.simulate.raycast import cast
 from ivslam_cli.slam.lidar import Params as LidarParams
-from ivslam_cli.slam.lidar.pipeline import solve
-from tests.helpers.hyp import examples
-from tests.helpers.lidar_world import segments_meet_cells
+from ivslam_cli.slam.lidar.pipeline import run, solve
+from tests.helpers.lidar_truth import assert_contained, hits_outside_obstacle, nearest_in_cones
 from tests.helpers.paths import CONFIGS, SAMPLE_LOGS as SAMPLES
 
 WORLDS = ("rooms", "corridor", "pillars", "open")
 
 
-# ---------------------------------------------------------------- truth checks
-def pose_misses(out, truth) -> int:
-    """Scans whose true pose (at the scan's own stamp) is outside its box (heading mod 2π)."""
-    k = np.searchsorted(truth.pose_stamp, out.poses.stamp)
-    assert np.array_equal(truth.pose_stamp[k], out.poses.stamp)
-    p, box = truth.pose[k], out.poses.box
-    inside = np.all((box[:, :2, 0] <= p[:, :2]) & (p[:, :2] <= box[:, :2, 1]), axis=1)
-    th = box[:, 2, 0] + np.mod(p[:, 2] - box[:, 2, 0], 2 * math.pi)
-    return int(np.count_nonzero(~(inside & (th <= box[:, 2, 1]))))
-
-
-def empty_on_walls(out, world) -> tuple[int, int]:
-    """(P_EMPTY cells meeting a wall, P_EMPTY cells)."""
-    d = out.tmap.dense(raw=True)
-    empty = np.argwhere(d.data & 1) + [d.i0, d.j0]
-    bad = int(segments_meet_cells(world, empty, out.tmap.eps).sum()) if empty.size else 0
-    return bad, int(empty.shape[0])
-
-
-def hits_outside_obstacle(log, out) -> tuple[int, int]:
-    """(true hit points of valid in-bound beams of mapped scans outside every cell flagged
-    P_OBSTACLE^k or P_OLD^k, hit points checked)."""
-    sc, tr, tmap = log.scans, log.truth, out.tmap
-    nb = int(sc.offsets[1] - sc.offsets[0])
-    lp = laser_poses(tr.pose, sc.mount)
-    ang = sc.angle_min[0] + sc.angle_increment[0] * np.arange(nb)
-    dist = cast(lp, ang, tr.world)
-    use = sc.valid.reshape(-1, nb) & ~tr.outliers["scans"].reshape(-1, nb) & np.isfinite(dist)
-    mapped = np.zeros(len(sc), bool)
-    mapped[out.mapped] = True
-    use &= mapped[:, None]
-    world = lp[:, 2:3] + ang[None, :]
-    px = (lp[:, 0:1] + dist * np.cos(world))[use]
-    py = (lp[:, 1:2] + dist * np.sin(world))[use]
-    missed = np.ones(px.shape[0], dtype=bool)
-    e = tmap.eps
-    for ox in (-1e-9, 0.0, 1e-9):  # a point on a cell border belongs to both cells
-        for oy in (-1e-9, 0.0, 1e-9):
-            f = tmap.get(np.floor(px / e + ox).astype(np.int64), np.floor(py / e + oy).astype(np.int64))
-            missed &= (f & 6) == 0
-    return int(missed.sum()), int(px.shape[0])
-
-
-def run_sim(seed, world, sensor="urg-04lx", noise="uniform", steps=60, overrides=None):
-    """Ray-cast logs (beams with no width): without ``lidar.fill_gaps`` such scans prove no free
-    space, so these runs state the gap assumption to exercise P_EMPTY (it holds in these worlds
-    for the URG's 0.35° steps; the SICK pillars case below shows where it does not)."""
+def run_sim(seed, world, sensor="urg-04lx", noise="uniform", steps=40, overrides=None, beam_model="cone"):
     log = simulate(SimConfig(scenario="lidar", world=world, sensor=sensor, seed=seed, steps=steps, noise=noise,
-                             beam_model="ray"))
-    cfg = resolve_config(None, {"landmarks.initial_pose_from_truth": True, "lidar.fill_gaps": True,
-                                **(overrides or {})}, log_bounds=log.bounds)
-    return log, solve(log, LidarParams.from_config(cfg))
+                             beam_model=beam_model))
+    cfg = resolve_config(None, dict(overrides or {}), log_bounds=log.bounds)
+    params = LidarParams.from_config(cfg)
+    return log, params, solve(log, params)
 
 
-def assert_truth_kept(log, out):
-    assert pose_misses(out, log.truth) == 0
-    bad, n_empty = empty_on_walls(out, log.truth.world)
-    assert bad == 0, f"{bad} of {n_empty} P_EMPTY cells meet a wall"
-    missed, n_hits = hits_outside_obstacle(log, out)
-    assert n_hits > 0 and missed == 0, f"{missed} of {n_hits} true hit points outside P_OBSTACLE"
-    return n_empty
+def result_of(log, params):
+    return run(log, params)
+
+
+def assert_truth_kept(log, params, out):
+    res = run(log, params)
+    kinds = ("pose", "map_free") + (("pose_relative",) if res.submaps is not None else ())
+    c = assert_contained(res, kinds)
+    if params.beams.bearing >= 0.5 * float(log.scans.angle_increment[0]) or params.beams.fill_gaps:
+        missed, n_hits = hits_outside_obstacle(log, out, nearest_in_cones(log))
+        assert n_hits > 0 and missed == 0, f"{missed} of {n_hits} true hit points outside P_OBSTACLE"
+    return res, c
 
 
 # ---------------------------------------------------------------- simulated logs
-@given(st.integers(0, 2**31 - 1), st.sampled_from(WORLDS), st.sampled_from(["uniform", "edges"]))
-@settings(max_examples=examples(ci=50))
-def test_simulated_urg_runs_keep_the_truth(seed, world, noise):
-    """The seed's sensor (URG-04LX profile, 682 beams 0.35° apart) in every built-in world."""
-    log, out = run_sim(seed, world, noise=noise)
-    n_empty = assert_truth_kept(log, out)
-    assert n_empty > 0 and out.stats["scans_mapped"] > 0
+@pytest.mark.parametrize("seed", range(24))
+def test_simulated_urg_runs_keep_the_truth(seed):
+    """The URG-04LX profile (682 beams 0.35° apart) in every built-in world, 24 seeds, with and
+    without the initial pose from the truth: every scan mapped, every enclosure holds the truth
+    in its frame, free space proven."""
+    world, noise = WORLDS[seed % 4], ("uniform", "edges")[(seed // 4) % 2]
+    from_truth = seed % 3 == 0
+    log, params, out = run_sim(seed, world, noise=noise,
+                               overrides={"landmarks.initial_pose_from_truth": from_truth})
+    res, c = assert_truth_kept(log, params, out)
+    assert res.poses.frame == (FRAME_WORLD if from_truth else FRAME_FIRST_POSE)
+    assert out.stats["scans_mapped"] == len(log.scans) and out.stats["empty_cells"] > 0
     assert out.stats["old_beams"] + out.stats["new_beams"] == out.stats["valid_beams_mapped"]
+    assert c["pose_relative"][1] >= len(log.scans) - 1
 
 
-@given(st.integers(0, 2**31 - 1), st.sampled_from(WORLDS))
-@settings(max_examples=examples(ci=12))
-def test_keyframe_scan_matching_keeps_the_truth(seed, world):
-    """lidar.keyframes: scans matched to keyframes every 0.3 m / 0.2 rad (several per log)."""
-    log, out = run_sim(seed, world, overrides={"lidar.keyframes": True, "lidar.keyframe_distance": 0.3,
-                                                "lidar.keyframe_turn": 0.2, "lidar.match_boxes": 300})
-    assert_truth_kept(log, out)
-    assert out.stats["keyframes"] >= 2 and out.stats["keyframes_matched"] >= 1
-    # sound data: no keyframe match may come out empty (that would be an empty event)
-    assert not any(str(c).startswith("keyframe") for c in out.consistency.empty_events.constraint)
-    pairs, boxes = out.relative
-    assert pairs.shape[0] > 0
-    tr = log.truth
-    p = tr.pose[np.searchsorted(tr.pose_stamp, out.poses.stamp)]
-    a, b = p[pairs[:, 0]], p[pairs[:, 1]]
-    d = b - a
-    c, s_ = np.cos(a[:, 2]), np.sin(a[:, 2])
-    rel = np.column_stack([c * d[:, 0] + s_ * d[:, 1], -s_ * d[:, 0] + c * d[:, 1], d[:, 2]])
-    th = boxes[:, 4] + np.mod(rel[:, 2] - boxes[:, 4], 2 * math.pi)
-    inside = ((boxes[:, 0] <= rel[:, 0]) & (rel[:, 0] <= boxes[:, 1]) & (boxes[:, 2] <= rel[:, 1])
-              & (rel[:, 1] <= boxes[:, 3]) & (th <= boxes[:, 5]))
-    assert inside.all(), f"{(~inside).sum()} of {inside.size} relative boxes miss the true relative pose"
+def test_the_first_pose_frame_and_the_world_frame_both_hold_the_truth(tmp_path):
+    """The same log with and without --initial-pose-from-truth: both reports find every pose
+    contained (the truth compared in the result's frame), none says SOUNDNESS FAILURE."""
+    log_path = tmp_path / "l.h5"
+    r = CliRunner().invoke(main, ["simulate", "--scenario", "lidar", "--world", "rooms", "--seed", "5",
+                                  "--steps", "60", "-o", str(log_path)])
+    assert r.exit_code == 0, r.output
+    for extra in ([], ["--initial-pose-from-truth"]):
+        out = tmp_path / f"r{len(extra)}.h5"
+        r = CliRunner().invoke(main, ["run", str(log_path), "--mode", "lidar", "-o", str(out), *extra])
+        assert r.exit_code == 0, r.output
+        r = CliRunner().invoke(main, ["report", str(out)])
+        assert r.exit_code == 0 and "SOUNDNESS FAILURE" not in r.output, r.output
+        lines = r.output.split("containment against ground truth:")[1].splitlines()
+        for kind in ("pose", "pose_relative", "map_free"):
+            line = next(x for x in lines if x.strip().split(" ")[0] == kind)
+            assert "= 1.0000  ok" in line, line
 
 
-@pytest.mark.parametrize("seed,world", [(3, "rooms"), (5, "corridor")])
-def test_simulated_sick_rooms_and_corridor_keep_the_truth(seed, world):
-    log, out = run_sim(seed, world, sensor="sick")
-    assert_truth_kept(log, out)
+@pytest.mark.parametrize("seed,world", [(3, "rooms"), (5, "corridor"), (6, "pillars")])
+def test_simulated_sick_keeps_the_truth(seed, world):
+    log, params, out = run_sim(seed, world, sensor="sick", steps=40)
+    assert_truth_kept(log, params, out)
 
 
 @pytest.mark.xfail(strict=True, reason="the stated lidar.fill_gaps assumption fails here: 1° ray-cast beams "
                    "(sick profile) leave convex wall corners between two beams that poke into the filled free "
                    "triangle (pillar corner at 10 m: gap 17 cm, range margin 13 cm); one P_EMPTY cell meets a wall")
 def test_simulated_sick_pillars_corner_between_beams_with_fill_gaps():
-    log, out = run_sim(6, "pillars", sensor="sick", steps=80)
-    assert pose_misses(out, log.truth) == 0
-    assert hits_outside_obstacle(log, out)[0] == 0
-    assert empty_on_walls(out, log.truth.world)[0] == 0
+    log, params, out = run_sim(6, "pillars", sensor="sick", steps=80, beam_model="ray",
+                               overrides={"lidar.fill_gaps": True, "lidar.poses_known": True,
+                                          "lidar.pose_margin": (0.02, 0.02, 0.005)})
+    assert_contained(run(log, params), ("pose", "map_free"))
 
 
 def test_without_fill_gaps_ray_beams_prove_no_free_space_and_stay_sound():
-    """The default: the same case keeps the truth, because scans whose cones leave gaps prove no
-    free space, and the result says so."""
-    log, out = run_sim(6, "pillars", sensor="sick", steps=80, overrides={"lidar.fill_gaps": False})
-    assert pose_misses(out, log.truth) == 0
-    assert hits_outside_obstacle(log, out)[0] == 0
-    assert empty_on_walls(out, log.truth.world) == (0, 0)
-    assert "no free space proven" in out.consistency.assumption
+    """Ray-cast beams leave gaps between cones: by default such scans prove no free space (an
+    obstacle can hide between two beams), and the result says so."""
+    log, params, out = run_sim(6, "pillars", sensor="sick", steps=40, beam_model="ray")
+    res = run(log, params)
+    c = assert_contained(res, ("pose", "pose_relative"))
+    assert c.get("map_free", (0, 0)) == (0, 0)
+    assert out.stats["empty_cells"] == 0
+    assert "no free space proven" in res.consistency.assumption
 
 
 def test_poses_known_from_the_truth():
-    log, out = run_sim(11, "rooms", overrides={"lidar.poses_known": True, "lidar.pose_margin": (0.02, 0.02, 0.005)})
+    log, params, out = run_sim(11, "rooms", overrides={"lidar.poses_known": True,
+                                                       "lidar.pose_margin": (0.02, 0.02, 0.005)})
     assert out.stats["motion"] == "known poses" and out.stats["scans_mapped"] == len(log.scans)
-    n_empty = assert_truth_kept(log, out)
-    # tight boxes prove much more free space than dead reckoning does
-    _, dr = run_sim(11, "rooms")
-    assert n_empty > empty_on_walls(dr, log.truth.world)[1]
+    res, _ = assert_truth_kept(log, params, out)
+    assert res.submaps is None and res.grid.frame == "proven"
     assert np.nanmax(out.consistency.widths["pose"].width) <= 0.04 + 1e-9
 
 
 def test_wide_boxes_are_not_mapped_and_said_so():
-    log, out = run_sim(2, "corridor", overrides={"lidar.max_pose_width": 0.3})
-    w = out.consistency.widths["pose"].width
-    assert (w > 0.3).any() and out.stats["scans_mapped"] == int((w <= 0.3).sum()) < len(log.scans)
+    log, params, out = run_sim(2, "corridor", overrides={"lidar.max_pose_width": 0.03})
+    w = np.maximum(out.poses.relative[:, 0, 1] - out.poses.relative[:, 0, 0],
+                   out.poses.relative[:, 1, 1] - out.poses.relative[:, 1, 0])
+    assert (w > 0.03).any() and out.stats["scans_mapped"] < len(log.scans)
     assert any("max_pose_width" in d.reason for d in out.dropped)
-    assert_truth_kept(log, out)
+    assert_truth_kept(log, params, out)
+
+
+def test_submaps_start_at_distance_and_overlap():
+    """A new submap starts when the robot is lidar.submap_distance from the anchor; the previous
+    one keeps tracking the next lidar.submap_overlap metres, so some scans are in two submaps."""
+    log, params, out = run_sim(4, "rooms", steps=120, overrides={"lidar.submap_distance": 1.0,
+                                                                 "lidar.submap_overlap": 0.4})
+    sm = out.submaps
+    assert len(sm) >= 3
+    members = np.diff(sm.member_offsets)
+    assert members.sum() > len(log.scans)  # overlaps
+    assert set(sm.member_row.tolist()) == set(range(len(log.scans)))
+    assert_truth_kept(log, params, out)
 
 
 def test_range_bounds_hold_in_both_conventions():
@@ -255,7 +225,7 @@ def test_one_line_errors(tmp_path):
         r = CliRunner().invoke(main, ["run", str(jump), "--mode", "lidar", "-o", str(tmp_path / "j.h5"),
                                       "--config", str(cfg_file)])
         assert r.exit_code == 2 and len(r.output.strip().splitlines()) == 1 and str(jump) in r.output, r.output
-        assert "m wide" in r.output and "lidar.max_pose_width" in r.output
+        assert "scan 5:" in r.output and ("m wide" in r.output or "from the origin" in r.output), r.output
 
 
 def _toml(tmp_path, line: str) -> Path:
@@ -277,22 +247,22 @@ def _pgm(path: Path) -> np.ndarray:
 def test_cli_run_report_exports_on_the_samples(tmp_path, sample):
     out = tmp_path / "r.h5"
     tum = tmp_path / "r.tum"
-    cfg = tmp_path / "fill.toml"  # the samples are ray-cast: state the gap assumption (see run_sim)
-    cfg.write_text("[lidar]\nfill_gaps = true\n")
-    r = CliRunner().invoke(main, ["run", str(SAMPLES / sample), "--mode", "lidar", "--initial-pose-from-truth",
-                                  "--config", str(cfg), "-o", str(out), "--tum", str(tum)])
+    r = CliRunner().invoke(main, ["run", str(SAMPLES / sample), "--mode", "lidar", "-o", str(out), "--tum", str(tum)])
     assert r.exit_code == 0, r.output
-    assert "lidar:" in r.output and "old" in r.output and "m² empty" in r.output
+    assert "lidar:" in r.output and "submaps" in r.output and "proven free" in r.output
     assert len(tum.read_text().splitlines()) > 10
     prefix = tmp_path / "map"
-    r = CliRunner().invoke(main, ["report", str(out), "--map-pgm", str(prefix)])
+    r = CliRunner().invoke(main, ["report", str(out), "--map-pgm", str(prefix), "--plot", str(tmp_path / "m.png"),
+                                  "--tum", str(tmp_path / "t.tum")])
     assert r.exit_code == 0, r.output
     text = r.output
-    assert "mode lidar" in text and "pose" in text and "= 1.0000  ok" in text
-    assert "explored" in text and "beams:" in text and "old" in text
+    assert "mode lidar" in text and "SOUNDNESS FAILURE" not in text
+    assert "pose_relative" in text and "map_free" in text and "submaps:" in text and "DISPLAY ONLY" in text
     from ivslam_cli.results.hdf5 import read_result
 
     res = read_result(out)
+    assert res.submaps is not None and res.grid.frame == "mosaic"
+    assert res.stats["area_empty_m2"] > 0 and res.stats["scans_mapped"] == res.stats["scans_used"]
     g = res.grid
     img = _pgm(prefix.with_suffix(".pgm"))
     assert img.shape == g.state.shape
@@ -300,13 +270,18 @@ def test_cli_run_report_exports_on_the_samples(tmp_path, sample):
     assert np.array_equal(img[::-1] == 0, g.state == CELL_OBSTACLE)
     yml = prefix.with_suffix(".yaml").read_text()
     assert "resolution: 0.05" in yml and "mode: trinary" in yml
-    assert res.stats["empty_cells"] == int((g.state == CELL_EMPTY).sum())
-    # JSON report carries the map and the beam counts
-    r = CliRunner().invoke(main, ["report", str(out), "--json"])
+    total = sum(int((res.submaps.grid(m).state == CELL_EMPTY).sum()) for m in range(len(res.submaps)))
+    assert res.stats["empty_cells"] == total
+    r = CliRunner().invoke(main, ["report", str(out), "--plot", str(tmp_path / "s.png"), "--submap", "0"])
+    assert r.exit_code == 0 and (tmp_path / "s.png").stat().st_size > 0, r.output
+    r = CliRunner().invoke(main, ["report", str(out), "--plot", str(tmp_path / "s2.png"), "--submap", "999"])
+    assert r.exit_code == 2 and "submaps 0.." in r.output
     import json
 
+    r = CliRunner().invoke(main, ["report", str(out), "--json"])
     js = json.loads(r.output)
-    assert js["map"]["area_m2"]["empty"] > 0 and js["map"]["beams"]["old"] == res.stats["old_beams"]
+    assert js["submaps"]["count"] == len(res.submaps) and js["map"]["frame"] == "mosaic"
+    assert js["containment"]["pose_relative"] == 1.0 and js["frame"]["poses"] == FRAME_FIRST_POSE
 
 
 # ---------------------------------------------------------------- real data
@@ -343,37 +318,30 @@ def test_real_datasets_end_to_end(datasets, tmp_path, rel, config, mapped_min):
     else:
         assert s["empty_cells"] > 0
     assert s["old_beams"] + s["new_beams"] == s["valid_beams_mapped"] > 0
-    assert len(res.consistency.empty_events) == 0
+    # exp1's wheel ticks jump now and then (datasets README): such steps are proven to break the
+    # odometry bounds and their scans relocalised; nothing else may be inconsistent
+    kinds = {str(c) for c in res.consistency.empty_events.constraint}
+    assert kinds <= ({"motion_outlier"} if "exp1" in rel else set()), kinds
 
 
-def test_keyframes_without_map_contraction_and_zero_areas():
-    """lidar.keyframes works with lidar.contract off (the assumption says which ran); an empty
-    obstacle set has area 0, not a rounded-up subnormal."""
-    log, out = run_sim(4, "corridor", overrides={"lidar.keyframes": True, "lidar.contract": False,
-                                                   "lidar.keyframe_distance": 0.3, "lidar.match_boxes": 200})
-    assert_truth_kept(log, out)
-    assert out.stats["keyframes_matched"] >= 1 and out.stats["scans_contracted"] == 0
-    text = out.consistency.assumption
-    assert "keyframe scans" in text and "against the map" not in text
+def test_zero_areas():
+    """An empty obstacle set has area 0, not a rounded-up subnormal."""
     from ivslam_cli.paving.tiles import TileMap
 
     assert TileMap(0.05).area("obstacle", upward=True) == 0.0
 
 
-def test_a_scan_contradicting_its_keyframe_is_an_empty_event():
-    """Scans whose ranges are all halved (the bounds broken) cannot match their keyframe: the
-    run says so as empty events instead of dropping the empty intersection."""
-    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=2, steps=60,
-                             bounds={"range_abs": 0.01, "range_rel": 0.005}))
+def test_a_scan_contradicting_its_submap_is_an_empty_event():
+    """Scans whose ranges are all halved (the bounds broken) cannot match their submap: the run
+    says so as empty events (and keeps their predicted boxes) instead of hiding the empty set."""
+    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=2, steps=40))
     sc = log.scans
     r = sc.ranges.copy()
-    for k in range(30, 60):
+    for k in range(20, 40):
         r[sc.offsets[k]:sc.offsets[k + 1]] *= 0.5
     bad = replace(log, scans=replace(sc, ranges=r))
-    cfg = resolve_config(None, {"landmarks.initial_pose_from_truth": True, "lidar.fill_gaps": True,
-                                "lidar.keyframes": True, "lidar.contract": False, "lidar.q_beams": 0,
-                                "lidar.keyframe_distance": 0.2, "lidar.match_boxes": 300}, log_bounds=log.bounds)
+    cfg = resolve_config(None, {"lidar.q_beams": 0}, log_bounds=log.bounds)
     out = solve(bad, LidarParams.from_config(cfg))
     kinds = [str(c) for c in out.consistency.empty_events.constraint]
-    assert any(c.startswith("keyframe") for c in kinds), kinds
-    assert out.stats["keyframes_unmatched"] + kinds.count("keyframe_meet") >= 1
+    assert "submap_match" in kinds, kinds
+    assert "contradiction" in out.consistency.assumption

@@ -24,9 +24,12 @@ import click
 @click.option("--max-hops", type=click.IntRange(min=1), default=None, show_default="8",
               help="--relations: relative pose enclosures of the result (keyframes runs) composed at most "
                    "along a chain between the two poses of a relation.")
+@click.option("--submap", type=click.IntRange(min=0), default=None, metavar="K",
+              help="--plot: draw submap K in its anchor's frame beside the mosaic (LiDAR results).")
 @click.option("--force", is_flag=True, help="Overwrite existing output files.")
 def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, map_pgm: Path | None,
-            relations: Path | None, stamp_tol: float | None, max_hops: int | None, force: bool) -> None:
+            relations: Path | None, stamp_tol: float | None, max_hops: int | None, submap: int | None,
+            force: bool) -> None:
     """Report on a result: bounds used, empty intersections, convergence, containment.
 
     \b
@@ -38,6 +41,7 @@ def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, ma
       ivslam report result.h5
       ivslam report result.h5 --json > report.json
       ivslam report result.h5 --plot map.png --tum traj.txt --map-pgm map
+      ivslam report lidar.h5 --plot submap3.png --submap 3
       ivslam report intel.h5 --relations ../shared/datasets/intel_lab/intel.relations.xz
     """
     from ivslam_cli.errors import IvslamError
@@ -48,6 +52,8 @@ def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, ma
         raise IvslamError("--stamp-tol applies to --relations only")
     if max_hops is not None and relations is None:
         raise IvslamError("--max-hops applies to --relations only")
+    if submap is not None and plot is None:
+        raise IvslamError("--submap applies to --plot only")
     res = read_result(result)
     rep = compute_report(res)
     rel_check = None
@@ -75,9 +81,12 @@ def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, ma
 
         write_map_server(map_pgm, res.grid, force=force)
     if plot is not None:
-        from ivslam_cli.report.plot import plot_report
+        from ivslam_cli.report.plot import plot_report, plot_submap
 
-        plot_report(rep, plot, force=force)
+        if submap is None:
+            plot_report(rep, plot, force=force)
+        else:
+            plot_submap(rep, submap, plot, force=force)
     if as_json:
         from ivslam_cli.report.jsonout import render_json
 

@@ -39,6 +39,7 @@ from ivslam_cli.results.model import (
     CELL_EMPTY,
     CELL_OBSTACLE,
     CELL_UNKNOWN,
+    FRAME_FIRST_POSE,
     Landmarks,
     PairSubpavings,
     Poses,
@@ -166,6 +167,54 @@ def pair_containment(pairs: PairSubpavings, truth: GroundTruth) -> Containment |
     )
 
 
+def truth_at(truth: GroundTruth, t: np.ndarray) -> np.ndarray:
+    """True poses (n, 3) at stamps ``t``, linearly interpolated (heading unwrapped); NaN outside
+    the truth's span."""
+    ts, tp = np.asarray(truth.pose_stamp, float), np.asarray(truth.pose, float)
+    t = np.atleast_1d(np.asarray(t, float))
+    out = np.full((t.size, 3), np.nan)
+    if ts.size == 0:
+        return out
+    inside = (t >= ts[0]) & (t <= ts[-1])
+    th = np.unwrap(tp[:, 2])
+    for d, col in enumerate((tp[:, 0], tp[:, 1], th)):
+        out[inside, d] = np.interp(t[inside], ts, col)
+    return out
+
+
+def relative_pose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a⁻¹ ⊕ b`` row by row: poses ``b`` (n, 3) in the frames of poses ``a`` (n, 3)."""
+    d = b[:, :2] - a[:, :2]
+    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
+    return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], b[:, 2] - a[:, 2]])
+
+
+def truth_in_frame(poses: Poses, truth: GroundTruth) -> GroundTruth:
+    """The truth expressed in the frame of the pose boxes: unchanged in the world frame; for
+    the frame of the first pose, every true pose relative to the true pose at ``origin_stamp``
+    (and the true landmarks and walls in that frame)."""
+    if poses.frame != FRAME_FIRST_POSE or truth.pose is None or truth.pose_stamp is None:
+        return truth
+    o = truth_at(truth, [poses.origin_stamp])
+    if not np.all(np.isfinite(o)):
+        return truth
+    tp = np.asarray(truth.pose, float)
+    out = GroundTruth(pose_stamp=truth.pose_stamp, pose=relative_pose(np.repeat(o, tp.shape[0], 0), tp),
+                      outliers=truth.outliers)
+    c, s = math.cos(o[0, 2]), math.sin(o[0, 2])
+
+    def to_frame(xy: np.ndarray) -> np.ndarray:
+        d = np.asarray(xy, float) - o[0, :2]
+        return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]])
+
+    if truth.landmark_id is not None and truth.landmark_xy is not None:
+        out.landmark_id, out.landmark_xy = truth.landmark_id, to_frame(truth.landmark_xy)
+    if truth.world is not None:
+        w = np.asarray(truth.world, float)
+        out.world = np.column_stack([to_frame(w[:, :2]), to_frame(w[:, 2:])])
+    return out
+
+
 def pose_containment(poses: Poses, truth: GroundTruth) -> Containment | None:
     if truth.pose_stamp is None or truth.pose is None or len(poses) == 0:
         return None
@@ -192,6 +241,95 @@ def pose_containment(poses: Poses, truth: GroundTruth) -> Containment | None:
         failures=[f"truth pose at t={t:.6g}" for t in ts[~ok]],
         centre_error=err,
     )
+
+
+def relative_containment(r: Result, truth: GroundTruth) -> Containment | None:
+    """Every scan's box in its submap's frame against the true pose relative to the true pose
+    of the submap's anchor (truth at the two scans' stamps)."""
+    sm = r.submaps
+    if sm is None or truth.pose is None or truth.pose_stamp is None or len(sm) == 0:
+        return None
+    owner = np.repeat(np.arange(len(sm)), np.diff(sm.member_offsets))
+    a_rows, b_rows = sm.anchor[owner], sm.member_row
+    keep = a_rows != b_rows
+    if not keep.any():
+        return None
+    st = r.poses.stamp
+    ta, tb = truth_at(truth, st[a_rows[keep]]), truth_at(truth, st[b_rows[keep]])
+    have = np.all(np.isfinite(ta), axis=1) & np.all(np.isfinite(tb), axis=1)
+    rel = relative_pose(ta[have], tb[have])
+    box = sm.member_box[keep][have]
+    ok = in_box(box[:, :2], rel[:, :2]) & angle_in(box[:, 2, 0], box[:, 2, 1], rel[:, 2])
+    err = np.linalg.norm(box_centre(box[:, :2]) - rel[:, :2], axis=-1)
+    rows = b_rows[keep][have]
+    subs = owner[keep][have]
+    return Containment("pose_relative", int(have.sum()), int(ok.sum()), not_checked=int((~have).sum()),
+                       failures=[f"scan row {int(b)} in submap {int(m)}" for b, m in zip(rows[~ok], subs[~ok])],
+                       centre_error=err)
+
+
+def segments_meet_cells(segs: np.ndarray, cells: np.ndarray, eps: float, origin, margin: float = 1e-6) -> np.ndarray:
+    """Whether each cell ``(column, row)`` of a grid (side ``eps``, corner ``origin``; closed
+    squares grown by ``margin``: the safe side for a check of free cells) meets a segment
+    ``(x0, y0, x1, y1)`` (Liang–Barsky clipping)."""
+    out = np.zeros(cells.shape[0], bool)
+    if cells.shape[0] == 0 or segs.shape[0] == 0:
+        return out
+    for c0 in range(0, cells.shape[0], 20000):  # bounded memory: (chunk, walls) arrays
+        ch = cells[c0:c0 + 20000]
+        lo = np.asarray(origin, float) + ch[:, None, :] * eps - margin
+        hi = np.asarray(origin, float) + (ch[:, None, :] + 1) * eps + margin
+        a, d = segs[None, :, :2], segs[None, :, 2:] - segs[None, :, :2]
+        t0 = np.zeros(lo.shape[:1] + (segs.shape[0],))
+        t1 = np.ones_like(t0)
+        ok = np.ones_like(t0, dtype=bool)
+        for ax in range(2):
+            dd = np.broadcast_to(d[..., ax], t0.shape)
+            aa = np.broadcast_to(a[..., ax], t0.shape)
+            par = dd == 0
+            ok &= ~par | ((aa >= lo[..., ax]) & (aa <= hi[..., ax]))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                ta = (lo[..., ax] - aa) / dd
+                tb = (hi[..., ax] - aa) / dd
+            t0 = np.where(par, t0, np.maximum(t0, np.minimum(ta, tb)))
+            t1 = np.where(par, t1, np.minimum(t1, np.maximum(ta, tb)))
+        out[c0:c0 + 20000] = np.any(ok & (t0 <= t1), axis=1)
+    return out
+
+
+def free_cell_containment(r: Result, truth: GroundTruth) -> Containment | None:
+    """P_EMPTY against the true walls (simulated worlds): every proven-free cell of every
+    submap, in its anchor's true frame (or of the map, in the result's frame), must miss them."""
+    if truth.world is None or r.grid is None:
+        return None
+    walls = np.asarray(truth.world, float)
+    checked = bad = 0
+    failures: list[str] = []
+    grids = []
+    if r.submaps is not None:
+        if truth.pose is None or truth.pose_stamp is None:
+            return None
+        anchors = truth_at(truth, r.poses.stamp[r.submaps.anchor])
+        for m in range(len(r.submaps)):
+            if not np.all(np.isfinite(anchors[m])):
+                continue
+            o = anchors[m]
+            c, s = math.cos(o[2]), math.sin(o[2])
+            d0, d1 = walls[:, :2] - o[:2], walls[:, 2:] - o[:2]
+            w = np.column_stack([c * d0[:, 0] + s * d0[:, 1], -s * d0[:, 0] + c * d0[:, 1],
+                                 c * d1[:, 0] + s * d1[:, 1], -s * d1[:, 0] + c * d1[:, 1]])
+            grids.append((f"submap {m}", r.submaps.grid(m), w))
+    elif r.grid.frame != "mosaic":
+        grids.append(("map", r.grid, walls))
+    for name, g, w in grids:
+        rows, cols = np.nonzero(g.state == CELL_EMPTY)
+        meet = segments_meet_cells(w, np.column_stack([cols, rows]), g.resolution, g.origin)
+        checked += int(rows.size)
+        nb = int(meet.sum())
+        bad += nb
+        if nb:
+            failures.append(f"{name}: {nb} proven-free cell(s) on a true wall")
+    return Containment("map_free", checked, checked - bad, failures=failures)
 
 
 # ---------------------------------------------------------------- widths
@@ -303,9 +441,12 @@ def final_widths(r: Result) -> dict[str, WidthStat]:
     if r.pairs is not None and len(r.pairs):
         out["pair"] = width_stat(box_width(pair_hulls(r.pairs)))
     if r.poses is not None and len(r.poses):
-        out["pose"] = width_stat(box_width(r.poses.box[:, :2]))
-        th = r.poses.box[:, 2, 1] - r.poses.box[:, 2, 0]
-        out["pose_heading"] = width_stat(np.where(box_is_empty(r.poses.box), np.nan, th))
+        for kind, b in (("pose", r.poses.box), ("pose_relative", r.poses.relative)):
+            if b is None:
+                continue
+            out[kind] = width_stat(box_width(b[:, :2]))
+            th = b[:, 2, 1] - b[:, 2, 0]
+            out[kind + "_heading"] = width_stat(np.where(box_is_empty(b), np.nan, th))
     return out
 
 
@@ -314,10 +455,13 @@ def compute_report(r: Result) -> Report:
     cont: dict[str, Containment] = {}
     truth = r.truth
     if truth is not None:
+        framed = truth_in_frame(r.poses, truth) if r.poses is not None else truth
         for c in (
-            landmark_containment(r.landmarks, truth) if r.landmarks is not None else None,
+            landmark_containment(r.landmarks, framed) if r.landmarks is not None else None,
             pair_containment(r.pairs, truth) if r.pairs is not None else None,
-            pose_containment(r.poses, truth) if r.poses is not None else None,
+            pose_containment(r.poses, framed) if r.poses is not None else None,
+            relative_containment(r, truth),
+            free_cell_containment(r, framed),
         ):
             if c is not None and c.checked:
                 cont[c.kind] = c

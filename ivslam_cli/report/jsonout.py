@@ -24,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from ivslam_cli.results.model import CELL_EMPTY
+
 from ivslam_cli.report.core import Report, WidthStat, event_dicts
 from ivslam_cli.results.hdf5 import SCHEMA_VERSION
 
@@ -97,8 +99,24 @@ def report_dict(rep: Report) -> dict[str, Any]:
             k: {"median": float(np.median(wr[:, d])) if wr.size else None,
                 "max": float(np.max(wr[:, d])) if wr.size else None}
             for d, k in enumerate(("x", "y", "theta"))}}
+    if r.poses is not None:
+        out["frame"] = {"poses": r.poses.frame, "origin_stamp": float(r.poses.origin_stamp)}
+    if r.submaps is not None:
+        sm, st = r.submaps, r.stats
+        free = [int(np.count_nonzero(sm.grid(m).state == CELL_EMPTY)) for m in range(len(sm))]
+        out["submaps"] = {
+            "count": len(sm),
+            "anchor_rows": [int(a) for a in sm.anchor],
+            "members": [int(n) for n in np.diff(sm.member_offsets)],
+            "proven_free_cells": free,
+            "proven_free_cells_total": int(sum(free)),
+            "proven_free_m2_total": float(sum(free) * sm.resolution ** 2),
+            "logodds_free_cells_total": int(st.get("logodds_free_cells", 0)),
+            "mapped_fraction": float(st.get("mapped_fraction", float("nan"))),
+        }
     if r.grid is not None:
         out["map"] = {
+            "frame": r.grid.frame,
             "origin": [float(x) for x in r.grid.origin],
             "resolution": float(r.grid.resolution),
             "shape": list(r.grid.shape),

@@ -209,3 +209,67 @@ def plot_report(rep: Report, path: str | Path, *, force: bool = False) -> None:
         _draw_widths(ax_w, rep)
     with atomic_path(path, force=force) as tmp:
         fig.savefig(tmp, format=fmt, dpi=120)
+
+
+def plot_submap(rep: Report, m: int, path: str | Path, *, force: bool = False) -> None:
+    """Submap ``m`` in its anchor's frame (its proven map, its scans' relative boxes and, with a
+    truth, their true poses relative to the anchor's) beside the mosaic of all submaps."""
+    path = Path(path)
+    fmt = FORMATS.get(path.suffix.lower())
+    if fmt is None:
+        raise IvslamError(f"unsupported plot format {path.suffix or '(none)'!r}: use .png or .svg", path)
+    r = rep.result
+    sm = r.submaps
+    if sm is None:
+        raise IvslamError("has no submaps (only LiDAR runs with dead reckoning have): --submap does not apply",
+                          r.provenance.input_path)
+    if not 0 <= m < len(sm):
+        raise IvslamError(f"--submap {m}: the result has submaps 0..{len(sm) - 1}", path)
+    try:
+        import matplotlib
+    except ImportError:  # pragma: no cover - optional extra
+        raise IvslamError("plotting needs matplotlib (pip install 'ivslam[plot]')", path) from None
+    matplotlib.use("Agg", force=True)
+    from matplotlib.figure import Figure
+
+    from ivslam_cli.report.core import relative_pose, truth_at
+
+    fig = Figure(figsize=(13, 6), layout="constrained")
+    ax, ax_m = fig.subplots(1, 2)
+    g = sm.grid(m)
+    img = np.full(g.state.shape + (4,), 0.0)
+    img[g.state == CELL_EMPTY] = (1.0, 1.0, 1.0, 1.0)
+    img[g.state == CELL_OBSTACLE] = (0.0, 0.0, 0.0, 1.0)
+    img[(g.state != CELL_EMPTY) & (g.state != CELL_OBSTACLE)] = (0.75, 0.75, 0.75, 1.0)
+    if g.state.size:
+        ax.imshow(img, origin="lower", interpolation="nearest", extent=_grid_extent(g))
+    rows, boxes, _ = sm.members(m)
+    _rects(ax, boxes[:, :2], facecolor="tab:blue", alpha=0.2, edgecolor="tab:blue", linewidth=0.3)
+    c = box_centre(boxes[:, :2])
+    ax.plot(c[:, 0], c[:, 1], color="tab:blue", lw=0.8, label="relative box centres")
+    t = r.truth
+    if t is not None and t.pose is not None and t.pose_stamp is not None:
+        ta = truth_at(t, r.poses.stamp[np.repeat(sm.anchor[m], rows.size)])
+        tb = truth_at(t, r.poses.stamp[rows])
+        ok = np.all(np.isfinite(ta), axis=1) & np.all(np.isfinite(tb), axis=1)
+        if ok.any():
+            rel = relative_pose(ta[ok], tb[ok])
+            ax.plot(rel[:, 0], rel[:, 1], color="tab:red", lw=0.8, ls="--", label="truth (relative to the anchor)")
+    ax.set_aspect("equal")
+    ax.set_title(f"submap {m} in its anchor's frame (proven: P_EMPTY white, P_OBSTACLE black)")
+    ax.legend(fontsize="x-small")
+    mo = r.grid
+    if mo is not None and mo.state.size:
+        img = np.full(mo.state.shape + (4,), 0.0)
+        img[mo.state == CELL_EMPTY] = (1.0, 1.0, 1.0, 1.0)
+        img[mo.state == CELL_OBSTACLE] = (0.0, 0.0, 0.0, 1.0)
+        img[(mo.state != CELL_EMPTY) & (mo.state != CELL_OBSTACLE)] = (0.75, 0.75, 0.75, 1.0)
+        ax_m.imshow(img, origin="lower", interpolation="nearest", extent=_grid_extent(mo))
+    ac = box_centre(sm.anchor_box[:, :2])
+    ax_m.plot(ac[:, 0], ac[:, 1], "o-", color="tab:orange", ms=2, lw=0.6, label="anchor box centres (the chain)")
+    ax_m.plot([ac[m, 0]], [ac[m, 1]], "o", color="tab:red", ms=6, label=f"anchor of submap {m}")
+    ax_m.set_aspect("equal")
+    ax_m.set_title("mosaic of the submaps at their anchors' box centres (display only)")
+    ax_m.legend(fontsize="x-small")
+    with atomic_path(path, force=force) as tmp:
+        fig.savefig(tmp, format=fmt, dpi=120)

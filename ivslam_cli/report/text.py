@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 
+from ivslam_cli.results.model import CELL_EMPTY, GRID_MOSAIC
+
 from ivslam_cli.report.core import FAILURE, SOUND, Report, WidthStat, event_dicts
 
 MAX_LISTED = 20  # failures listed per kind (all empty events are always listed)
@@ -125,10 +127,26 @@ def render_text(rep: Report, source: str = "") -> str:
         if any(v == FAILURE for v in rep.soundness.values()):
             add("SOUNDNESS FAILURE: an enclosure lost the truth although the stated bounds should hold")
 
+    if r.submaps is not None:
+        sm, st = r.submaps, r.stats
+        free = [int(np.count_nonzero(sm.grid(m).state == CELL_EMPTY)) for m in range(len(sm))]
+        members = np.diff(sm.member_offsets)
+        add("")
+        add(f"submaps:    {len(sm)} local frames (each the robot pose at its anchor scan; P_EMPTY proven in that "
+            f"frame given its scans' relative boxes), {int(np.median(members)) if len(sm) else 0} scans each (median)")
+        lo_free = int(st.get("logodds_free_cells", 0))
+        ratio = f" = {sum(free) / lo_free:.3g}× the log-odds free cells on the same scans ({lo_free})" if lo_free else ""
+        add(f"            proven free: {sum(free)} cells = {sum(free) * sm.resolution ** 2:.4g} m² in all (median "
+            f"{_g(float(np.median(free))) if free else 0} per submap){ratio}")
+        if "mapped_fraction" in st:
+            add(f"            scans mapped: {st.get('scans_mapped', 0)}/{st.get('scans_used', 0)} "
+                f"({100.0 * float(st['mapped_fraction']):.4g} %)")
     if r.grid is not None:
         g = r.grid
         add("")
-        add(f"map grid:   {g.shape[1]}×{g.shape[0]} cells of {g.resolution:g} m at origin "
+        what = ("mosaic:     the submaps placed at their anchors' box centres, FOR DISPLAY ONLY (the guarantees "
+                "are per submap and per pose box); " if g.frame == GRID_MOSAIC else "map grid:   ")
+        add(f"{what}{g.shape[1]}×{g.shape[0]} cells of {g.resolution:g} m at origin "
             f"({g.origin[0]:g}, {g.origin[1]:g})")
         add("            " + ", ".join(f"{k} {rep.map_cells[k]} cells = {rep.map_area_m2[k]:.4g} m²" for k in rep.map_cells))
         if "explored" in rep.map_cells:

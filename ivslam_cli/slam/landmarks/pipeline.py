@@ -22,6 +22,8 @@ from ivslam_cli import interval as iv
 from ivslam_cli.errors import IvslamError
 from ivslam_cli.logs.model import Dropped, LogData
 from ivslam_cli.results.model import (
+    FRAME_FIRST_POSE,
+    FRAME_WORLD,
     Consistency,
     Landmarks,
     Poses,
@@ -240,7 +242,9 @@ def solve(log: LogData, params: Params) -> LandmarksOutput:
         "solve_s": float(runtime),
     }
     return LandmarksOutput(
-        poses=Poses(stamp=pb.node_stamp.astype(float), box=P),
+        poses=Poses(stamp=pb.node_stamp.astype(float), box=P,
+                    **({"frame": FRAME_WORLD} if params.initial.pose is not None or params.initial.from_truth else
+                       {"frame": FRAME_FIRST_POSE, "origin_stamp": float(pb.node_stamp[0])})),
         landmarks=Landmarks(id=pb.ids, box=L),
         consistency=consistency, stats=stats, dropped=pb.dropped,
     )

@@ -1,35 +1,38 @@
 """Scan-to-submap matching: the set of poses of a scan, in its submap's frame, that agree with
-what the submap proves — a set inversion in ``(x, y, θ)`` by branch and bound.
+what the submap proves — a set inversion in ``(x, y, θ)`` (Jaulin, Kieffer, Didrit & Walter,
+*Applied Interval Analysis*, 2001) by best-first bound searches.
 
 Two constraints, both ways (the static world but for at most ``q`` beams):
 
-- **rule A** (a return is a surface point): the endpoint region of a beam of the scan, over
-  every pose of a sub-box, cannot lie inside the submap's proven-free cells (P_EMPTY);
+- **rule A** (a return is a surface point): the end-point region of a beam of the scan, over
+  every pose of a sub-box, cannot lie in proven-free space — the submap's P_EMPTY cells, or
+  the free cones of a reference scan (the submap's anchor scan, exact at the frame's origin,
+  and the last scan mapped into it, with its box), tested in continuous polar form;
 - **rule B** (free space is free): the scan's free cones, over every pose of a sub-box, cannot
-  cover a region proven to hold a surface point — the endpoint region of a beam of an earlier
-  scan of the submap (its anchor scan, at the exact origin of the frame, and the last scan
-  mapped into it, with its box).
+  cover a region proven to hold a surface point: the end-point region of a beam of a reference
+  scan.
 
 A sub-box is excluded when more than ``q`` beams of the scan break rule A for all its poses, or
-more than ``q`` witnesses break rule B. The search starts from the prior (a union of boxes,
-e.g. one per heading slice), splits the widest of ``x``, ``y`` and ``reach·θ`` (so rotation is
-sliced first while ``θ``'s width times the scan's reach exceeds the translation's), breadth
-first, down to leaves of ``leaf`` metres; with the budget spent, the sub-boxes still queued are
-kept whole. What is kept is a union of boxes; the caller groups it by heading slice.
+more than ``q`` reference beams break rule B. :func:`bound_kernel` finds the heading's two
+bounds over the prior (best-first: sub-boxes popped in the order of that bound, excluded ones
+dropped, others split along the widest of x, y and median range × θ — rotation is split first
+while it moves the beam ends more than the translation — until the first leaf of
+``resolution`` is kept), then cuts the heading interval into slices and finds each slice's x and
+y bounds: the pose set is a union of boxes, one per heading slice, not one hull. A search out
+of budget returns the key on top of its heap (no pose beyond it was left): sound, looser.
 
-Tables that make a large sub-box cost O(beams): the submap's cells not proven free are counted
-in a summed-area table over a window (a rectangle of cells is tested in O(1), whatever its
-size, as Cartographer's branch-and-bound scan matcher precomputes grids per level for the same
-reason — Hess, Kohler, Rapp & Andor 2016); the endpoint region of each beam over a sub-box is
-the sub-box's sensor box plus the beam's rotated polar region, from one cosine and sine per
-sub-box (no trigonometry per beam).
+Cost: the submap's cells not proven free are counted in a summed-area table over a window (a
+rectangle of cells in O(1), whatever its size — Cartographer's branch-and-bound scan matcher
+precomputes per-level grids for the same reason, Hess, Kohler, Rapp & Andor 2016); a beam's
+end-point region over a sub-box is an oriented rectangle from one cosine and sine per sub-box
+(no trigonometry per beam).
 
 Guarantee: if the true relative pose is in the prior, the bounds hold, the world is static but
-for at most ``q`` beams of the scan and ``q`` witnesses, and the submap's P_EMPTY is sound, the
-true pose is in the union kept. Interval bounds are rounded outward; the per-beam rotated
-regions are evaluated in floating point and widened by an explicit bound on their error
-(:data:`MARGIN_ABS` plus :data:`MARGIN_REL` of the range), which dominates the few roundings
-involved for coordinates below ``FIN_MAX``.
+for at most ``q`` beams of the scan and ``q`` of each rule's references, and the submap's
+P_EMPTY is sound, the true pose is in the union kept. Interval bounds are rounded outward; the
+oriented regions and bearings are evaluated in floating point and widened by explicit bounds on
+their error (:data:`MARGIN_ABS` + :data:`MARGIN_REL` of the range; ``ATAN_ERR`` for the
+polynomial atan2), which dominate the roundings involved.
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ import math
 import numpy as np
 from numba import njit
 
+from ivslam_cli.interval.rounding import down, up
 from ivslam_cli.paving.tiles import EMPTY, TILE
 from ivslam_cli.slam.lidar.geometry import (
     ATAN_ERR,
@@ -49,8 +53,10 @@ from ivslam_cli.slam.lidar.geometry import (
     sensor_offset,
     upf,
 )
-from ivslam_cli.slam.lidar.scanmatch import covered_free, free_ranges
 
+TWO_PI = 2.0 * math.pi
+#: margin on bearings shifted by whole turns (2π·n in floating point, |n| small)
+SHIFT_MARGIN = 1e-12
 #: absolute and relative (to the beam's range) error bound of a rotated endpoint region
 MARGIN_ABS = 1e-9
 MARGIN_REL = 1e-12
@@ -58,6 +64,41 @@ MARGIN_REL = 1e-12
 MAX_WINDOW_CELLS = 1 << 24
 #: bearings from :func:`box_bearings_fast` are within ATAN_ERR (+ an ulp) of the true ones
 _BEAR_MARGIN = ATAN_ERR + 1e-12
+
+
+@njit(cache=True)
+def free_ranges(ranges, valid, r_abs, r_rel, out):
+    """``out[i]`` = the true distance's lower bound of beam ``i`` (every point of its cone nearer
+    than this is free), −1 for an invalid beam."""
+    for i in range(ranges.shape[0]):
+        if valid[i]:
+            out[i] = range_bounds(float(ranges[i]), r_abs, r_rel)[0]
+        else:
+            out[i] = -1.0
+
+
+@njit(cache=True)
+def covered_free(f, a0, inc, bl, bh, rho_h):
+    """True if every point at bearing in ``[bl, bh]`` (sensor frame) and distance ≤ ``rho_h``
+    is proven free by a scan with free ranges ``f`` (beams at ``a0 + i·inc`` whose cones
+    touch, or whose gaps are assumed free): all beams from the one at or before ``bl`` to the
+    one at or after ``bh`` valid with free range > ``rho_h``."""
+    nb = f.shape[0]
+    if not (bh - bl < TWO_PI):
+        return False
+    ac = a0 + 0.5 * (nb - 1) * inc
+    n = math.floor((0.5 * (bl + bh) - ac) / TWO_PI + 0.5)
+    if n != 0:
+        bl = down(bl - n * TWO_PI) - SHIFT_MARGIN
+        bh = up(bh - n * TWO_PI) + SHIFT_MARGIN
+    i0 = math.floor(down(down(bl - a0) / inc))
+    i1 = math.ceil(up(up(bh - a0) / inc))
+    if i0 < 0 or i1 > nb - 1:
+        return False
+    for i in range(i0, i1 + 1):
+        if not (rho_h < f[i]):
+            return False
+    return True
 
 
 @njit(cache=True)
@@ -219,14 +260,109 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
 
 
 @njit(cache=True)
-def match_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_rel, r_alpha, cones, q, stride,
-                 W, n_w, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref, coarse,
-                 fine, reach, max_nodes, kept):
-    """Branch and bound from the prior ``roots[:n_roots]`` (6 each) down to sub-boxes of
-    ``coarse`` metres in x, y (and ``fine`` in reach·θ: rotation is sliced finely), then each
-    kept sub-box's four sides shaved to ``fine`` metres (a slab at a side is cut off when it is
-    excluded). The sub-boxes not excluded are written to ``kept`` (rows, 6); returns
-    ``(n_kept, tested)``. ``kept`` must hold ``max_nodes + n_roots`` rows."""
+def _push(heap, n, keys, i):
+    """Insert index ``i`` into the binary min-heap ``heap[:n]`` ordered by ``keys``."""
+    heap[n] = i
+    c = n
+    while c > 0:
+        p = (c - 1) // 2
+        if keys[heap[p]] <= keys[heap[c]]:
+            break
+        heap[p], heap[c] = heap[c], heap[p]
+        c = p
+    return n + 1
+
+
+@njit(cache=True)
+def _pop(heap, n, keys):
+    """Remove and return the index of the smallest key: ``(index, n)``."""
+    top = heap[0]
+    n -= 1
+    heap[0] = heap[n]
+    c = 0
+    while True:
+        a = 2 * c + 1
+        if a >= n:
+            break
+        if a + 1 < n and keys[heap[a + 1]] < keys[heap[a]]:
+            a += 1
+        if keys[heap[c]] <= keys[heap[a]]:
+            break
+        heap[c], heap[a] = heap[a], heap[c]
+        c = a
+    return top, n
+
+
+@njit(cache=True, inline="always")
+def _meets_roots(b, roots, n_roots):
+    for r in range(n_roots):
+        if (b[0] <= roots[r, 1] and roots[r, 0] <= b[1] and b[2] <= roots[r, 3] and roots[r, 2] <= b[3]
+                and b[4] <= roots[r, 5] and roots[r, 4] <= b[5]):
+            return True
+    return False
+
+
+@njit(cache=True)
+def _search(box, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my,
+            myaw, r_alpha, cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th,
+            n_ref, fine, reach, budget, bx, keys, heap):
+    """The extreme of side ``side`` (0..5: x_lo, x_hi, y_lo, y_hi, θ_lo, θ_hi) over the poses of
+    ``box`` not excluded (and in some root), by a best-first search: sub-boxes popped in the
+    order of that side; excluded ones dropped, others split along the widest of x, y and
+    reach·θ; the first leaf kept (sides ≤ ``fine``) holds the extreme. With ``budget`` tests
+    spent, the key on top of the heap is returned (no pose beyond it was left). Returns
+    ``(bound, tested)``; the bound is NaN when every pose is excluded."""
+    d = side // 2
+    lo_side = side % 2 == 0
+    cap = bx.shape[0]
+    for e in range(6):
+        bx[0, e] = box[e]
+    keys[0] = box[2 * d] if lo_side else -box[2 * d + 1]
+    n = _push(heap, 0, keys, 0)
+    used = 1
+    t = 0
+    while n > 0:
+        if t >= budget or used + 2 > cap:
+            top = keys[heap[0]]
+            return (top if lo_side else -top), t
+        i, n = _pop(heap, n, keys)
+        b = bx[i]
+        if not _meets_roots(b, roots, n_roots):
+            continue
+        t += 1
+        if _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw, r_alpha,
+                      cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref):
+            continue
+        wx = b[1] - b[0]
+        wy = b[3] - b[2]
+        wt = (b[5] - b[4]) * reach
+        if wx <= fine and wy <= fine and wt <= fine:
+            return (keys[i] if lo_side else -keys[i]), t
+        s = 0 if (wx >= wy and wx >= wt) else (1 if wy >= wt else 2)
+        mid = 0.5 * (b[2 * s] + b[2 * s + 1])
+        for h in range(2):
+            c = used
+            used += 1
+            for e in range(6):
+                bx[c, e] = b[e]
+            if h == 0:
+                bx[c, 2 * s + 1] = mid
+            else:
+                bx[c, 2 * s] = mid
+            keys[c] = bx[c, 2 * d] if lo_side else -bx[c, 2 * d + 1]
+            n = _push(heap, n, keys, c)
+    return np.nan, t
+
+
+@njit(cache=True)
+def bound_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_rel, r_alpha, cones, q, stride,
+                 W, n_w, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref, fine,
+                 reach, max_nodes, max_slices, kept):
+    """The poses of the prior ``roots[:n_roots]`` not excluded, as boxes per heading slice:
+    first the heading's two bounds (best-first searches over the prior's hull), then the
+    heading interval cut into at most ``max_slices`` slices and each slice's x and y bounds.
+    Writes the slices to ``kept``; returns ``(n_slices, tested)`` (0 slices: every pose
+    excluded)."""
     nb_all = ranges.shape[0]
     beam_rl = np.empty(nb_all)
     beam_rh = np.empty(nb_all)
@@ -247,90 +383,66 @@ def match_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_
                 n_beams += 1
         else:
             free[i] = -1.0
-    cap = max_nodes + n_roots + 2
-    queue = np.empty((cap, 6))
-    head = 0
-    tail = 0
-    for r in range(n_roots):
-        queue[tail] = roots[r]
-        tail += 1
-    n_kept = 0
+    hull = np.empty(6)
+    for e in range(6):
+        hull[e] = roots[0, e]
+    for r in range(1, n_roots):
+        for e in range(3):
+            hull[2 * e] = min(hull[2 * e], roots[r, 2 * e])
+            hull[2 * e + 1] = max(hull[2 * e + 1], roots[r, 2 * e + 1])
+    b_th = max(max_nodes // 4, 16)
+    cap = 2 * b_th + 8
+    bx = np.empty((cap, 6))
+    keys = np.empty(cap)
+    heap = np.empty(cap, np.int64)
     tested = 0
-    while head < tail:
-        b = queue[head]
-        head += 1
-        if tested >= max_nodes or tail + 2 > cap:
-            kept[n_kept] = b  # out of budget: kept whole
-            n_kept += 1
-            continue
-        tested += 1
-        if _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw, r_alpha,
-                      cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref):
-            continue
-        wx = b[1] - b[0]
-        wy = b[3] - b[2]
-        wt = (b[5] - b[4]) * reach
-        if wx <= coarse and wy <= coarse and wt <= fine:
-            kept[n_kept] = b
-            n_kept += 1
-            continue
-        # rotation first while it moves the beam ends more than the translation does
-        s = 2 if wt > fine and wt >= min(max(wx, wy), coarse) else (0 if wx >= wy else 1)
-        mid = 0.5 * (b[2 * s] + b[2 * s + 1])
-        queue[tail] = b
-        queue[tail, 2 * s + 1] = mid
-        queue[tail + 1] = b
-        queue[tail + 1, 2 * s] = mid
-        tail += 2
-    # one box per heading slice: the hull in x, y of the kept sub-boxes of the same slice
-    if n_kept == 0:
-        return 0, tested
-    o1 = np.argsort(kept[:n_kept, 5], kind="mergesort")
-    order = o1[np.argsort(kept[o1, 4], kind="mergesort")]
+    for side in (4, 5):
+        v, t = _search(hull, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w,
+                       mx, my, myaw, r_alpha, cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc,
+                       ref_c, ref_th, n_ref, fine, reach, b_th, bx, keys, heap)
+        tested += t
+        if math.isnan(v):
+            return 0, tested
+        if side == 4:
+            hull[4] = max(hull[4], v)
+        else:
+            hull[5] = min(hull[5], v)
+    ns = int(min(max_slices, max(1, math.ceil((hull[5] - hull[4]) * reach / fine))))
+    b_s = max((max_nodes - tested) // (4 * ns), 8)
+    sl = np.empty(6)
     out = 0
-    t = 0
-    while t < n_kept:
-        i = order[t]
-        tl, th = kept[i, 4], kept[i, 5]
-        h0, h1, h2, h3 = kept[i, 0], kept[i, 1], kept[i, 2], kept[i, 3]
-        t += 1
-        while t < n_kept and kept[order[t], 4] == tl and kept[order[t], 5] == th:
-            j = order[t]
-            h0, h1 = min(h0, kept[j, 0]), max(h1, kept[j, 1])
-            h2, h3 = min(h2, kept[j, 2]), max(h3, kept[j, 3])
-            t += 1
-        queue[out, 0], queue[out, 1], queue[out, 2], queue[out, 3], queue[out, 4], queue[out, 5] = h0, h1, h2, h3, tl, th
-        out += 1
-    # shaving: cut excluded slabs off the four sides of every slice's box
-    slab = np.empty(6)
-    n_out = 0
-    for t in range(out):
-        b = queue[t]
+    for k in range(ns):
+        tl = hull[4] + (hull[5] - hull[4]) * (k / ns)
+        th = hull[5] if k == ns - 1 else hull[4] + (hull[5] - hull[4]) * ((k + 1) / ns)
+        # the slice's box: the hull of the roots meeting it
+        sl[0], sl[1], sl[2], sl[3] = np.inf, -np.inf, np.inf, -np.inf
+        for r in range(n_roots):
+            if roots[r, 4] <= th and tl <= roots[r, 5]:
+                sl[0] = min(sl[0], roots[r, 0])
+                sl[1] = max(sl[1], roots[r, 1])
+                sl[2] = min(sl[2], roots[r, 2])
+                sl[3] = max(sl[3], roots[r, 3])
+        if not sl[0] <= sl[1]:
+            continue
+        sl[4], sl[5] = tl, th
+        ok = True
         for side in range(4):
-            d = side // 2
-            lo_side = side % 2 == 0
-            w = 0.5 * (b[2 * d + 1] - b[2 * d])
-            while w >= fine and tested < 2 * max_nodes:
-                for e in range(6):
-                    slab[e] = b[e]
-                if lo_side:
-                    slab[2 * d + 1] = b[2 * d] + w
-                else:
-                    slab[2 * d] = b[2 * d + 1] - w
-                tested += 1
-                if _node_test(slab, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw,
-                              r_alpha, cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c,
-                              ref_th, n_ref):
-                    if lo_side:
-                        b[2 * d] = slab[2 * d + 1]
-                    else:
-                        b[2 * d + 1] = slab[2 * d]
-                    w = min(w, 0.5 * (b[2 * d + 1] - b[2 * d]))
-                else:
-                    w *= 0.5
-        kept[n_out] = b
-        n_out += 1
-    return n_out, tested
+            v, t = _search(sl, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
+                           n_w, mx, my, myaw, r_alpha, cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0,
+                           ref_inc, ref_c, ref_th, n_ref, fine, reach, b_s, bx, keys, heap)
+            tested += t
+            if math.isnan(v):
+                ok = False
+                break
+            if side % 2 == 0:
+                sl[side] = max(sl[side], v)
+            else:
+                sl[side] = min(sl[side], v)
+        if ok:
+            for e in range(6):
+                kept[out, e] = sl[e]
+            out += 1
+    return out, tested
 
 
 def slices(kept: np.ndarray, max_boxes: int) -> np.ndarray:
@@ -470,11 +582,12 @@ class Matcher:
             self.kept = np.empty((need, 6))
         mx, my, myaw = self.mount
         split_reach = float(np.median(z)) if z.size else 1.0
-        n_kept, tested = match_kernel(roots, roots.shape[0], r, v, a0, inc, mx, my, myaw, self.r_abs, self.r_rel,
+        n_kept, tested = bound_kernel(roots, roots.shape[0], r, v, a0, inc, mx, my, myaw, self.r_abs, self.r_rel,
                                       self.r_alpha, cones, int(p.q_beams), int(p.match_stride), self.W, n_w, self.S,
                                       m, wx0, wy0, nx, ny, float(tmap.eps), use_grid, ref_f, ref_a0, ref_inc, ref_c,
-                                      ref_th, n_ref, float(p.match_leaf), float(p.match_resolution), split_reach,
-                                      int(p.match_boxes), self.kept)
+                                      ref_th, n_ref, float(p.match_resolution), split_reach, int(p.match_boxes),
+                                      int(p.match_slices), self.kept)
+        self.last_bnb = 0
         if n_kept == 0:
             return roots, False, int(tested)
         return slices(self.kept[:n_kept].copy(), int(p.match_slices)), True, int(tested)

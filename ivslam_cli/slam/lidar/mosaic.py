@@ -54,7 +54,8 @@ def _centre_transform(box: np.ndarray) -> tuple[float, float, float, float]:
 
 def mosaic(sm: Submaps, logodds: list[LogOddsGrid] | None = None) -> tuple[MapGrid, LogOddsGrid | None]:
     """The mosaic of the submaps' states (and of their log-odds values, summed where submaps
-    overlap) on one grid of the submaps' resolution. Obstacle cells are drawn over free ones."""
+    overlap) on one grid of the submaps' resolution; where submaps disagree on a cell, the state
+    most of them give is drawn (obstacle on a tie)."""
     eps = float(sm.resolution)
     pts, states, vals = [], [], []
     for m in range(len(sm)):
@@ -80,12 +81,15 @@ def mosaic(sm: Submaps, logodds: list[LogOddsGrid] | None = None) -> tuple[MapGr
     ij = np.floor(p / eps).astype(np.int64)
     i0, j0 = ij.min(axis=0)
     i1, j1 = ij.max(axis=0)
-    state = np.zeros((int(j1 - j0 + 1), int(i1 - i0 + 1)), np.uint8)
+    shape = (int(j1 - j0 + 1), int(i1 - i0 + 1))
+    state = np.zeros(shape, np.uint8)
     cols, rows = ij[:, 0] - i0, ij[:, 1] - j0
-    free = st == CELL_EMPTY
-    state[rows[free], cols[free]] = CELL_EMPTY
-    obst = st == CELL_OBSTACLE
-    state[rows[obst], cols[obst]] = CELL_OBSTACLE
+    n_free = np.zeros(shape, np.int32)
+    n_obst = np.zeros(shape, np.int32)
+    np.add.at(n_free, (rows, cols), (st == CELL_EMPTY).astype(np.int32))
+    np.add.at(n_obst, (rows, cols), (st == CELL_OBSTACLE).astype(np.int32))
+    state[n_free > 0] = CELL_EMPTY  # where the submaps disagree, the majority is drawn
+    state[(n_obst > 0) & (n_obst >= n_free)] = CELL_OBSTACLE
     grid = MapGrid(origin=np.array([i0 * eps, j0 * eps], float), resolution=eps, state=state, frame=GRID_MOSAIC)
     if logodds is None:
         return grid, None

@@ -50,17 +50,14 @@ class Params:
     max_step: float
     contract: bool
     q_beams: int
-    contract_boxes: int
-    contract_stride: int
-    contract_max_width: float
     submap_distance: float
     submap_turn: float
     submap_width: float
     submap_overlap: float
     match_boxes: int
     match_stride: int
-    match_leaf: float
     match_resolution: float
+    relocalise: tuple[float, float]
     match_slices: int
     poses_known: bool
     known_poses: str
@@ -86,12 +83,11 @@ class Params:
             strict=bool(cfg["robust.strict"]), eps=float(cfg["lidar.eps"]), max_range=float(cfg["lidar.max_range"]),
             motion=motion, max_pose_width=float(cfg["lidar.max_pose_width"]), max_step=float(cfg["lidar.max_step"]),
             contract=bool(cfg["lidar.contract"]), q_beams=int(cfg["lidar.q_beams"]),
-            contract_boxes=int(cfg["lidar.contract_boxes"]), contract_stride=int(cfg["lidar.contract_stride"]),
-            contract_max_width=float(cfg["lidar.contract_max_width"]),
             submap_distance=float(cfg["lidar.submap_distance"]), submap_turn=float(cfg["lidar.submap_turn"]),
             submap_width=float(cfg["lidar.submap_width"]), submap_overlap=float(cfg["lidar.submap_overlap"]),
             match_boxes=int(cfg["lidar.match_boxes"]), match_stride=int(cfg["lidar.match_stride"]),
-            match_leaf=float(cfg["lidar.match_leaf"]), match_resolution=float(cfg["lidar.match_resolution"]),
+            match_resolution=float(cfg["lidar.match_resolution"]),
+            relocalise=tuple(float(v) for v in cfg["lidar.relocalise"]),
             match_slices=int(cfg["lidar.match_slices"]),
             poses_known=bool(cfg["lidar.poses_known"]), known_poses=known,
             pose_margin=tuple(float(v) for v in cfg["lidar.pose_margin"]),

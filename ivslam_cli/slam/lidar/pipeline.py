@@ -69,6 +69,8 @@ class LidarOutput:
     logodds: LogOddsGrid | None = None
     submaps: Submaps | None = None
     relative: RelativePoses | None = None  # (anchor row, member row) for every submap membership
+    tracking: object | None = None  # the submap pass (its submaps' maps and trajectories), dead reckoning
+    tmap: object | None = None  # the one map, given poses
 
 
 def _median(w: np.ndarray) -> float:
@@ -129,6 +131,7 @@ def solve(log: LogData, params: Params) -> LidarOutput:
     scans, far = usable_scans(scans, bounds, params.max_range, params.eps, path)
     max_w = params.max_pose_width
     tracking = None
+    tmap = None
     submaps = None
     relative = None
     rel_boxes = None
@@ -224,9 +227,18 @@ def solve(log: LogData, params: Params) -> LidarOutput:
             rows.append((float(stamp[j]), int(used[j]), "submap_compose", (int(used[j]), int(sidx)), -1,
                          f"scan {int(used[j])} (t={float(stamp[j]):.3f} s): submap {sidx}'s anchor box composed with "
                          "its relative box misses its global box; not met"))
+        for j, sidx in tracking.relocalised:
+            rows.append((float(stamp[j]), int(used[j]), "motion_outlier", (int(used[j]), int(sidx)), -1,
+                         f"scan {int(used[j])} (t={float(stamp[j]):.3f} s) in submap {sidx}: no pose of its predicted "
+                         "box agrees with the submap (the motion step broke its bounds); relocalised within "
+                         f"±{params.relocalise[0]:g} m, ±{params.relocalise[1]:g} rad of it"))
         rows.sort(key=lambda r: r[0])
     events = empty_events(rows)
     assumption = _assumption(params, scans, pred, tracking is not None, int((~narrow).sum()), len(events))
+    if tracking is not None and tracking.relocalised:
+        assumption += (f"; {len(tracking.relocalised)} motion step(s) broke their bounds (empty events "
+                       f"motion_outlier): their scans were relocalised, assuming the true pose within "
+                       f"±{params.relocalise[0]:g} m, ±{params.relocalise[1]:g} rad of the predicted box there")
     consistency = Consistency(empty_events=events, q={}, widths={"pose": pose_hist}, assumption=assumption)
     duration = float(stamp[-1] - stamp[0]) if stamp.size > 1 else 0.0
     total = t2 - t0
@@ -254,6 +266,7 @@ def solve(log: LogData, params: Params) -> LidarOutput:
             "median_relative_heading": _median(_heading_width(rel_boxes)),
             "max_relative_width": float(np.nanmax(position_width(rel_boxes))),
             "scans_contracted": int(tracking.contracted.sum()),
+            "scans_relocalised": int(len(tracking.relocalised)),
             "scans_contradicting": int(len({j for j, _, _ in tracking.contradicted})),
             "contraction_boxes_tested": int(tracking.tested),
             "median_predicted_width": _median(position_width(tracking.predicted)),
@@ -266,7 +279,8 @@ def solve(log: LogData, params: Params) -> LidarOutput:
         poses.relative = np.ascontiguousarray(rel_boxes.reshape(-1, 3, 2))
     poses.frame, poses.origin_stamp = pose_frame(params, pred)
     return LidarOutput(poses=poses, grid=grid, consistency=consistency, stats=stats, dropped=dropped, is_old=is_old,
-                       mapped=mapped, used=used, scans=scans, logodds=logodds, submaps=submaps, relative=relative)
+                       mapped=mapped, used=used, scans=scans, logodds=logodds, submaps=submaps, relative=relative,
+                       tracking=tracking, tmap=tmap)
 
 
 def pose_frame(params: Params, pred) -> tuple[str, float]:

@@ -90,6 +90,7 @@ class SubmapTracking:
     contracted: np.ndarray  # (S',) bool: some contraction narrowed the box
     contradicted: list  # (row, submap, kind) of matches where no pose agreed with the data (box kept)
     compose_empty: list  # (row, submap) where anchor box ⊕ relative box missed the global box
+    relocalised: list  # (row, submap) where the motion step broke its bounds and the scan was relocalised
     forward: np.ndarray  # (S', 6) global boxes before the backward pass
     predicted: np.ndarray  # (S', 6) global dead-reckoned boxes before any contraction reached them
     tested: int  # pose sub-boxes tested in all
@@ -113,6 +114,15 @@ def _new_submap(index: int, row: int, scan: int, k: int, G: np.ndarray, n_nodes:
     rp, rt = float(reach[0]), float(reach[1])  # node k holds the modelled pose, within reach of the scan's
     P[0] = [[-rp, rp], [-rp, rp], [-rt, rt]]
     return Submap(index, row, scan, k, G.copy(), TileMap(eps), P, np.zeros(max(n_nodes - k - 1, 0), np.int64), k)
+
+
+def _reset_node(P, k: int, box: np.ndarray, rp: float, rt: float) -> None:
+    """``P[k]`` = the robot box (6,) of an event at node ``k`` widened by its reach."""
+    P[k, 0] = box[0] - rp, box[1] + rp
+    P[k, 1] = box[2] - rp, box[3] + rp
+    P[k, 2] = box[4] - rt, box[5] + rt
+    P[k, :, 0] = np.nextafter(P[k, :, 0], -np.inf)
+    P[k, :, 1] = np.nextafter(P[k, :, 1], np.inf)
 
 
 def _relative_box(s: Submap, m, j: int, k: int) -> np.ndarray:
@@ -140,6 +150,8 @@ def track_submaps(log: LogData, params: Params, scans: Scans) -> SubmapTracking:
     contracted = np.zeros(S, bool)
     contradicted: list = []
     compose_empty: list = []
+    relocalised: list = []
+    broken_global = False
     stats = np.zeros((len(scans), 6), np.int64)
     is_old = np.zeros(scans.ranges.shape[0], bool)
     all_boxes = np.zeros((len(scans), 6))
@@ -194,6 +206,18 @@ def track_submaps(log: LogData, params: Params, scans: Scans) -> SubmapTracking:
                         refs.append((int(used[s.last_row]), s.last_box))
                     union, ok, nt = matcher.match(scan, roots, s.tmap, refs)
                     tested += nt
+                    reloc = False
+                    if not ok and params.relocalise[0] > 0:
+                        # no pose of the prediction agrees with the submap: the motion step broke
+                        # its bounds (an odometry jump)? search the relocalisation window around it
+                        wx, wt = params.relocalise
+                        wide = r + np.array([-wx, wx, -wx, wx, -wt, wt])
+                        union, ok, nt = matcher.match(scan, wide[None, :], s.tmap, refs)
+                        tested += nt
+                        if ok:
+                            reloc = True
+                            relocalised.append((j, s.index))
+                            r = wide
                     if not ok:
                         contradicted.append((j, s.index, "submap_match"))
                         s.union = r[None, :].copy()
@@ -205,7 +229,10 @@ def track_submaps(log: LogData, params: Params, scans: Scans) -> SubmapTracking:
                         if np.all(lo <= hi) and not np.array_equal(np.column_stack([lo, hi]).reshape(6), r):
                             r = np.column_stack([lo, hi]).reshape(6)
                             contracted[j] = True
-                            meet_node(s.P, k - s.k0, r, rp, rt)
+                            if reloc:  # the trajectory restarts from the relocalised box
+                                _reset_node(s.P, k - s.k0, r, rp, rt)
+                            else:
+                                meet_node(s.P, k - s.k0, r, rp, rt)
                     s.union_row = j
             s.rows.append(j)
             s.rel.append(r.copy())
@@ -213,6 +240,9 @@ def track_submaps(log: LogData, params: Params, scans: Scans) -> SubmapTracking:
             compose(s.G.reshape(3, 2), r.reshape(3, 2), 1, g.reshape(3, 2))
             if meet(gb.reshape(3, 2), g.reshape(3, 2), met.reshape(3, 2)):
                 gb = met.copy()
+            elif relocalised and relocalised[-1][0] == j:
+                gb = g.copy()  # the global dead reckoning broke with the relocalised motion step
+                broken_global = True
             else:
                 compose_empty.append((j, s.index))
             # map the scan into the submap
@@ -232,7 +262,11 @@ def track_submaps(log: LogData, params: Params, scans: Scans) -> SubmapTracking:
         newest = active[-1]
         home[j] = newest.index
         relative[j] = newest.rel[-1]
-        meet_node(Pg, k, gb, rp, rt)
+        if broken_global:
+            _reset_node(Pg, k, gb, rp, rt)
+            broken_global = False
+        else:
+            meet_node(Pg, k, gb, rp, rt)
         glob[j] = gb
         # travel along the newest submap's relative centres (for the overlap)
         c = _centre(relative[j])
@@ -285,5 +319,5 @@ def track_submaps(log: LogData, params: Params, scans: Scans) -> SubmapTracking:
             glob[j] = met
     pred = PosePrediction(used=used, boxes=glob, source=source, motion=m.motion, step_events=events,
                           node_stamp=m.node_stamp, dropped=dropped)
-    return SubmapTracking(pred, submaps, home, relative, mapped, contracted, contradicted, compose_empty, forward,
-                          predicted, tested, smoothed, stats, is_old)
+    return SubmapTracking(pred, submaps, home, relative, mapped, contracted, contradicted, compose_empty,
+                          relocalised, forward, predicted, tested, smoothed, stats, is_old)
