@@ -141,7 +141,8 @@ def main(argv: list[str] | None = None) -> int:
     from ivslam_cli.slam.lidar.map_update import STAT_FIELDS, LidarBounds, sensor_boxes, update_map
     from ivslam_cli.paving.tiles import TileMap
 
-    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=7, steps=args.scans))
+    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=7, steps=args.scans,
+                             beam_model="ray"))
     scans = log.scans
     rng = np.random.default_rng(0)
     boxes = _boxes(rng, log.truth.pose)

@@ -89,7 +89,7 @@ def test_schema_attributes_and_compression(tmp_path):
     path = tmp_path / "r.h5"
     write_result(path, r)
     with h5py.File(path, "r") as f:
-        assert int(f.attrs["ivslam_result_version"]) == SCHEMA_VERSION == 1
+        assert int(f.attrs["ivslam_result_version"]) == SCHEMA_VERSION == 2
         assert f.attrs["format"] == "ivslam-result"
         st_ = f["map/state"]
         assert st_.dtype == np.uint8 and st_.chunks is not None and st_.compression == "gzip" and st_.shuffle

@@ -233,7 +233,7 @@ def test_the_stated_cone_survives_the_log_formats(tmp_path, fmt, name):
 def _cells_meeting_walls(grid, world) -> tuple[int, int]:
     """(EMPTY cells of a result grid meeting a wall, EMPTY cells)."""
     from ivslam_cli.results.model import CELL_EMPTY
-    from test_lidar_map import segments_meet_cells
+    from tests.helpers.lidar_world import segments_meet_cells
 
     rc = np.argwhere(grid.state == CELL_EMPTY)
     if rc.size == 0:
@@ -275,30 +275,20 @@ def test_the_pipeline_keeps_the_truth_on_cone_logs(world, sensor, seed, known):
     pose in its box, no P_EMPTY cell on a wall, and every wall point the oracle finds at the
     nearest distance within an in-bound valid beam's cone in a P_OBSTACLE^k / P_OLD^k cell."""
     from ivslam_cli.slam.lidar import Params as LidarParams
-    from ivslam_cli.slam.lidar.pipeline import solve
-    from test_lidar_pipeline import empty_on_walls, pose_misses
+    from ivslam_cli.slam.lidar.pipeline import run, solve
+    from tests.helpers.lidar_truth import assert_contained, hits_outside_obstacle
 
     log = simulate(SimConfig(scenario="lidar", world=world, sensor=sensor, seed=seed, steps=50, noise="edges"))
     over = {"lidar.poses_known": True, "lidar.pose_margin": (0.02, 0.02, 0.005)} if known else {}
     cfg = resolve_config(None, {"landmarks.initial_pose_from_truth": True, **over}, log_bounds=log.bounds)
     assert cfg["lidar.fill_gaps"] is False
-    out = solve(log, LidarParams.from_config(cfg))
-    assert pose_misses(out, log.truth) == 0
-    bad, n_empty = empty_on_walls(out, log.truth.world)
-    assert bad == 0 and n_empty > 0, (bad, n_empty)
+    params = LidarParams.from_config(cfg)
+    out = solve(log, params)
+    c = assert_contained(run(log, params), ("pose", "map_free"))
+    assert c["map_free"][1] > 0
     pts = check_cone_log(log)
-    use = log.scans.valid & ~log.truth.outliers["scans"] & np.isfinite(pts[:, 0])
-    mapped = np.zeros(len(log.scans), bool)
-    mapped[out.mapped] = True
-    use &= np.repeat(mapped, np.diff(log.scans.offsets))
-    px, py = pts[use, 0], pts[use, 1]
-    e = out.tmap.eps
-    missed = np.ones(px.shape[0], dtype=bool)
-    for ox in (-1e-9, 0.0, 1e-9):  # a point on a cell border belongs to both cells
-        for oy in (-1e-9, 0.0, 1e-9):
-            f = out.tmap.get(np.floor(px / e + ox).astype(np.int64), np.floor(py / e + oy).astype(np.int64))
-            missed &= (f & 6) == 0
-    assert px.size > 0 and not missed.any(), f"{missed.sum()} of {px.size} wall points outside P_OBSTACLE"
+    missed, n = hits_outside_obstacle(log, out, pts)
+    assert n > 0 and missed == 0, f"{missed} of {n} wall points outside P_OBSTACLE"
 
 
 # ---------------------------------------------------------------- ray logs: reproducible
