@@ -41,6 +41,20 @@ from ivslam_cli.slam.lidar.map_tables import _LEVELS, _meets, _win
 
 
 @njit(cache=True, inline="always")
+def _scan_angles(box, a0, inc, h, nb):
+    """A scan's constants for windows from fast bearings: ``(mid, lo_edge, hi_edge, err)``, the
+    middle of its beam angles, the outer edges of its cones ``a0 - h`` and ``a_end + h`` rounded
+    outward, and a bound on the error of a fast bearing minus ``[θ]`` (sensor box ``box``)
+    against the reference's (ATAN_ERR and the roundings)."""
+    a_end = a0 + (nb - 1) * inc
+    mid = 0.5 * (a0 + a_end)
+    lo_edge = down(a0 - h)
+    hi_edge = up(up(a_end + h))
+    err = ATAN_ERR + 1e-12 * (8.0 + abs(box[4]) + abs(box[5]))
+    return mid, lo_edge, hi_edge, err
+
+
+@njit(cache=True, inline="always")
 def _window_fast(pl, ph, a0, inc, h, nb, mid, lo_edge, hi_edge):
     """:func:`beam_window` (same results): the branch search is skipped when the bearings'
     middle is within 3 rad of the scan's (then ``round(c / 2π) = 0``)."""

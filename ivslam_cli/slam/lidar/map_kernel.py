@@ -21,20 +21,22 @@ tests:
   not simple (around the sensor box, the back of the scan) get the reference's block test;
 - a cell's reference window is computed from fast bearings when every index is farther from a
   rounding boundary than the error allows (``_geom1``), else exactly as the reference;
-- the tiles of a scan are visited together (chunks of :data:`_CHUNK`), level by level: the
-  geometry of all blocks of a level, or of all cells, in one vectorised pass (``_level_geom``,
-  ``_cell_geom``: 8 blocks at a time with AVX-512), then the decisions block by block, the
-  blocks to refine listed for the next level. Records of a tile come in another order than the
-  reference's; tiles in the same (:func:`_tiles_in_order`);
+- the tiles of a scan are visited together (chunks of :data:`_CHUNK`), level by level, a
+  level in two stages: the geometry of all its blocks, or of all cells, in one vectorised pass
+  (``_level_geom``, ``_cell_geom``: 8 blocks at a time with AVX-512), then the decisions block
+  by block (:func:`_decide_blocks`, :func:`_decide_cells`), the blocks to refine listed for the
+  next level. Records of a tile come in another order than the reference's; tiles in the same
+  (:func:`_tiles_in_order`);
 - the writes (:mod:`.map_write`) decide whole blocks where their window allows.
 
 Hot helpers are inlined (``inline="always"``: a call with a dozen array arguments costs more
 than their geometry) and take scalars where they can (an array made in the caller and passed to
-an inlined helper gets its reference count changed, atomically, on every use: ~20 %). The few
-that stay calls (the rare exact cell tests, the writes, the vectorised passes) and never
-allocate are compiled with numba's private ``_nrt=False`` option: without it numba increments
-and decrements the reference count of every array argument on each call, which made the bench
-log ~25 % slower; a numba upgrade that drops the option breaks them at compile time.
+an inlined helper gets its reference count changed, atomically, on every use: ~20 %). The
+functions that stay calls (the stages of a level, the rare exact cell tests, the writes) never
+allocate and are compiled with numba's private ``_nrt=False`` option: without it numba
+increments and decrements the reference count of every array argument on each call, which made
+the bench log ~25 % slower, and inside them inlined helpers count no references either. A numba
+upgrade that drops the option breaks them at compile time.
 """
 
 from __future__ import annotations
@@ -44,7 +46,7 @@ from numba import njit
 
 from ivslam_cli.interval.rounding import INF, down, up
 from ivslam_cli.paving.tiles import TILE, TILE_MASK, TILE_SHIFT, find
-from ivslam_cli.slam.lidar.geometry import ATAN_ERR, FIN_MAX, beam_window, box_bearings, dn, upf
+from ivslam_cli.slam.lidar.geometry import FIN_MAX, beam_window, box_bearings, dn, upf
 from ivslam_cli.slam.lidar.map_blocks import (
     _axis_table,
     _cell,
@@ -54,6 +56,7 @@ from ivslam_cli.slam.lidar.map_blocks import (
     _inner_consts,
     _level_consts,
     _level_geom,
+    _scan_angles,
 )
 # the oracle, importable from here too (the tests and bench/bench_lidar_map.py compare the two)
 from ivslam_cli.slam.lidar.map_reference import scan_cells_reference, update_log_reference  # noqa: F401
@@ -112,13 +115,15 @@ def _level_buffers():
 def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps,
              exact, lg, T, new, tl, blk, mblk, cand, cand_f, stats, WF, WI, fill=True):
     """P_EMPTY^k, P_OBSTACLE^k and the new beams of one scan (fast path; the same cells and
-    beams as :func:`traverse_reference`). ``T``: the scan's table (:func:`_fast_tables`);
-    ``WF, WI``: work arrays (:func:`_level_buffers`). The cells' sides and offsets from the
-    sensor box come from per-axis tables (:func:`_axis_table`: the same roundings, once per
-    column and row). The tiles are visited together (by chunks of :data:`_CHUNK`), level by
-    level: the geometry of all blocks (or cells) of a level first, in a vectorised pass
-    (:func:`_level_geom`, :func:`_cell_geom`), then their decisions one by one; the tiles'
-    slots are put back in the order of a visit tile by tile at the end (:func:`_tiles_in_order`).
+    beams as :func:`~.map_reference.traverse_reference`). ``T``: the scan's table
+    (:func:`~.map_tables._fast_tables`); ``WF, WI``: work arrays (:func:`_level_buffers`). The
+    cells' sides and offsets from the sensor box come from per-axis tables
+    (:func:`~.map_blocks._axis_table`: the same roundings, once per column and row). The tiles
+    are visited together (by chunks of :data:`_CHUNK`), level by level, each level in two
+    stages: the geometry of all its blocks (or cells) in a vectorised pass
+    (:func:`~.map_blocks._level_geom`, :func:`~.map_blocks._cell_geom`), then their decisions
+    one by one (:func:`_decide_blocks`, :func:`_decide_cells`); the tiles' slots are put back in
+    the order of a visit tile by tile at the end (:func:`_tiles_in_order`).
 
     The map (``keys, slots, cells``) is only read. Outputs, in buffers of fixed size:
     ``tl[j] = (tx, ty, flags)`` the tiles holding records, in traversal order (flags: 1 =
@@ -137,24 +142,14 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     """
     nb = ranges.shape[0]
     h = max(r_alpha, 0.5 * inc)
-    cos_gap = _cos_gap(r_alpha, inc, fill)
-    rmax = _fast_tables(ranges, valid, r_abs, r_rel, cos_gap, T)
-    n_tl = 0
-    n_blk = 0
-    n_mblk = 0
-    n_cand = 0
+    rmax = _fast_tables(ranges, valid, r_abs, r_rel, _cos_gap(r_alpha, inc, fill), T)
     if rmax == -INF:
-        return True, n_tl, n_blk, n_mblk, n_cand, 0
+        return True, 0, 0, 0, 0, 0
     if not (abs(box[0]) + abs(box[1]) + abs(box[2]) + abs(box[3]) + 2.0 * rmax + 4.0 * TILE * eps < FIN_MAX):
         # the tile index (int32 tile coordinates) bounds a map far below this
         raise ValueError("lidar map: coordinates or ranges beyond 1e150")
-    a_end = a0 + (nb - 1) * inc
-    mid = 0.5 * (a0 + a_end)
-    lo_edge = down(a0 - h)
-    hi_edge = up(up(a_end + h))
+    mid, lo_edge, hi_edge, err = _scan_angles(box, a0, inc, h, nb)
     pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
-    # error of a fast bearing minus theta against the reference's: ATAN_ERR + roundings
-    err = ATAN_ERR + 1e-12 * (8.0 + abs(thl) + abs(thh))
     icx, icy, iwx, iwy, irc, amg, inv_inc, gmin = _inner_consts(box, inc)
     iw_min = min(iwx, iwy)
     gmin_c = down(gmin + eps)  # narrowest range interval of a cell: see _inner_consts and _inner
@@ -172,130 +167,42 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
                                                       WI[8], WI[9], WI[10], WI[11])
     cap = min(WF.shape[1], WI.shape[1])
     if cap < _CHUNK:  # a chunk's tiles are listed before any test
-        return False, n_tl, n_blk, n_mblk, n_cand, _CHUNK
-    cap_blk = blk.shape[0]
-    cap_mblk = mblk.shape[0]
-    cap_cand = cand.shape[0]
+        return False, 0, 0, 0, 0, _CHUNK
     # the tiles in the reference's order (rank = column-major over the scan's tile range), by
     # chunks: the map index of the chunk's tiles and their slot in ``tl`` (-1: no record yet)
     nty = ty1 - ty0 + 1
     n_tiles = (tx1 - tx0 + 1) * nty
     TT = np.empty(_CHUNK, dtype=np.int64)
     TS = np.empty(_CHUNK, dtype=np.int64)
+    sc = (eps, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, gmin_c, i0, j0, nty)
+    rec = (tl, blk, mblk, cand, cand_f)
+    G = (RL, RH, OL, OH, EL, EH, CV, SM, X0, X1, Y0, Y1, IL, IH, KL, KH)
+    n_tl = 0
+    n_blk = 0
+    n_mblk = 0
+    n_cand = 0
     nodes = 0
     n_empty = 0
     n_obst = 0
     for q0 in range(0, n_tiles, _CHUNK):  # a chunk of tiles, level by level
-        n_lev = 0
-        for q in range(q0, min(q0 + _CHUNK, n_tiles)):
-            LX[n_lev] = (q // nty) * TILE
-            LY[n_lev] = (q % nty) * TILE
-            TT[n_lev] = find(keys, slots, tx0 + q // nty, ty0 + q % nty)
-            TS[n_lev] = -1
-            n_lev += 1
+        n_lev = _chunk_roots(keys, slots, q0, min(q0 + _CHUNK, n_tiles), nty, tx0, ty0, LX, LY, TT, TS)
         lev = _LEVELS
         while lev > 0 and n_lev > 0:
             if 4 * n_lev > cap:
                 return False, n_tl, n_blk, n_mblk, n_cand, 4 * n_lev
-            s = 1 << lev
-            half = s >> 1
             inner = LC[lev, 2] < iw_min + 0.5 * eps  # else cells too far apart for a common bearing
-            _level_geom(n_lev, s, LX, LY, CX, CY, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge,
+            _level_geom(n_lev, 1 << lev, LX, LY, CX, CY, thl, thh, a0, inv_inc, h, nb, mid, lo_edge, hi_edge,
                         err, DXL, DXH, DYL, DYH, RL, RH, OL, OH, EL, EH, CV, SM, inner, X0, X1, Y0, Y1, IL, IH,
                         KL, KH, eps, pxl, pxh, pyl, pyh, icx, icy, iwx, iwy, irc, amg, LC[lev, 0], LC[lev, 1],
                         LC[lev, 2], LC[lev, 3])
-            n_next = 0
-            for j in range(n_lev):
-                gx, gy = LX[j], LY[j]
-                nodes += 1
-                r_lo, r_hi = RL[j], RH[j]
-                if r_lo > rmax:
-                    continue
-                ix = i0 + gx
-                iy = j0 + gy
-                q = (gx >> TILE_SHIFT) * nty + (gy >> TILE_SHIFT) - q0  # in the chunk
-                o_lo, o_hi, e_lo, e_hi, cover, simple = OL[j], OH[j], EL[j], EH[j], CV[j] != 0, SM[j] != 0
-                if not simple:
-                    # the reference's block test (around the sensor box, the back of the scan)
-                    dxl, dxh = dn(X0[j] - pxh), upf(X1[j] - pxl)
-                    dyl, dyh = dn(Y0[j] - pyh), upf(Y1[j] - pyl)
-                    bl, bh, full = box_bearings(dxl, dxh, dyl, dyh)
-                    if full:
-                        o_lo, o_hi, e_lo, e_hi, cover = 0, nb - 1, 0, -1, False
-                    else:
-                        o_lo, o_hi, e_lo, e_hi, cover = beam_window(down(bl - thh), up(bh - thl),
-                                                                    a0, inc, h, nb)
-                if o_lo > o_hi:
-                    continue
-                lo_min, hi_max, f_min, f_max = _win(T, lg, o_lo, o_hi)
-                if cover and (e_lo != o_lo or e_hi != o_hi):
-                    f_min = _win(T, lg, e_lo, e_hi)[2]
-                if cover and r_hi < f_min:
-                    slot = _tile_slot(tl, n_tl, TS[q], ix >> TILE_SHIFT, iy >> TILE_SHIFT, 1)
-                    if slot < 0 or n_blk >= cap_blk:
-                        return False, n_tl, n_blk, n_mblk, n_cand, 0
-                    TS[q] = slot
-                    n_tl = max(n_tl, slot + 1)
-                    blk[n_blk, 0], blk[n_blk, 1], blk[n_blk, 2], blk[n_blk, 3] = ix, iy, lev, slot
-                    n_blk += 1
-                    n_empty += s * s
-                    continue
-                freep = r_lo < f_max
-                obs = r_hi >= lo_min and r_lo <= hi_max
-                if simple:
-                    # [o_lo, o_hi] holds every cell's window
-                    if obs and exact:
-                        obs = _meets(T, lg, o_lo, o_hi, r_hi, r_lo, lo_min, hi_max, stats)
-                    if not obs and not freep:
-                        continue
-                    if inner:
-                        u_lo, u_hi, k_lo, k_hi = IL[j], IH[j], KL[j], KH[j]
-                    else:
-                        u_lo, u_hi = 0, -1
-                    if u_lo <= u_hi:
-                        i_lo = max(u_lo, 0)
-                        i_hi = min(u_hi, nb - 1)
-                        if i_lo <= i_hi:
-                            ilo_min, ihi_max, if_min, _ = _win(T, lg, i_lo, i_hi)
-                        # no cell can be proven empty: its window reaches outside the scan, or
-                        # its largest range reaches the free range of a beam in every window
-                        if freep and (u_lo < 0 or u_hi > nb - 1 or k_hi >= if_min):
-                            freep = False
-                        # every cell is in P_OBSTACLE^k when a beam of [i_lo, i_hi] meets the
-                        # range interval of each cell centre: one beam with lo <= k_hi and hi >=
-                        # k_lo, or the hull reaching them all with no jump wider than the
-                        # narrowest, at least the box's smaller side (see _inner_consts)
-                        if obs and i_lo <= i_hi and _meets_g(T, lg, i_lo, i_hi, k_hi, k_lo, ilo_min,
-                                                             ihi_max, max(gmin_c, down(k_hi - k_lo)), stats):
-                            slot = _tile_slot(tl, n_tl, TS[q], ix >> TILE_SHIFT, iy >> TILE_SHIFT, 2)
-                            if slot < 0 or n_mblk >= cap_mblk:
-                                return False, n_tl, n_blk, n_mblk, n_cand, 0
-                            TS[q] = slot
-                            n_tl = max(n_tl, slot + 1)
-                            mblk[n_mblk, 0], mblk[n_mblk, 1], mblk[n_mblk, 2] = ix, iy, lev
-                            mblk[n_mblk, 3], mblk[n_mblk, 4], mblk[n_mblk, 5] = o_lo, o_hi, slot
-                            n_mblk += 1
-                            n_obst += s * s
-                            # unmeasured cells: their beams are new (each cell once per log)
-                            t = TT[q]
-                            lx = ix & TILE_MASK
-                            ly = iy & TILE_MASK
-                            for a in range(lx, lx + s):
-                                for b in range(ly, ly + s):
-                                    if _unmeasured(cells, t, a, b):
-                                        c_lo, c_hi, _, _, _, q_lo, q_hi = _cell_window(
-                                            ix - lx + a, iy - ly + b, eps, box, a0, inc, h, nb, rmax, mid, lo_edge,
-                                            hi_edge, err)
-                                        _scan_new(T, c_lo, c_hi, q_lo, q_hi, new, stats)
-                            continue
-                if not obs and not freep:
-                    continue
-                # refine: the four quarters at the next level (cells at level 0)
-                NX[n_next], NY[n_next] = gx, gy
-                NX[n_next + 1], NY[n_next + 1] = gx + half, gy
-                NX[n_next + 2], NY[n_next + 2] = gx, gy + half
-                NX[n_next + 3], NY[n_next + 3] = gx + half, gy + half
-                n_next += 4
+            ok, n_next, n_tl, n_blk, n_mblk, d_nodes, d_empty, d_obst = _decide_blocks(
+                lev, n_lev, q0, inner, exact, sc, LX, LY, NX, NY, G, T, lg, cells, box, TT, TS, rec,
+                (n_tl, n_blk, n_mblk), new, stats)
+            if not ok:
+                return False, n_tl, n_blk, n_mblk, n_cand, 0
+            nodes += d_nodes
+            n_empty += d_empty
+            n_obst += d_obst
             LX, NX = NX, LX
             LY, NY = NY, LY
             n_lev = n_next
@@ -305,52 +212,216 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
         # the cells: geometry of all, then the reference's leaf decisions
         _cell_geom(n_lev, LX, LY, CX, CY, thl, thh, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc,
                    DXL, DXH, DYL, DYH, RL, RH, OL, OH, EL, EH, CV, SM)
-        for j in range(n_lev):
-            nodes += 1
-            r_lo, r_hi = RL[j], RH[j]
-            if r_lo > rmax:
-                continue
-            gx, gy = LX[j], LY[j]
-            cx_ = i0 + gx
-            cy_ = j0 + gy
-            q = (gx >> TILE_SHIFT) * nty + (gy >> TILE_SHIFT) - q0  # in the chunk
-            if SM[j] != 0:
-                o_lo, o_hi = OL[j], OH[j]
-                code = _classify(T, lg, o_lo, o_hi, EL[j], EH[j], CV[j] != 0, r_lo, r_hi, stats)
-            else:
-                code, o_lo, o_hi, r_lo, r_hi = _cell(cx_, cy_, eps, box, a0, inc, h, nb, rmax, mid,
-                                                     lo_edge, hi_edge, T, lg, stats)
-            if code == 0 or (code == 2 and exact):
-                continue
-            if code == 1:
-                slot = _tile_slot(tl, n_tl, TS[q], cx_ >> TILE_SHIFT, cy_ >> TILE_SHIFT, 1)
-                if slot < 0 or n_blk >= cap_blk:
-                    return False, n_tl, n_blk, n_mblk, n_cand, 0
-                TS[q] = slot
-                n_tl = max(n_tl, slot + 1)
-                blk[n_blk, 0], blk[n_blk, 1], blk[n_blk, 2], blk[n_blk, 3] = cx_, cy_, 0, slot
-                n_blk += 1
-                n_empty += 1
-                continue
-            marked = code == 3
-            if marked and _unmeasured(cells, TT[q], cx_ & TILE_MASK, cy_ & TILE_MASK):
-                _scan_new(T, o_lo, o_hi, r_lo, r_hi, new, stats)
-            slot = _tile_slot(tl, n_tl, TS[q], cx_ >> TILE_SHIFT, cy_ >> TILE_SHIFT, 2 if marked else 0)
-            if slot < 0 or n_cand >= cap_cand:
-                return False, n_tl, n_blk, n_mblk, n_cand, 0
-            TS[q] = slot
-            n_tl = max(n_tl, slot + 1)
-            cand[n_cand, 0], cand[n_cand, 1] = cx_, cy_
-            cand[n_cand, 2], cand[n_cand, 3] = o_lo, o_hi
-            cand[n_cand, 4], cand[n_cand, 5] = (1 if marked else 0), slot
-            cand_f[n_cand, 0], cand_f[n_cand, 1] = r_lo, r_hi
-            n_cand += 1
-            n_obst += 1
+        ok, n_tl, n_blk, n_cand, d_nodes, d_empty, d_obst = _decide_cells(
+            n_lev, q0, exact, sc, LX, LY, G, T, lg, cells, box, TT, TS, rec, (n_tl, n_blk, n_cand), new, stats)
+        if not ok:
+            return False, n_tl, n_blk, n_mblk, n_cand, 0
+        nodes += d_nodes
+        n_empty += d_empty
+        n_obst += d_obst
     _tiles_in_order(tl, n_tl, tx0, ty0, nty, blk, n_blk, mblk, n_mblk, cand, n_cand)
     stats[0] += nodes
     stats[1] += n_empty
     stats[3] += n_obst
     return True, n_tl, n_blk, n_mblk, n_cand, 0
+
+
+@njit(cache=True, _nrt=False)
+def _chunk_roots(keys, slots, q0, q1, nty, tx0, ty0, LX, LY, TT, TS):
+    """The roots of tiles ``q0 .. q1 - 1`` (ranks in the scan's tile range) as the first level:
+    their columns and rows in the axis tables into ``LX, LY``, their map index into ``TT``
+    (-1: no tile), no slot yet in ``TS``. Returns their count."""
+    n_lev = 0
+    for q in range(q0, q1):
+        LX[n_lev] = (q // nty) * TILE
+        LY[n_lev] = (q % nty) * TILE
+        TT[n_lev] = find(keys, slots, tx0 + q // nty, ty0 + q % nty)
+        TS[n_lev] = -1
+        n_lev += 1
+    return n_lev
+
+
+@njit(cache=True, _nrt=False)
+def _decide_blocks(lev, n_lev, q0, inner, exact, sc, LX, LY, NX, NY, G, T, lg, cells, box, TT, TS, rec, n_rec,
+                   new, stats):
+    """The decisions on the ``n_lev`` blocks of ``2^lev`` cells of a level (their geometry in
+    ``G``, from :func:`~.map_blocks._level_geom`): proven empty (into ``blk``), every cell in
+    P_OBSTACLE^k (into ``mblk``, the beams of their unmeasured cells marked new), pruned, or
+    refined (the four quarters listed in ``NX, NY``). ``sc``: the scan's constants (see
+    :func:`traverse`), ``rec = (tl, blk, mblk, cand, cand_f)`` with ``n_rec = (n_tl, n_blk,
+    n_mblk)`` records so far. Returns ``(ok, n_next, n_tl, n_blk, n_mblk, nodes, empty cells,
+    obstacle cells)``; ``ok`` False: a record buffer is full."""
+    eps, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, gmin_c, i0, j0, nty = sc
+    RL, RH, OL, OH, EL, EH, CV, SM, X0, X1, Y0, Y1, IL, IH, KL, KH = G
+    tl, blk, mblk, cand, cand_f = rec
+    n_tl, n_blk, n_mblk = n_rec
+    pxl, pxh, pyl, pyh, thl, thh = box[0], box[1], box[2], box[3], box[4], box[5]
+    cap_blk = blk.shape[0]
+    cap_mblk = mblk.shape[0]
+    s = 1 << lev
+    half = s >> 1
+    nodes = 0
+    n_empty = 0
+    n_obst = 0
+    n_next = 0
+    for j in range(n_lev):
+        gx, gy = LX[j], LY[j]
+        nodes += 1
+        r_lo, r_hi = RL[j], RH[j]
+        if r_lo > rmax:
+            continue
+        ix = i0 + gx
+        iy = j0 + gy
+        q = (gx >> TILE_SHIFT) * nty + (gy >> TILE_SHIFT) - q0  # in the chunk
+        o_lo, o_hi, e_lo, e_hi, cover, simple = OL[j], OH[j], EL[j], EH[j], CV[j] != 0, SM[j] != 0
+        if not simple:
+            # the reference's block test (around the sensor box, the back of the scan)
+            dxl, dxh = dn(X0[j] - pxh), upf(X1[j] - pxl)
+            dyl, dyh = dn(Y0[j] - pyh), upf(Y1[j] - pyl)
+            bl, bh, full = box_bearings(dxl, dxh, dyl, dyh)
+            if full:
+                o_lo, o_hi, e_lo, e_hi, cover = 0, nb - 1, 0, -1, False
+            else:
+                o_lo, o_hi, e_lo, e_hi, cover = beam_window(down(bl - thh), up(bh - thl), a0, inc, h, nb)
+        if o_lo > o_hi:
+            continue
+        lo_min, hi_max, f_min, f_max = _win(T, lg, o_lo, o_hi)
+        if cover and (e_lo != o_lo or e_hi != o_hi):
+            f_min = _win(T, lg, e_lo, e_hi)[2]
+        if cover and r_hi < f_min:
+            slot = _tile_slot(tl, n_tl, TS[q], ix >> TILE_SHIFT, iy >> TILE_SHIFT, 1)
+            if slot < 0 or n_blk >= cap_blk:
+                return False, n_next, n_tl, n_blk, n_mblk, nodes, n_empty, n_obst
+            TS[q] = slot
+            n_tl = max(n_tl, slot + 1)
+            blk[n_blk, 0], blk[n_blk, 1], blk[n_blk, 2], blk[n_blk, 3] = ix, iy, lev, slot
+            n_blk += 1
+            n_empty += s * s
+            continue
+        freep = r_lo < f_max
+        obs = r_hi >= lo_min and r_lo <= hi_max
+        if simple:
+            # [o_lo, o_hi] holds every cell's window
+            if obs and exact:
+                obs = _meets(T, lg, o_lo, o_hi, r_hi, r_lo, lo_min, hi_max, stats)
+            if not obs and not freep:
+                continue
+            if inner:
+                u_lo, u_hi, k_lo, k_hi = IL[j], IH[j], KL[j], KH[j]
+            else:
+                u_lo, u_hi = 0, -1
+            if u_lo <= u_hi:
+                i_lo = max(u_lo, 0)
+                i_hi = min(u_hi, nb - 1)
+                if i_lo <= i_hi:
+                    ilo_min, ihi_max, if_min, _ = _win(T, lg, i_lo, i_hi)
+                # no cell can be proven empty: its window reaches outside the scan, or its
+                # largest range reaches the free range of a beam in every window
+                if freep and (u_lo < 0 or u_hi > nb - 1 or k_hi >= if_min):
+                    freep = False
+                # every cell is in P_OBSTACLE^k when a beam of [i_lo, i_hi] meets the range
+                # interval of each cell centre: one beam with lo <= k_hi and hi >= k_lo, or the
+                # hull reaching them all with no jump wider than the narrowest, at least the
+                # box's smaller side (see _inner_consts)
+                if obs and i_lo <= i_hi and _meets_g(T, lg, i_lo, i_hi, k_hi, k_lo, ilo_min, ihi_max,
+                                                     max(gmin_c, down(k_hi - k_lo)), stats):
+                    slot = _tile_slot(tl, n_tl, TS[q], ix >> TILE_SHIFT, iy >> TILE_SHIFT, 2)
+                    if slot < 0 or n_mblk >= cap_mblk:
+                        return False, n_next, n_tl, n_blk, n_mblk, nodes, n_empty, n_obst
+                    TS[q] = slot
+                    n_tl = max(n_tl, slot + 1)
+                    mblk[n_mblk, 0], mblk[n_mblk, 1], mblk[n_mblk, 2] = ix, iy, lev
+                    mblk[n_mblk, 3], mblk[n_mblk, 4], mblk[n_mblk, 5] = o_lo, o_hi, slot
+                    n_mblk += 1
+                    n_obst += s * s
+                    _block_new(cells, TT[q], ix, iy, s, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err,
+                               T, new, stats)
+                    continue
+        if not obs and not freep:
+            continue
+        # refine: the four quarters at the next level (cells at level 0)
+        NX[n_next], NY[n_next] = gx, gy
+        NX[n_next + 1], NY[n_next + 1] = gx + half, gy
+        NX[n_next + 2], NY[n_next + 2] = gx, gy + half
+        NX[n_next + 3], NY[n_next + 3] = gx + half, gy + half
+        n_next += 4
+    return True, n_next, n_tl, n_blk, n_mblk, nodes, n_empty, n_obst
+
+
+@njit(cache=True, inline="always")
+def _block_new(cells, t, ix, iy, s, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, T, new, stats):
+    """The beams of the unmeasured cells of a block of P_OBSTACLE^k (``s x s`` cells from
+    ``(ix, iy)``, map tile index ``t``) marked new: each such cell's reference window
+    (:func:`~.map_blocks._cell_window`) and range interval, beam by beam."""
+    lx = ix & TILE_MASK
+    ly = iy & TILE_MASK
+    for a in range(lx, lx + s):
+        for b in range(ly, ly + s):
+            if _unmeasured(cells, t, a, b):
+                c_lo, c_hi, _, _, _, q_lo, q_hi = _cell_window(ix - lx + a, iy - ly + b, eps, box, a0, inc, h, nb,
+                                                               rmax, mid, lo_edge, hi_edge, err)
+                _scan_new(T, c_lo, c_hi, q_lo, q_hi, new, stats)
+
+
+@njit(cache=True, _nrt=False)
+def _decide_cells(n_lev, q0, exact, sc, LX, LY, G, T, lg, cells, box, TT, TS, rec, n_rec, new, stats):
+    """The reference's leaf decisions on the ``n_lev`` cells of a chunk (their geometry in
+    ``G``, from :func:`~.map_blocks._cell_geom`, or :func:`~.map_blocks._cell` where it left
+    the window undecided): proven empty (into ``blk``), in P_OBSTACLE^k or only its hull test
+    passed (into ``cand``, the beams of unmeasured marked cells set new). ``n_rec = (n_tl, n_blk,
+    n_cand)``. Returns ``(ok, n_tl, n_blk, n_cand, nodes, empty cells, obstacle cells)``; ``ok``
+    False: a record buffer is full."""
+    eps, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, gmin_c, i0, j0, nty = sc
+    RL, RH, OL, OH, EL, EH, CV, SM = G[0], G[1], G[2], G[3], G[4], G[5], G[6], G[7]
+    tl, blk, mblk, cand, cand_f = rec
+    n_tl, n_blk, n_cand = n_rec
+    cap_blk = blk.shape[0]
+    cap_cand = cand.shape[0]
+    nodes = 0
+    n_empty = 0
+    n_obst = 0
+    for j in range(n_lev):
+        nodes += 1
+        r_lo, r_hi = RL[j], RH[j]
+        if r_lo > rmax:
+            continue
+        gx, gy = LX[j], LY[j]
+        cx_ = i0 + gx
+        cy_ = j0 + gy
+        q = (gx >> TILE_SHIFT) * nty + (gy >> TILE_SHIFT) - q0  # in the chunk
+        if SM[j] != 0:
+            o_lo, o_hi = OL[j], OH[j]
+            code = _classify(T, lg, o_lo, o_hi, EL[j], EH[j], CV[j] != 0, r_lo, r_hi, stats)
+        else:
+            code, o_lo, o_hi, r_lo, r_hi = _cell(cx_, cy_, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge,
+                                                 T, lg, stats)
+        if code == 0 or (code == 2 and exact):
+            continue
+        if code == 1:
+            slot = _tile_slot(tl, n_tl, TS[q], cx_ >> TILE_SHIFT, cy_ >> TILE_SHIFT, 1)
+            if slot < 0 or n_blk >= cap_blk:
+                return False, n_tl, n_blk, n_cand, nodes, n_empty, n_obst
+            TS[q] = slot
+            n_tl = max(n_tl, slot + 1)
+            blk[n_blk, 0], blk[n_blk, 1], blk[n_blk, 2], blk[n_blk, 3] = cx_, cy_, 0, slot
+            n_blk += 1
+            n_empty += 1
+            continue
+        marked = code == 3
+        if marked and _unmeasured(cells, TT[q], cx_ & TILE_MASK, cy_ & TILE_MASK):
+            _scan_new(T, o_lo, o_hi, r_lo, r_hi, new, stats)
+        slot = _tile_slot(tl, n_tl, TS[q], cx_ >> TILE_SHIFT, cy_ >> TILE_SHIFT, 2 if marked else 0)
+        if slot < 0 or n_cand >= cap_cand:
+            return False, n_tl, n_blk, n_cand, nodes, n_empty, n_obst
+        TS[q] = slot
+        n_tl = max(n_tl, slot + 1)
+        cand[n_cand, 0], cand[n_cand, 1] = cx_, cy_
+        cand[n_cand, 2], cand[n_cand, 3] = o_lo, o_hi
+        cand[n_cand, 4], cand[n_cand, 5] = (1 if marked else 0), slot
+        cand_f[n_cand, 0], cand_f[n_cand, 1] = r_lo, r_hi
+        n_cand += 1
+        n_obst += 1
+    return True, n_tl, n_blk, n_cand, nodes, n_empty, n_obst
 
 
 @njit(cache=True)

@@ -15,8 +15,8 @@ from numba import njit
 
 from ivslam_cli.interval.rounding import down, up
 from ivslam_cli.paving.tiles import EMPTY, OBST_NEW, OBST_OLD, TILE_MASK, add_tile
-from ivslam_cli.slam.lidar.geometry import ATAN_ERR, box_ranges, box_ranges_fin, dn, upf
-from ivslam_cli.slam.lidar.map_blocks import _cell_window
+from ivslam_cli.slam.lidar.geometry import box_ranges, box_ranges_fin, dn, upf
+from ivslam_cli.slam.lidar.map_blocks import _cell_window, _scan_angles
 
 
 @njit(cache=True, _nrt=False)
@@ -51,12 +51,8 @@ def _write(cells, ti, n_blk, blk, n_mblk, mblk, n_cand, cand, cand_f, new, valid
            eps, rmax, T, lg, cnt_new, cnt_valid, new_idx, st):
     """The writes of :func:`apply` (tiles allocated: ``ti[j]`` is tile ``tl[j]``'s index)."""
     nb = valid.shape[0]
-    a_end = a0 + (nb - 1) * inc
-    mid = 0.5 * (a0 + a_end)
-    lo_edge = down(a0 - h)
-    hi_edge = up(up(a_end + h))
+    mid, lo_edge, hi_edge, err = _scan_angles(box, a0, inc, h, nb)
     pxl, pxh, pyl, pyh = box[0], box[1], box[2], box[3]
-    err = ATAN_ERR + 1e-12 * (8.0 + abs(box[4]) + abs(box[5]))  # as traverse's
     for k in range(n_blk):
         t = ti[blk[k, 3]]
         s = 1 << blk[k, 2]
