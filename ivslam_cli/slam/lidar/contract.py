@@ -86,9 +86,13 @@ from ivslam_cli.slam.lidar.geometry import beam_offset, range_bounds, sensor_box
 # - beams are tested in any order: only "more than q free" is used.
 #
 # Speed: the arrays live in a per-thread workspace kept between calls (a call allocates nothing
-# large: no page faults), and the loops over boxes and beams run in ``_level``, which makes and
-# rebinds no array (numba then counts no references there: atomic increments per beam cost
-# more than the beam's test).
+# large: no page faults), and the loops over boxes and beams run in ``_level``, which allocates
+# nothing and is compiled without reference counting (numba's private ``_nrt=False``): its
+# per-box stages are inlined helpers taking arrays, which would otherwise change reference
+# counts, atomically, on every use (15-25 % slower, measured on the bench's sim and exp1
+# cases). Numba compiles a callee first reached from such a function with the same option:
+# ``_region_free`` and the tile lookups it calls, shared with the reference, count no
+# references either (a numba upgrade that drops the option breaks ``_level`` at compile time).
 
 #: the dense window holds at most this many cells (larger: regions are looked up in the tiles)
 MAX_WINDOW_CELLS = 1 << 22
@@ -199,7 +203,7 @@ def _witness_cell(ux, uy, mu, cx0, cx1, cy0, cy1):
     return 0, ix, iy
 
 
-@njit(cache=True)
+@njit(cache=True, _nrt=False)
 def _level(cur, cur_n, cur_b, cur_o, nxt, nxt_n, nxt_b, nxt_o, n_cur, cap, hull, nf, ni, n_nodes, wit, dof, dst,
            n_rows, keys, slots, cells, eps, F, S, built, wx0, wx1, wy0, wy1, cx0, cx1, cy0, cy1, rl, rh, rmid, ang,
            uc, us, r_alpha, mx, my, myaw, q, min_xy, min_th, reach, skip, witness, mu):
@@ -209,160 +213,201 @@ def _level(cur, cur_n, cur_b, cur_o, nxt, nxt_n, nxt_b, nxt_o, n_cur, cap, hull,
     n_nodes, n_rows)``. The caller has made room for ``2 n_cur`` more nodes and ``n_cur`` more
     pool rows. Witnessed beams handed down: ``cur_b[j, 0]`` says whether box ``j`` has a set
     (bits ``cur_b[j, 1:]``) witnessed from the pose ``cur_o[j]``; the sets for the halves go to
-    ``nxt_b`` / ``nxt_o``."""
+    ``nxt_b`` / ``nxt_o``.
+
+    Per box, three stages (inlined; this function counts no references, see the comment
+    before the fast path): the witnessed set handed down (:func:`_hand_down`), the count of
+    free regions (:func:`_free_count`), then kept or split (:func:`_split`)."""
+    nb = rl.shape[0]
+    nw = (nb + 63) >> 6
+    win = (F, S, built, wx0, wx1, wy0, wy1, cx0, cx1, cy0, cy1)
+    beams = (rl, rh, rmid, ang, uc, us)
+    n_nxt = 0
+    kept = 0
+    for j in range(n_cur):
+        nd = cur_n[j]
+        has = _hand_down(cur, cur_b, cur_o, j, nxt_b, nxt_o, n_nxt, nw)
+        n, n_rows = _free_count(cur, cur_b, j, nd, has, nxt_b, n_nxt, nf, ni, wit, dof, dst, n_rows, keys, slots,
+                                cells, eps, win, beams, r_alpha, myaw, q, skip, witness, mu)
+        if n > q:
+            continue
+        n_nxt, k, n_nodes = _split(cur, j, nd, nxt, nxt_n, nxt_b, nxt_o, n_nxt, cap, hull, nf, ni, n_nodes, nw, mx,
+                                   my, myaw, min_xy, min_th, reach)
+        kept += k
+    return n_nxt, kept, n_nodes, n_rows
+
+
+@njit(cache=True, inline="always")
+def _hand_down(cur, cur_b, cur_o, j, nxt_b, nxt_o, n_nxt, nw):
+    """The witnessed set box ``j`` hands down, into row ``n_nxt`` of ``nxt_b`` / ``nxt_o``: the
+    origin's if the box holds it (returns True: the box skips those beams), else an empty one
+    from the box's centre."""
+    b0, b1, b2, b3, b4, b5 = cur[j, 0], cur[j, 1], cur[j, 2], cur[j, 3], cur[j, 4], cur[j, 5]
+    has = (cur_b[j, 0] != 0 and b0 <= cur_o[j, 0] <= b1 and b2 <= cur_o[j, 1] <= b3
+           and b4 <= cur_o[j, 2] <= b5)
+    if has:
+        for w in range(nw + 1):
+            nxt_b[n_nxt, w] = cur_b[j, w]
+        for w in range(3):
+            nxt_o[n_nxt, w] = cur_o[j, w]
+    else:
+        for w in range(nw + 1):
+            nxt_b[n_nxt, w] = 0
+        nxt_o[n_nxt, 0] = 0.5 * (b0 + b1)
+        nxt_o[n_nxt, 1] = 0.5 * (b2 + b3)
+        nxt_o[n_nxt, 2] = 0.5 * (b4 + b5)
+    return has
+
+
+@njit(cache=True, inline="always")
+def _free_count(cur, cur_b, j, nd, has, nxt_b, n_nxt, nf, ni, wit, dof, dst, n_rows, keys, slots, cells, eps, win,
+                beams, r_alpha, myaw, q, skip, witness, mu):
+    """How many beams of box ``j`` (heading node ``nd``) have an endpoint region in proven-free
+    cells, as :func:`excluded_beams` counts them (stops past ``q``); beams witnessed from the
+    origin are skipped when the box holds it (``has``), the box's own witnesses go into row
+    ``n_nxt`` of ``nxt_b`` when it does not. Returns ``(count, n_rows)`` (the node's pool row
+    made on first use)."""
+    F, S, built, wx0, wx1, wy0, wy1, cx0, cx1, cy0, cy1 = win
+    rl, rh, rmid, ang, uc, us = beams
     nb = rl.shape[0]
     ny = wy1 - wy0 + 1
     m = ny + 1
     inv_eps = 1.0 / eps
-    n_nxt = 0
-    kept = 0
-    nw = (nb + 63) >> 6
-    for j in range(n_cur):
-        nd = cur_n[j]
-        b0, b1, b2, b3, b4, b5 = cur[j, 0], cur[j, 1], cur[j, 2], cur[j, 3], cur[j, 4], cur[j, 5]
-        # the origin's set if this box holds the origin, else a new one from this box's centre
-        has = (cur_b[j, 0] != 0 and b0 <= cur_o[j, 0] <= b1 and b2 <= cur_o[j, 1] <= b3
-               and b4 <= cur_o[j, 2] <= b5)
-        if has:
-            for w in range(nw + 1):
-                nxt_b[n_nxt, w] = cur_b[j, w]
-            for w in range(3):
-                nxt_o[n_nxt, w] = cur_o[j, w]
-        else:
-            for w in range(nw + 1):
-                nxt_b[n_nxt, w] = 0
-            nxt_o[n_nxt, 0] = 0.5 * (b0 + b1)
-            nxt_o[n_nxt, 1] = 0.5 * (b2 + b3)
-            nxt_o[n_nxt, 2] = 0.5 * (b4 + b5)
-        store = not has
-        sxl, sxh = add(b0, b1, nf[nd, 2], nf[nd, 3])
-        syl, syh = add(b2, b3, nf[nd, 4], nf[nd, 5])
-        # the beams' count of free regions, as excluded_beams (stops past q)
-        n = 0
-        if nb > 0 and not (skip and _cells_lb(sxh - sxl, eps) * _cells_lb(syh - syl, eps) > MAX_REGION_CELLS):
-            # (else every region of this box spans too many cells: none is free)
-            row = ni[nd, 1]
-            if row < 0:
-                row = n_rows
-                ni[nd, 1] = row
-                n_rows += 1
-                for k in range(nb):
-                    dst[row, k] = 0
-                if witness:
-                    _node_witness(nf[nd, 0], nf[nd, 1], myaw, rmid, rh, uc, us, wit, row)
-            if store and witness:
-                nxt_b[n_nxt, 0] = 1
-            stl = nf[nd, 6]
-            sth = nf[nd, 7]
-            scx = 0.5 * (b0 + b1) + nf[nd, 8]
-            scy = 0.5 * (b2 + b3) + nf[nd, 9]
-            hx = b1 - 0.5 * (b0 + b1)  # the corners: centre ± (hx, hy), floats of the box
-            hy = b3 - 0.5 * (b2 + b3)
-            k = -1
-            while True:
-                k += 1
-                if has:  # to the next beam not witnessed from the origin
-                    while k < nb:
-                        word = ~cur_b[j, 1 + (k >> 6)] >> np.uint64(k & 63)
-                        if word != 0:
-                            k += _DEBRUIJN[((word & (~word + np.uint64(1))) * _DEBRUIJN_MUL) >> np.uint64(58)]
-                            break
-                        k = ((k >> 6) + 1) << 6
-                if k >= nb:
+    b0, b1, b2, b3 = cur[j, 0], cur[j, 1], cur[j, 2], cur[j, 3]
+    store = not has
+    sxl, sxh = add(b0, b1, nf[nd, 2], nf[nd, 3])
+    syl, syh = add(b2, b3, nf[nd, 4], nf[nd, 5])
+    n = 0
+    if nb == 0 or (skip and _cells_lb(sxh - sxl, eps) * _cells_lb(syh - syl, eps) > MAX_REGION_CELLS):
+        return n, n_rows  # every region of this box spans too many cells: none is free
+    row = ni[nd, 1]
+    if row < 0:
+        row = n_rows
+        ni[nd, 1] = row
+        n_rows += 1
+        for k in range(nb):
+            dst[row, k] = 0
+        if witness:
+            _node_witness(nf[nd, 0], nf[nd, 1], myaw, rmid, rh, uc, us, wit, row)
+    if store and witness:
+        nxt_b[n_nxt, 0] = 1
+    stl = nf[nd, 6]
+    sth = nf[nd, 7]
+    scx = 0.5 * (b0 + b1) + nf[nd, 8]
+    scy = 0.5 * (b2 + b3) + nf[nd, 9]
+    hx = b1 - 0.5 * (b0 + b1)  # the corners: centre ± (hx, hy), floats of the box
+    hy = b3 - 0.5 * (b2 + b3)
+    k = -1
+    while True:
+        k += 1
+        if has:  # to the next beam not witnessed from the origin
+            while k < nb:
+                word = ~cur_b[j, 1 + (k >> 6)] >> np.uint64(k & 63)
+                if word != 0:
+                    k += _DEBRUIJN[((word & (~word + np.uint64(1))) * _DEBRUIJN_MUL) >> np.uint64(58)]
                     break
-                st = dst[row, k]
-                if st == 2:
-                    continue
-                if witness:
-                    c, ix, iy = _witness_cell((scx + wit[row, k, 0]) * inv_eps, (scy + wit[row, k, 1]) * inv_eps,
-                                              mu, cx0, cx1, cy0, cy1)
-                    if not (c == 1 or (c == 0 and built and ix >= wx0 and ix <= wx1 and iy >= wy0 and iy <= wy1
-                                       and F[(ix - wx0) * ny + iy - wy0] != 0)):
-                        c, ix, iy = _witness_cell((scx + wit[row, k, 2]) * inv_eps,
-                                                  (scy + wit[row, k, 3]) * inv_eps, mu, cx0, cx1, cy0, cy1)
-                    if c == 1 or (c == 0 and built and ix >= wx0 and ix <= wx1 and iy >= wy0 and iy <= wy1
-                                  and F[(ix - wx0) * ny + iy - wy0] != 0):
-                        if store:
-                            nxt_b[n_nxt, 1 + (k >> 6)] |= np.uint64(1) << np.uint64(k & 63)
-                        continue
-                    # the far end seen from the box's corner farthest along the beam (a pose of
-                    # the box, not its centre: not handed down)
-                    ex = wit[row, k, 2]
-                    ey = wit[row, k, 3]
-                    c, ix, iy = _witness_cell((scx + (hx if ex >= 0.0 else -hx) + ex) * inv_eps,
-                                              (scy + (hy if ey >= 0.0 else -hy) + ey) * inv_eps, mu, cx0, cx1, cy0,
-                                              cy1)
-                    if c == 1 or (c == 0 and built and ix >= wx0 and ix <= wx1 and iy >= wy0 and iy <= wy1
-                                  and F[(ix - wx0) * ny + iy - wy0] != 0):
-                        continue
-                if st == 0:
-                    dxl, dxh, dyl, dyh = beam_offset(stl, sth, rl[k], rh[k], ang[k], r_alpha)
-                    dof[row, k, 0] = dxl
-                    dof[row, k, 1] = dxh
-                    dof[row, k, 2] = dyl
-                    dof[row, k, 3] = dyh
-                    if skip and _cells_lb(dxh - dxl, eps) * _cells_lb(dyh - dyl, eps) > MAX_REGION_CELLS:
-                        dst[row, k] = 2  # never free for a box of this heading interval
-                        continue
-                    dst[row, k] = 1
-                xl, xh = add(sxl, sxh, dof[row, k, 0], dof[row, k, 1])
-                yl, yh = add(syl, syh, dof[row, k, 2], dof[row, k, 3])
-                if not (abs(xl) < math.inf and abs(xh) < math.inf and abs(yl) < math.inf and abs(yh) < math.inf):
-                    free = _region_free(keys, slots, cells, eps, xl, xh, yl, yh)
-                else:
-                    ix0 = math.floor(down(xl / eps))
-                    ix1 = math.floor(up(xh / eps))
-                    iy0 = math.floor(down(yl / eps))
-                    iy1 = math.floor(up(yh / eps))
-                    if (ix1 - ix0 + 1) * (iy1 - iy0 + 1) > MAX_REGION_CELLS:
-                        free = False
-                    elif built and ix0 >= wx0 and ix1 <= wx1 and iy0 >= wy0 and iy1 <= wy1:
-                        ax0 = (ix0 - wx0) * m
-                        ax1 = (ix1 - wx0 + 1) * m
-                        ay0 = iy0 - wy0
-                        ay1 = iy1 - wy0 + 1
-                        free = (S[ax1 + ay1] - S[ax0 + ay1] - S[ax1 + ay0] + S[ax0 + ay0]) & 0xFFFF == 0
-                    elif ix0 < cx0 or ix1 > cx1 or iy0 < cy0 or iy1 > cy1:
-                        free = False  # a cell in no tile: unknown
-                    else:
-                        free = _region_free(keys, slots, cells, eps, xl, xh, yl, yh)
-                if free:
-                    n += 1
-                    if n > q:
-                        break
-        if n > q:
+                k = ((k >> 6) + 1) << 6
+        if k >= nb:
+            break
+        st = dst[row, k]
+        if st == 2:
             continue
-        wx = b1 - b0
-        wy = b3 - b2
-        wt = (b5 - b4) * reach
-        if (wx <= min_xy and wy <= min_xy and b5 - b4 <= min_th) or n_nxt + 2 > cap:
-            kept += 1
-            _join(hull, cur[j])
-            continue
-        d = 0 if (wx >= wy and wx >= wt) else (1 if wy >= wt else 2)
-        mid = 0.5 * (cur[j, 2 * d] + cur[j, 2 * d + 1])
-        for e in range(6):
-            nxt[n_nxt, e] = cur[j, e]
-            nxt[n_nxt + 1, e] = cur[j, e]
-        nxt[n_nxt, 2 * d + 1] = mid
-        nxt[n_nxt + 1, 2 * d] = mid
-        for w in range(nw + 1):
-            nxt_b[n_nxt + 1, w] = nxt_b[n_nxt, w]
-        for w in range(3):
-            nxt_o[n_nxt + 1, w] = nxt_o[n_nxt, w]
-        if d == 2:  # the two halves of the heading interval, made once per node
-            if ni[nd, 0] < 0:
-                _set_node(nf, ni, n_nodes, b4, mid, mx, my, myaw)
-                _set_node(nf, ni, n_nodes + 1, mid, b5, mx, my, myaw)
-                ni[nd, 0] = n_nodes
-                n_nodes += 2
-            nxt_n[n_nxt] = ni[nd, 0]
-            nxt_n[n_nxt + 1] = ni[nd, 0] + 1
+        if witness:
+            c, ix, iy = _witness_cell((scx + wit[row, k, 0]) * inv_eps, (scy + wit[row, k, 1]) * inv_eps, mu, cx0,
+                                      cx1, cy0, cy1)
+            if not (c == 1 or (c == 0 and built and ix >= wx0 and ix <= wx1 and iy >= wy0 and iy <= wy1
+                               and F[(ix - wx0) * ny + iy - wy0] != 0)):
+                c, ix, iy = _witness_cell((scx + wit[row, k, 2]) * inv_eps, (scy + wit[row, k, 3]) * inv_eps, mu,
+                                          cx0, cx1, cy0, cy1)
+            if c == 1 or (c == 0 and built and ix >= wx0 and ix <= wx1 and iy >= wy0 and iy <= wy1
+                          and F[(ix - wx0) * ny + iy - wy0] != 0):
+                if store:
+                    nxt_b[n_nxt, 1 + (k >> 6)] |= np.uint64(1) << np.uint64(k & 63)
+                continue
+            # the far end seen from the box's corner farthest along the beam (a pose of the box,
+            # not its centre: not handed down)
+            ex = wit[row, k, 2]
+            ey = wit[row, k, 3]
+            c, ix, iy = _witness_cell((scx + (hx if ex >= 0.0 else -hx) + ex) * inv_eps,
+                                      (scy + (hy if ey >= 0.0 else -hy) + ey) * inv_eps, mu, cx0, cx1, cy0, cy1)
+            if c == 1 or (c == 0 and built and ix >= wx0 and ix <= wx1 and iy >= wy0 and iy <= wy1
+                          and F[(ix - wx0) * ny + iy - wy0] != 0):
+                continue
+        if st == 0:
+            dxl, dxh, dyl, dyh = beam_offset(stl, sth, rl[k], rh[k], ang[k], r_alpha)
+            dof[row, k, 0] = dxl
+            dof[row, k, 1] = dxh
+            dof[row, k, 2] = dyl
+            dof[row, k, 3] = dyh
+            if skip and _cells_lb(dxh - dxl, eps) * _cells_lb(dyh - dyl, eps) > MAX_REGION_CELLS:
+                dst[row, k] = 2  # never free for a box of this heading interval
+                continue
+            dst[row, k] = 1
+        xl, xh = add(sxl, sxh, dof[row, k, 0], dof[row, k, 1])
+        yl, yh = add(syl, syh, dof[row, k, 2], dof[row, k, 3])
+        if not (abs(xl) < math.inf and abs(xh) < math.inf and abs(yl) < math.inf and abs(yh) < math.inf):
+            free = _region_free(keys, slots, cells, eps, xl, xh, yl, yh)
         else:
-            nxt_n[n_nxt] = nd
-            nxt_n[n_nxt + 1] = nd
-        n_nxt += 2
-    return n_nxt, kept, n_nodes, n_rows
+            ix0 = math.floor(down(xl / eps))
+            ix1 = math.floor(up(xh / eps))
+            iy0 = math.floor(down(yl / eps))
+            iy1 = math.floor(up(yh / eps))
+            if (ix1 - ix0 + 1) * (iy1 - iy0 + 1) > MAX_REGION_CELLS:
+                free = False
+            elif built and ix0 >= wx0 and ix1 <= wx1 and iy0 >= wy0 and iy1 <= wy1:
+                ax0 = (ix0 - wx0) * m
+                ax1 = (ix1 - wx0 + 1) * m
+                ay0 = iy0 - wy0
+                ay1 = iy1 - wy0 + 1
+                free = (S[ax1 + ay1] - S[ax0 + ay1] - S[ax1 + ay0] + S[ax0 + ay0]) & 0xFFFF == 0
+            elif ix0 < cx0 or ix1 > cx1 or iy0 < cy0 or iy1 > cy1:
+                free = False  # a cell in no tile: unknown
+            else:
+                free = _region_free(keys, slots, cells, eps, xl, xh, yl, yh)
+        if free:
+            n += 1
+            if n > q:
+                break
+    return n, n_rows
+
+
+@njit(cache=True, inline="always")
+def _split(cur, j, nd, nxt, nxt_n, nxt_b, nxt_o, n_nxt, cap, hull, nf, ni, n_nodes, nw, mx, my, myaw, min_xy,
+           min_th, reach):
+    """Box ``j`` (not excluded) kept into ``hull`` when small enough or out of room, else bisected
+    along the widest of x, y and ``reach·θ``: its halves into rows ``n_nxt, n_nxt + 1`` of
+    ``nxt`` (the witnessed set of row ``n_nxt`` copied to both; a split heading gets the node's
+    two children, made once). Returns ``(n_nxt, kept, n_nodes)``."""
+    b0, b1, b2, b3, b4, b5 = cur[j, 0], cur[j, 1], cur[j, 2], cur[j, 3], cur[j, 4], cur[j, 5]
+    wx = b1 - b0
+    wy = b3 - b2
+    wt = (b5 - b4) * reach
+    if (wx <= min_xy and wy <= min_xy and b5 - b4 <= min_th) or n_nxt + 2 > cap:
+        _join(hull, cur[j])
+        return n_nxt, 1, n_nodes
+    d = 0 if (wx >= wy and wx >= wt) else (1 if wy >= wt else 2)
+    mid = 0.5 * (cur[j, 2 * d] + cur[j, 2 * d + 1])
+    for e in range(6):
+        nxt[n_nxt, e] = cur[j, e]
+        nxt[n_nxt + 1, e] = cur[j, e]
+    nxt[n_nxt, 2 * d + 1] = mid
+    nxt[n_nxt + 1, 2 * d] = mid
+    for w in range(nw + 1):
+        nxt_b[n_nxt + 1, w] = nxt_b[n_nxt, w]
+    for w in range(3):
+        nxt_o[n_nxt + 1, w] = nxt_o[n_nxt, w]
+    if d == 2:  # the two halves of the heading interval, made once per node
+        if ni[nd, 0] < 0:
+            _set_node(nf, ni, n_nodes, b4, mid, mx, my, myaw)
+            _set_node(nf, ni, n_nodes + 1, mid, b5, mx, my, myaw)
+            ni[nd, 0] = n_nodes
+            n_nodes += 2
+        nxt_n[n_nxt] = ni[nd, 0]
+        nxt_n[n_nxt + 1] = ni[nd, 0] + 1
+    else:
+        nxt_n[n_nxt] = nd
+        nxt_n[n_nxt + 1] = nd
+    return n_nxt + 2, 0, n_nodes
 
 
 @njit(cache=True)
@@ -391,75 +436,24 @@ def contract_kernel(keys, slots, cells, coords, n_tiles, eps, ranges, valid, a0,
     2) int64; pools ``wit``, ``dof`` (R, B', 4), ``dst`` (R, B') int8, window ``F`` (uint8),
     ``S`` (uint16) and witness bits (2, C, W) uint64 of any sizes (regrown here).
 
+    Stages: the beams and what does not depend on the sub-box (:func:`_beams`), the tiles'
+    bounding box and the dense window's extent (:func:`_tiles_bbox`, :func:`_window_extent`),
+    then the set inversion level by level (:func:`_level`), the window built
+    (:func:`_build_window`) before the first level that may test a region.
+
     Returns ``(kept, tested, wit, dof, dst, F, S, bits)`` (the last six possibly regrown)."""
-    # the beams tested, and what does not depend on the sub-box
-    nb = 0
-    for i in range(0, ranges.shape[0], stride):
-        if valid[i]:
-            nb += 1
-    rl = np.empty(nb)
-    rh = np.empty(nb)
-    rmid = np.empty(nb)
-    ang = np.empty(nb)
-    uc = np.empty(nb)
-    us = np.empty(nb)
-    j = 0
-    rmax = 0.0
-    for i in range(0, ranges.shape[0], stride):
-        if valid[i]:
-            rl[j], rh[j] = range_bounds(float(ranges[i]), r_abs, r_rel)
-            rmid[j] = 0.5 * (rl[j] + rh[j]) if rl[j] <= rh[j] else math.nan
-            ang[j] = a0 + i * inc
-            uc[j] = math.cos(ang[j])
-            us[j] = math.sin(ang[j])
-            rmax = max(rmax, rh[j]) if rh[j] == rh[j] else math.inf
-            j += 1
-    # the guard of the skip rules and witnesses, and the window around the root box's reach
+    rl, rh, rmid, ang, uc, us, rmax = _beams(ranges, valid, stride, a0, inc, r_abs, r_rel)
+    nb = rl.shape[0]
+    # the guard of the skip rules and witnesses
     ext = max(abs(box[0]), abs(box[1]), abs(box[2]), abs(box[3])) + abs(mx) + abs(my) + rmax
     skip = ext < _SKIP_MAX and eps > _SKIP_EPS
     mu = 1e-9 * (ext + 1.0) / eps
     witness = skip and mu < 1e-3
-    cx0, cx1, cy0, cy1 = 0, -1, 0, -1  # the tiles' bounding box (cells)
-    if n_tiles > 0:
-        cx0, cx1, cy0, cy1 = coords[0, 0], coords[0, 0], coords[0, 1], coords[0, 1]
-        for t in range(1, n_tiles):
-            cx0 = min(cx0, coords[t, 0])
-            cx1 = max(cx1, coords[t, 0])
-            cy0 = min(cy0, coords[t, 1])
-            cy1 = max(cy1, coords[t, 1])
-        cx0, cx1, cy0, cy1 = cx0 * TILE, cx1 * TILE + TILE - 1, cy0 * TILE, cy1 * TILE + TILE - 1
-    # the window: the endpoints from the root box's centre, grown by how far a pose of the box,
-    # a range of [r] and a direction of the cone can move them (a region outside it is looked
-    # up in the tiles: an estimate suffices), within the tiles' bounding box
+    cx0, cx1, cy0, cy1 = _tiles_bbox(coords, n_tiles)
     wx0, wx1, wy0, wy1 = 0, -1, 0, -1
     if skip and n_tiles > 0 and nb > 0:
-        tc = 0.5 * (box[4] + box[5])
-        sg = tc + myaw
-        cs, sn = math.cos(sg), math.sin(sg)
-        sx = 0.5 * (box[0] + box[1]) + math.cos(tc) * mx - math.sin(tc) * my
-        sy = 0.5 * (box[2] + box[3]) + math.sin(tc) * mx + math.cos(tc) * my
-        ex0, ex1, ey0, ey1 = sx, sx, sy, sy
-        dr = 0.0
-        for j in range(nb):
-            px = sx + rh[j] * (cs * uc[j] - sn * us[j])
-            py = sy + rh[j] * (sn * uc[j] + cs * us[j])
-            ex0, ex1, ey0, ey1 = min(ex0, px), max(ex1, px), min(ey0, py), max(ey1, py)
-            dr = max(dr, rh[j] - rl[j])
-        grow = (0.5 * (box[1] - box[0]) + 0.5 * (box[3] - box[2]) + dr
-                + (abs(mx) + abs(my) + rmax) * (0.5 * (box[5] - box[4]) + r_alpha) + 2.0 * eps)
-        if grow < rmax:
-            wx0 = max(cx0, math.floor((ex0 - grow) / eps))
-            wx1 = min(cx1, math.floor((ex1 + grow) / eps))
-            wy0 = max(cy0, math.floor((ey0 - grow) / eps))
-            wy1 = min(cy1, math.floor((ey1 + grow) / eps))
-        else:
-            rsb = sensor_box(box[0], box[1], box[2], box[3], box[4], box[5], mx, my, myaw)
-            wx0 = max(cx0, math.floor((rsb[0] - rmax) / eps) - 2)
-            wx1 = min(cx1, math.floor((rsb[1] + rmax) / eps) + 2)
-            wy0 = max(cy0, math.floor((rsb[2] - rmax) / eps) - 2)
-            wy1 = min(cy1, math.floor((rsb[3] + rmax) / eps) + 2)
-        if wx1 < wx0 or wy1 < wy0 or (wx1 - wx0 + 1) * (wy1 - wy0 + 1) > max_window:
-            wx0, wx1, wy0, wy1 = 0, -1, 0, -1
+        wx0, wx1, wy0, wy1 = _window_extent(box, mx, my, myaw, r_alpha, eps, rl, rh, uc, us, rmax, cx0, cx1, cy0,
+                                            cy1, max_window)
     has_window = wx1 >= wx0
     built = False
 
@@ -494,14 +488,7 @@ def contract_kernel(keys, slots, cells, coords, n_tiles, eps, ranges, valid, a0,
             kept += n_cur
             break
         if n_rows + n_cur > wit.shape[0]:  # room for this level's new pool rows
-            rows = max(2 * wit.shape[0], n_rows + n_cur)
-            w2 = np.empty((rows, dst.shape[1], 4))
-            w2[:n_rows] = wit[:n_rows]
-            o2 = np.empty((rows, dst.shape[1], 4))
-            o2[:n_rows] = dof[:n_rows]
-            s2 = np.empty((rows, dst.shape[1]), np.int8)
-            s2[:n_rows] = dst[:n_rows]
-            wit, dof, dst = w2, o2, s2
+            wit, dof, dst = _grown_pools(wit, dof, dst, n_rows, max(2 * wit.shape[0], n_rows + n_cur))
         if has_window and not built and _box_free_possible(cur, cur_n, n_cur, nf, eps, skip):
             nx, ny = wx1 - wx0 + 1, wy1 - wy0 + 1
             if F.shape[0] < nx * ny:
@@ -525,6 +512,99 @@ def contract_kernel(keys, slots, cells, coords, n_tiles, eps, ranges, valid, a0,
         for d in range(6):
             out[d] = hull[d]
     return kept, tested, wit, dof, dst, F, S, bits
+
+
+@njit(cache=True)
+def _beams(ranges, valid, stride, a0, inc, r_abs, r_rel):
+    """The beams tested (every ``stride``-th, those valid) and what does not depend on the
+    sub-box: ``(rl, rh, rmid, ang, uc, us, rmax)``, their range bounds (as
+    :func:`excluded_beams`), mid-range (NaN for an empty range), angle ``α_i`` and its cos and
+    sin, and the largest ``rh`` (``inf`` if one is NaN; 0 with no beam)."""
+    nb = 0
+    for i in range(0, ranges.shape[0], stride):
+        if valid[i]:
+            nb += 1
+    rl = np.empty(nb)
+    rh = np.empty(nb)
+    rmid = np.empty(nb)
+    ang = np.empty(nb)
+    uc = np.empty(nb)
+    us = np.empty(nb)
+    j = 0
+    rmax = 0.0
+    for i in range(0, ranges.shape[0], stride):
+        if valid[i]:
+            rl[j], rh[j] = range_bounds(float(ranges[i]), r_abs, r_rel)
+            rmid[j] = 0.5 * (rl[j] + rh[j]) if rl[j] <= rh[j] else math.nan
+            ang[j] = a0 + i * inc
+            uc[j] = math.cos(ang[j])
+            us[j] = math.sin(ang[j])
+            rmax = max(rmax, rh[j]) if rh[j] == rh[j] else math.inf
+            j += 1
+    return rl, rh, rmid, ang, uc, us, rmax
+
+
+@njit(cache=True)
+def _tiles_bbox(coords, n_tiles):
+    """The bounding box of the map's ``n_tiles`` tiles in cells, ``(cx0, cx1, cy0, cy1)``
+    (empty, ``(0, -1, 0, -1)``, with no tile): a cell outside it is in no tile (unknown)."""
+    if n_tiles == 0:
+        return 0, -1, 0, -1
+    cx0, cx1, cy0, cy1 = coords[0, 0], coords[0, 0], coords[0, 1], coords[0, 1]
+    for t in range(1, n_tiles):
+        cx0 = min(cx0, coords[t, 0])
+        cx1 = max(cx1, coords[t, 0])
+        cy0 = min(cy0, coords[t, 1])
+        cy1 = max(cy1, coords[t, 1])
+    return cx0 * TILE, cx1 * TILE + TILE - 1, cy0 * TILE, cy1 * TILE + TILE - 1
+
+
+@njit(cache=True)
+def _window_extent(box, mx, my, myaw, r_alpha, eps, rl, rh, uc, us, rmax, cx0, cx1, cy0, cy1, max_window):
+    """The dense window's cells ``(wx0, wx1, wy0, wy1)`` (empty, ``(0, -1, 0, -1)``, beyond
+    ``max_window`` cells): the endpoints from the root box's centre, grown by how far a pose of
+    the box, a range of ``[r]`` and a direction of the cone can move them, within the tiles'
+    bounding box. An estimate suffices: a region outside the window is looked up in the tiles."""
+    tc = 0.5 * (box[4] + box[5])
+    sg = tc + myaw
+    cs, sn = math.cos(sg), math.sin(sg)
+    sx = 0.5 * (box[0] + box[1]) + math.cos(tc) * mx - math.sin(tc) * my
+    sy = 0.5 * (box[2] + box[3]) + math.sin(tc) * mx + math.cos(tc) * my
+    ex0, ex1, ey0, ey1 = sx, sx, sy, sy
+    dr = 0.0
+    for j in range(rl.shape[0]):
+        px = sx + rh[j] * (cs * uc[j] - sn * us[j])
+        py = sy + rh[j] * (sn * uc[j] + cs * us[j])
+        ex0, ex1, ey0, ey1 = min(ex0, px), max(ex1, px), min(ey0, py), max(ey1, py)
+        dr = max(dr, rh[j] - rl[j])
+    grow = (0.5 * (box[1] - box[0]) + 0.5 * (box[3] - box[2]) + dr
+            + (abs(mx) + abs(my) + rmax) * (0.5 * (box[5] - box[4]) + r_alpha) + 2.0 * eps)
+    if grow < rmax:
+        wx0 = max(cx0, math.floor((ex0 - grow) / eps))
+        wx1 = min(cx1, math.floor((ex1 + grow) / eps))
+        wy0 = max(cy0, math.floor((ey0 - grow) / eps))
+        wy1 = min(cy1, math.floor((ey1 + grow) / eps))
+    else:
+        rsb = sensor_box(box[0], box[1], box[2], box[3], box[4], box[5], mx, my, myaw)
+        wx0 = max(cx0, math.floor((rsb[0] - rmax) / eps) - 2)
+        wx1 = min(cx1, math.floor((rsb[1] + rmax) / eps) + 2)
+        wy0 = max(cy0, math.floor((rsb[2] - rmax) / eps) - 2)
+        wy1 = min(cy1, math.floor((rsb[3] + rmax) / eps) + 2)
+    if wx1 < wx0 or wy1 < wy0 or (wx1 - wx0 + 1) * (wy1 - wy0 + 1) > max_window:
+        return 0, -1, 0, -1
+    return wx0, wx1, wy0, wy1
+
+
+@njit(cache=True)
+def _grown_pools(wit, dof, dst, n_rows, rows):
+    """The pools with ``rows`` rows, their first ``n_rows`` kept."""
+    w2 = np.empty((rows, dst.shape[1], 4))
+    w2[:n_rows] = wit[:n_rows]
+    o2 = np.empty((rows, dst.shape[1], 4))
+    o2[:n_rows] = dof[:n_rows]
+    s2 = np.empty((rows, dst.shape[1]), np.int8)
+    s2[:n_rows] = dst[:n_rows]
+    return w2, o2, s2
 
 
 _WS = threading.local()
