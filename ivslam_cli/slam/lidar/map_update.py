@@ -1,4 +1,4 @@
-"""The map update of the feature-less LiDAR SLAM: P_EMPTY, P_OBSTACLE, old/new (the
+"""The map update of the feature-less LiDAR SLAM: P_EMPTY, P_OBSTACLE, old/new (after the
 "Guaranteed SLAM – practical considerations" slides, University of Manchester).
 
     >>> tmap = TileMap(0.05)
@@ -12,7 +12,7 @@ Guarantees (for every robot pose in its box, given the sensor model of
 - every cell of P_EMPTY^k is free of obstacles (inner approximation; cells are closed squares
   enclosed outward, so a wall touching a cell's border keeps it out of P_EMPTY);
 - every endpoint of a valid beam lies in a cell of P_OBSTACLE^k (outer approximation);
-- the map accumulates them as the slides do (flags in :mod:`ivslam_cli.paving.tiles`):
+- the map accumulates them as in the slides (flags in :mod:`ivslam_cli.paving.tiles`):
   P_EMPTY = ∪ P_EMPTY^k, P_OBSTACLE = (∪ P_OBSTACLE^k) ∩ (∪ P_OLD^k).
 
 Old/new: the slides' inclusion test ``P_EMPTY^{i,k} ⊂ P_EMPTY ∪ P_OBSTACLE`` would never call a
@@ -24,7 +24,8 @@ behind a wall are never measured).
 
 The work is done by the fast path of :mod:`~ivslam_cli.slam.lidar.map_kernel` (one compiled call per
 ``update_map``, whatever the number of scans), whose cells, beams, flags and counts are those of
-its cell-by-cell reference, bit for bit (``tests/test_lidar_map.py``, ``bench/bench_lidar_map.py``).
+its cell-by-cell reference, :mod:`~ivslam_cli.slam.lidar.map_reference`, bit for bit
+(``tests/test_lidar_map.py``, ``bench/bench_lidar_map.py``).
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from ivslam_cli.logs.model import Scans
 from ivslam_cli.paving.tiles import TileMap
 from ivslam_cli.results.model import CELL_EMPTY, CELL_OBSTACLE, CELL_UNKNOWN, MapGrid
 from ivslam_cli.slam.lidar import map_kernel as K
+from ivslam_cli.slam.lidar import map_reference as R
 from ivslam_cli.slam.lidar.geometry import sensor_boxes_of
 
 STAT_FIELDS = ("nodes", "empty_cells", "obstacle_cells", "new_beams", "old_beams", "leaf_beam_tests")
@@ -154,12 +156,12 @@ def scan_sets(scans: Scans, k: int, robot_box, bounds: LidarBounds, eps: float,
 
 def inclusion_new(tmap: TileMap, scans: Scans, k: int, robot_box, bounds: LidarBounds) -> np.ndarray:
     """The slides' full old/new test for scan ``k`` against ``tmap``: ``new`` per beam (see
-    :func:`ivslam_cli.slam.lidar.map_kernel.inclusion_new`)."""
+    :func:`ivslam_cli.slam.lidar.map_reference.inclusion_new`)."""
     ensure_round_to_nearest()
     bounds.check()
     box = _boxes(robot_box, scans.mount)[0]
     r, v, a0, inc = _scan(scans, k)
-    return K.inclusion_new(tmap.keys, tmap.slots, tmap.cells, r, v, a0, inc, box,
+    return R.inclusion_new(tmap.keys, tmap.slots, tmap.cells, r, v, a0, inc, box,
                            float(bounds.range_abs), float(bounds.range_rel), float(bounds.bearing),
                            tmap.eps)
 
@@ -207,7 +209,7 @@ def scan_reach(scans: Scans, bounds) -> tuple[float, int]:
 def extent_limits(scans: Scans, bounds, eps: float) -> tuple[float, float, float, float, float]:
     """What :func:`check_extent` compares with: ``(reach, pad, span_max, origin_max, eps)``."""
     from ivslam_cli.paving.tiles import TILE
-    from ivslam_cli.slam.lidar.map_kernel import MAX_SPAN_TILES
+    from ivslam_cli.slam.lidar.map_tables import MAX_SPAN_TILES
 
     reach = scan_reach(scans, bounds)[0]
     side = TILE * eps
