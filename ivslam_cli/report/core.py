@@ -8,9 +8,9 @@ Containment — the check that the guarantee held — per kind of enclosure:
   of its outer approximation (inner ∪ boundary boxes, closed) does;
 - **pose**: checked at the *truth's own stamps*. A truth stamp equal to a pose stamp k is
   checked against box k; one strictly between pose stamps k and k+1 against the hull of
-  boxes k and k+1. This is the documented stand-in until the pipelines give a true tube
-  between steps, and it is generous for the check: a truth pose anywhere in that hull
-  passes, so it never flags a pose a true tube would hold as long as the robot stays in the
+  boxes k and k+1 (headings: box k+1's moved by the multiple of 2π nearest box k's).
+  This is the documented stand-in until the pipelines give a true tube between steps, and
+  it is generous for the check: a truth pose anywhere in that hull passes, so it never flags a pose a true tube would hold as long as the robot stays in the
   hull between the two steps (bounded motion over one step), and it can accept a pose a
   tighter tube would exclude. Truth stamps outside the span of the pose stamps are not
   checked (counted in ``not_checked``). Heading is compared modulo 2π.
@@ -175,7 +175,12 @@ def pose_containment(poses: Poses, truth: GroundTruth) -> Containment | None:
     k = np.clip(np.searchsorted(s, ts, side="right") - 1, 0, len(s) - 1)
     exact = s[k] == ts
     k1 = np.where(exact, k, np.minimum(k + 1, len(s) - 1))
-    b0, b1 = poses.box[k], poses.box[k1]
+    b0, b1 = poses.box[k], poses.box[k1].copy()
+    # headings: b1 in the branch nearest b0 (the heading turns little between two poses)
+    with np.errstate(invalid="ignore"):
+        turns = np.round((b0[:, 2].mean(axis=-1) - b1[:, 2].mean(axis=-1)) / TWO_PI)
+    turns = np.where(np.isfinite(turns), turns, 0.0)
+    b1[:, 2] = b1[:, 2] + (TWO_PI * turns)[:, None]
     hull = np.stack([np.minimum(b0[..., 0], b1[..., 0]), np.maximum(b0[..., 1], b1[..., 1])], axis=-1)
     ok = in_box(hull[:, :2], tp[:, :2]) & angle_in(hull[:, 2, 0], hull[:, 2, 1], tp[:, 2])
     # centre error: box centres interpolated linearly in time
