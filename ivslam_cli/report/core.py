@@ -199,6 +199,32 @@ def pose_containment(poses: Poses, truth: GroundTruth) -> Containment | None:
     )
 
 
+def robot_pose_containment(r: Result) -> dict[int, Containment]:
+    """Per robot of a result of several (``r.robots``): its pose rows against its truth rows."""
+    out: dict[int, Containment] = {}
+    rb, truth = r.robots, r.truth
+    if rb is None or r.poses is None or truth is None or truth.pose is None or truth.pose_stamp is None:
+        return out
+    for i, rid in enumerate(rb.id):
+        a, b = int(rb.pose_offsets[i]), int(rb.pose_offsets[i + 1])
+        ta, tb = int(rb.truth_offsets[i]), int(rb.truth_offsets[i + 1])
+        if b <= a or tb <= ta:
+            continue
+        c = pose_containment(Poses(stamp=r.poses.stamp[a:b], box=r.poses.box[a:b]),
+                             GroundTruth(pose_stamp=truth.pose_stamp[ta:tb], pose=truth.pose[ta:tb]))
+        if c is not None:
+            c.failures = [f"robot {int(rid)}: {f}" for f in c.failures]
+            out[int(rid)] = c
+    return out
+
+
+def _combined(parts: list[Containment], kind: str) -> Containment:
+    return Containment(kind, sum(c.checked for c in parts), sum(c.contained for c in parts),
+                       not_checked=sum(c.not_checked for c in parts),
+                       failures=[f for c in parts for f in c.failures],
+                       centre_error=np.concatenate([c.centre_error for c in parts]) if parts else np.zeros(0))
+
+
 # ---------------------------------------------------------------- widths
 @dataclass
 class WidthStat:
@@ -291,6 +317,7 @@ class Report:
     logodds_cells: dict[str, int] = field(default_factory=dict)  # occupied / free / unknown
     disagreement: dict[str, int] = field(default_factory=dict)  # see slam.lidar.logodds.compare
     disagreement_code: np.ndarray | None = None  # (H, W) uint8 per-cell codes (for the plot)
+    robot_containment: dict[int, Containment] = field(default_factory=dict)  # several robots: poses per robot
 
     @property
     def empty_events(self) -> int:
@@ -318,11 +345,15 @@ def compute_report(r: Result) -> Report:
     """Everything ``ivslam report`` shows, computed from the result alone."""
     cont: dict[str, Containment] = {}
     truth = r.truth
+    per_robot = robot_pose_containment(r)
     if truth is not None:
+        poses = None
+        if r.poses is not None:
+            poses = _combined(list(per_robot.values()), "pose") if r.robots is not None else pose_containment(r.poses, truth)
         for c in (
             landmark_containment(r.landmarks, truth) if r.landmarks is not None else None,
             pair_containment(r.pairs, truth) if r.pairs is not None else None,
-            pose_containment(r.poses, truth) if r.poses is not None else None,
+            poses,
         ):
             if c is not None and c.checked:
                 cont[c.kind] = c
@@ -375,6 +406,7 @@ def compute_report(r: Result) -> Report:
         logodds_cells=lo_cells,
         disagreement=dis,
         disagreement_code=dis_code,
+        robot_containment=per_robot,
     )
 
 
