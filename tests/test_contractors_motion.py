@@ -16,7 +16,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ivslam_cli.contractors import range_bearing, unicycle
+from ivslam_cli.contractors import range_bearing, range_bearing_pass, unicycle
 from tests.helpers.hyp import examples
 
 mpmath.mp.prec = 120
@@ -154,6 +154,24 @@ def test_unicycle_detects_an_impossible_step():
     s=st.lists(pair, min_size=7, max_size=7),
 )
 def test_range_bearing_never_loses_the_truth(sx, sy, sth, mx, my, coincide, free_alpha, branches, s):
+    _rb_keeps_the_truth(range_bearing, sx, sy, sth, mx, my, coincide, free_alpha, branches, s)
+
+
+@SETTINGS
+@given(
+    sx=coord, sy=coord, sth=angle, mx=coord, my=coord,
+    coincide=st.booleans(),
+    free_alpha=angle,
+    branches=st.tuples(st.integers(-2, 2), st.integers(-2, 2)),
+    s=st.lists(pair, min_size=7, max_size=7),
+    passes=st.integers(1, 3),
+)
+def test_range_bearing_pass_never_loses_the_truth(sx, sy, sth, mx, my, coincide, free_alpha, branches, s, passes):
+    _rb_keeps_the_truth(lambda *b: range_bearing_pass(*b, passes=passes), sx, sy, sth, mx, my, coincide,
+                        free_alpha, branches, s)
+
+
+def _rb_keeps_the_truth(contract, sx, sy, sth, mx, my, coincide, free_alpha, branches, s):
     if coincide:  # landmark on the robot: rho = 0, any bearing is a solution
         mx, my = sx, sy
     dx = mpmath.mpf(mx) - mpmath.mpf(sx)
@@ -168,7 +186,7 @@ def test_range_bearing_never_loses_the_truth(sx, sy, sth, mx, my, coincide, free
     truth = (sx, sy, sth_t, mx, my, rho, alpha)
     boxes = [around(t, sp) for t, sp in zip(truth, s)]
     before = [b.copy() for b in boxes]
-    ok = range_bearing(*boxes)
+    ok = contract(*boxes)
     assert ok[0]
     for b, t, b0 in zip(boxes, truth, before):
         assert holds(b, t)
@@ -182,10 +200,11 @@ def _rb(**kw):
     return {k: np.array([v], dtype=float) for k, v in d.items()}
 
 
-def test_range_bearing_locates_the_landmark():
+@pytest.mark.parametrize("contract", [range_bearing, range_bearing_pass])
+def test_range_bearing_locates_the_landmark(contract):
     # robot at the origin facing +y; landmark seen at 5 m, 10 degrees right of the heading
     b = _rb(sth=[math.pi / 2, math.pi / 2], rho=[4.9, 5.1], alpha=[-0.18, -0.17])
-    assert range_bearing(*b.values())[0]
+    assert contract(*b.values())[0]
     phi = (math.pi / 2 - 0.18, math.pi / 2 - 0.17)
     xs = [r * math.cos(p) for r in (4.9, 5.1) for p in phi]
     ys = [r * math.sin(p) for r in (4.9, 5.1) for p in phi]
@@ -193,36 +212,39 @@ def test_range_bearing_locates_the_landmark():
     np.testing.assert_allclose(b["my"][0], [min(ys), max(ys)], atol=1e-9)
 
 
-def test_range_bearing_locates_the_robot_heading():
+@pytest.mark.parametrize("contract", [range_bearing, range_bearing_pass])
+def test_range_bearing_locates_the_robot_heading(contract):
     # landmark known at (0, 5), robot at the origin, bearing measured 0.3 rad left: heading -0.3
     b = _rb(mx=[0.0, 0.0], my=[5.0, 5.0], sth=[-10.0, 10.0], alpha=[0.29, 0.31])
-    assert range_bearing(*b.values())[0]
+    assert contract(*b.values())[0]
     np.testing.assert_allclose(b["rho"][0], [5.0, 5.0], atol=1e-12)
     # sth = pi/2 - alpha + 2 pi k inside [-10, 10]: k = -1, 0, 1
     np.testing.assert_allclose(
         b["sth"][0], [math.pi / 2 - 0.31 - 2 * math.pi, math.pi / 2 - 0.29 + 2 * math.pi], atol=1e-12)
     b = _rb(mx=[0.0, 0.0], my=[5.0, 5.0], sth=[-1.0, 2.0], alpha=[0.29, 0.31])
-    assert range_bearing(*b.values())[0]
+    assert contract(*b.values())[0]
     np.testing.assert_allclose(b["sth"][0], [math.pi / 2 - 0.31, math.pi / 2 - 0.29], atol=1e-12)
 
 
-def test_range_bearing_across_the_cut():
+@pytest.mark.parametrize("contract", [range_bearing, range_bearing_pass])
+def test_range_bearing_across_the_cut(contract):
     # landmark behind the robot, right on the ±pi cut of atan2: both sides must survive
     b = _rb(mx=[-5.0, -5.0], my=[-0.1, 0.1], alpha=[-4.0, 4.0])
-    assert range_bearing(*b.values())[0]
+    assert contract(*b.values())[0]
     # true bearings: [a, pi] and [-pi, -a] (a = atan2(0.1, -5)), plus their copies 2 pi away
     # inside [-4, 4]: the hull is [a - 2 pi, 2 pi - a], around both -pi and pi
     a = math.atan2(0.1, -5.0)
     np.testing.assert_allclose(b["alpha"][0], [a - 2 * math.pi, 2 * math.pi - a], rtol=1e-12)
 
 
-def test_range_bearing_detects_an_inconsistent_observation():
+@pytest.mark.parametrize("contract", [range_bearing, range_bearing_pass])
+def test_range_bearing_detects_an_inconsistent_observation(contract):
     b = _rb(mx=[3.0, 3.0], my=[4.0, 4.0], rho=[6.0, 7.0])  # true range is 5
-    ok = range_bearing(*b.values())
+    ok = contract(*b.values())
     assert not ok[0]
     assert all(a[0, 0] == INF and a[0, 1] == -INF for a in b.values())
     b = _rb(mx=[3.0, 3.0], my=[4.0, 4.0], alpha=[-0.5, 0.5])  # true bearing atan2(4, 3) = 0.927
-    assert not range_bearing(*b.values())[0]
+    assert not contract(*b.values())[0]
 
 
 def test_rows_are_independent_and_in_place():

@@ -156,6 +156,24 @@ def test_mrclam(datasets, robot):
     assert 0 <= log.odometry.twist[:, 0].min() and log.odometry.twist[:, 0].max() <= 0.09 + 1e-9
 
 
+def test_mrclam_all_robots_in_one_log(datasets):
+    """``robot="all"``: each robot's own log (the same as reading it alone), the landmark truth
+    shared, the readers' dropped records prefixed by robot; sightings of other robots kept in
+    each robot's other_observations."""
+    root = datasets / "mrclam" / "MRCLAM_Dataset6"
+    log = read_log(root, robot="all")
+    assert [r for r, _ in log.robots] == [1, 2, 3, 4, 5]
+    assert log.odometry is None and log.observations is None
+    assert log.truth.landmark_id.size == 15 and log.truth.pose is None
+    one = read_log(root, robot=4)
+    four = dict(log.robots)[4]
+    assert np.array_equal(four.observations.stamp, one.observations.stamp)
+    assert np.array_equal(four.truth.pose, one.truth.pose)
+    assert all(d.stream.startswith("robot") for d in log.provenance.dropped)
+    seen = [lg.other_observations.landmark_id for _, lg in log.robots]
+    assert all(np.isin(np.arange(1, 6), ids).sum() >= 4 for ids in seen)  # each robot saw the others
+
+
 def test_mrclam_landmark_fraction_over_all_robots(datasets):
     root = datasets / "mrclam" / "MRCLAM_Dataset6"
     total = sum(len(read_log(root, robot=r).observations) for r in range(1, 6))

@@ -123,6 +123,22 @@ def test_pose_heading_wraps_around():
     assert compute_report(r).containment["pose"].contained == 10
 
 
+def test_pose_between_steps_across_the_cut_uses_the_near_branch():
+    """Two pose boxes on either side of ±π (in different branches): a truth heading between
+    them, at the cut, is inside their hull on the circle (not the hull the long way round)."""
+    from ivslam_cli.logs.model import GroundTruth
+    from ivslam_cli.report.core import pose_containment
+    from ivslam_cli.results.model import Poses
+
+    box = np.array([[[0.0, 1.0], [0.0, 1.0], [2.8, 3.1]], [[0.0, 1.0], [0.0, 1.0], [-3.1, -2.7]]])
+    poses = Poses(stamp=np.array([0.0, 1.0]), box=box)
+    for th in (np.pi, -np.pi, 3.12, -3.12, 3.05):
+        truth = GroundTruth(pose_stamp=np.array([0.5]), pose=np.array([[0.5, 0.5, th]]))
+        assert pose_containment(poses, truth).contained == 1, th
+    truth = GroundTruth(pose_stamp=np.array([0.5]), pose=np.array([[0.5, 0.5, 0.0]]))  # the far side
+    assert pose_containment(poses, truth).contained == 0
+
+
 def test_truth_outside_the_time_span_is_not_checked():
     r = example_result()
     r.truth.pose_stamp = r.truth.pose_stamp + 1.0  # last two stamps after the last pose

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import re
 from pathlib import Path
@@ -245,3 +246,64 @@ def test_schema_md_documents_every_name_written(tmp_path):
     missing = sorted(n for n in names if not re.search(r"[`/]" + re.escape(n) + r"[`_/,]", doc))
     assert not missing, f"not documented in SCHEMA.md: {missing}"
     assert len(names) > 30
+
+
+def _with_sets_and_robots():
+    """The example result as a landmarks result of two robots with pose sets: rows 0-2 robot 1,
+    3-5 robot 2; two boxes per pose (heading halves), one pose with none."""
+    from ivslam_cli.results.model import PoseSets, Robots
+
+    r = example_result("landmarks")
+    n = len(r.poses)
+    lo, hi = r.poses.box.copy(), r.poses.box.copy()
+    mid = 0.5 * (r.poses.box[:, 2, 0] + r.poses.box[:, 2, 1])
+    lo[:, 2, 1] = mid
+    hi[:, 2, 0] = mid
+    boxes = np.stack([lo, hi], axis=1).reshape(-1, 3, 2)
+    counts = np.full(n, 2)
+    counts[4] = 0
+    keep = np.repeat(counts > 0, 2)
+    r.pose_sets = PoseSets(offsets=np.concatenate([[0], np.cumsum(counts)]).astype(np.int64), boxes=boxes[keep])
+    g = len(r.truth.pose)
+    r.robots = Robots(id=np.array([1, 2]), pose_offsets=np.array([0, 3, n]), truth_offsets=np.array([0, g // 2, g]))
+    return r
+
+
+def test_round_trip_pose_sets_and_robots(tmp_path):
+    r = _with_sets_and_robots()
+    write_result(tmp_path / "r.h5", r)
+    back = read_result(tmp_path / "r.h5")
+    assert_same(r, back)
+    assert back.pose_sets.node_boxes(4).shape == (0, 3, 2) and back.pose_sets.node_boxes(0).shape == (2, 3, 2)
+    with h5py.File(tmp_path / "r.h5", "r") as f:  # optional groups: absent when not produced
+        assert "pose_sets" in f and "robots" in f
+    write_result(tmp_path / "plain.h5", example_result("landmarks"))
+    with h5py.File(tmp_path / "plain.h5", "r") as f:
+        assert "pose_sets" not in f and "robots" not in f
+
+
+def test_pose_sets_and_robots_are_checked():
+    from ivslam_cli.results.model import PoseSets, Robots
+
+    r = _with_sets_and_robots()
+    bad = dataclasses.replace(r, pose_sets=PoseSets(offsets=r.pose_sets.offsets[:-1], boxes=r.pose_sets.boxes))
+    with pytest.raises(ValueError, match="pose_sets"):
+        bad.validate()
+    bad = dataclasses.replace(r, robots=Robots(id=r.robots.id, pose_offsets=np.array([0, 4, 3]),
+                                                truth_offsets=r.robots.truth_offsets))
+    with pytest.raises(ValueError, match="robots"):
+        bad.validate()
+    bad = dataclasses.replace(r, robots=Robots(id=r.robots.id, pose_offsets=r.robots.pose_offsets,
+                                                truth_offsets=np.array([0, 1, 2])))
+    with pytest.raises(ValueError, match="truth_offsets"):
+        bad.validate()
+
+
+def test_schema_md_documents_the_pose_sets_and_robots(tmp_path):
+    doc = (Path(hdf5.__file__).parent / "SCHEMA.md").read_text()
+    write_result(tmp_path / "r.h5", _with_sets_and_robots())
+    with h5py.File(tmp_path / "r.h5", "r") as f:
+        names = {f"{g}/{d}" for g in ("pose_sets", "robots") for d in f[g]}
+    for name in names:
+        group, leaf = name.split("/")
+        assert f"`/{group}`" in doc and f"`{leaf}`" in doc, name

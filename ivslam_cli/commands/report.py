@@ -71,7 +71,7 @@ def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, ma
             raise IvslamError(f"has no pose enclosures ({res.mode} mode): nothing to export to --tum", result)
         from ivslam_cli.results.export import write_tum
 
-        skipped = write_tum(tum, res.poses, force=force)
+        skipped = write_tum(tum, res.poses, force=force, robots=res.robots)
         if skipped:
             click.echo(f"ivslam: note: {tum}: skipped {skipped} empty pose box(es)", err=True)
     if map_pgm is not None:

@@ -10,6 +10,23 @@ import click
 from ivslam_cli.slam import MODES
 
 
+class _Robot(click.ParamType):
+    """A robot number, or ``all``."""
+
+    name = "N|all"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, int) or value == "all":
+            return value
+        try:
+            return int(value)
+        except ValueError:
+            self.fail(f"{value!r} is neither a robot number nor 'all'", param, ctx)
+
+
+ROBOT = _Robot()
+
+
 def _default_output(log: str, mode: str) -> Path:
     p = Path(log.rstrip("/"))
     return p.with_name(f"{p.name.split('.')[0]}.{mode}.h5")
@@ -25,7 +42,9 @@ def _default_output(log: str, mode: str) -> Path:
 @click.option("--config", "config_file", type=click.Path(), default=None, help="TOML configuration file.")
 @click.option("--force", is_flag=True, help="Overwrite an existing result.")
 @click.option("--format", "fmt", default=None, help="Force the log reader (see `ivslam inspect --help`).")
-@click.option("--robot", type=int, default=None, help="MRCLAM robot number.")
+@click.option("--robot", type=ROBOT, default=None,
+              help="MRCLAM robot number, or all: every robot together (landmarks mode; shared landmarks, "
+                   "their measurements of each other; --tum writes one file per robot, FILE.robotN).")
 @click.option("--scan-topic", default=None)
 @click.option("--odom-topic", default=None)
 @click.option("--landmark-topic", default=None)
@@ -74,6 +93,8 @@ def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, 
       ivslam run sample_logs/landmarks.bag --mode landmarks --initial-pose-from-truth
       ivslam run ../shared/datasets/mrclam/MRCLAM_Dataset6 --robot 1 --mode landmarks
           --config configs/mrclam.toml --tum robot1.tum -o robot1.h5
+      ivslam run ../shared/datasets/mrclam/MRCLAM_Dataset6 --robot all --mode landmarks
+          --config configs/mrclam.toml --tum all.tum -o all.h5
       ivslam run sample_logs/lidar_rooms.h5 --mode lidar --initial-pose-from-truth
       ivslam run ../shared/datasets/carmen_corrected/aces-corrected.log.gz --mode lidar --poses-known
     """
@@ -87,11 +108,16 @@ def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, 
     out = Path(output) if output else _default_output(log, mode)
     if tum is not None and mode == "pairs":
         raise IvslamError(f"--tum needs pose enclosures: --mode landmarks or lidar (not {mode})")
-    for path in (out, tum):  # fail before the run, not after it
-        if path is not None:
-            refuse_existing(path, force)
+    if robot == "all" and mode != "landmarks":
+        raise IvslamError(f"--robot all needs --mode landmarks (not {mode})")
+    from ivslam_cli.results.export import tum_paths
+
+    refuse_existing(out, force)  # fail before the run, not after it
     data = read_log(log, fmt, scan_topic=scan_topic, odom_topic=odom_topic, landmark_topic=landmark_topic,
                     truth_topic=truth_topic, robot=robot)
+    if tum is not None:
+        for path in tum_paths(tum, None if data.robots is None else [r for r, _ in data.robots]):
+            refuse_existing(path, force)
     overrides = {
         "bounds.range_abs": range_abs, "bounds.range_rel": range_rel, "bounds.bearing": bearing,
         "robust.q_pair": q_pair, "robust.strict": strict,
@@ -110,7 +136,7 @@ def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, 
     if tum is not None:
         from ivslam_cli.results.export import write_tum
 
-        write_tum(tum, result.poses, force=force)
+        write_tum(tum, result.poses, force=force, robots=result.robots)
     click.echo(f"{summary(result)}, {result.runtime_s:.2f} s -> {out}", err=True)
     if result.consistency.stopped:
         raise InconsistentData(f"stopped (--strict): {result.consistency.stopped}; result written to {out}")

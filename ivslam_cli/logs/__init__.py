@@ -35,10 +35,11 @@ def list_formats() -> dict[str, str]:
 
 def read_log(path, fmt: str | None = None, *, scan_topic: str | None = None,
              odom_topic: str | None = None, landmark_topic: str | None = None,
-             truth_topic: str | None = None, robot: int | None = None) -> LogData:
+             truth_topic: str | None = None, robot: int | str | None = None) -> LogData:
     """Read ``path`` (format auto-detected unless ``fmt``) into :class:`LogData`.
 
-    Topic options apply to ROS/MCAP logs, ``robot`` to MRCLAM (default 1).
+    Topic options apply to ROS/MCAP logs, ``robot`` to MRCLAM (default 1; ``"all"``: every
+    robot, in ``LogData.robots``).
     """
     from ivslam_cli.logs.detect import detect_format
 
@@ -65,8 +66,10 @@ def read_log(path, fmt: str | None = None, *, scan_topic: str | None = None,
 
             return read_carmen(path)
         if fmt == "mrclam":
-            from ivslam_cli.logs.mrclam import read_mrclam
+            from ivslam_cli.logs.mrclam import read_mrclam, read_mrclam_all
 
+            if robot == "all":
+                return read_mrclam_all(path)
             return read_mrclam(path, robot=1 if robot is None else robot)
         if fmt == "urg":
             from ivslam_cli.logs.urg import read_urg

@@ -112,6 +112,8 @@ class LogData:
     the bounds they were generated with); configs and options take precedence.
     ``other_observations`` holds observations that are not of landmarks (other robots,
     unknown barcodes): kept for the record, never mixed into the landmark problem.
+    ``robots``: a log of several robots (MRCLAM ``robot="all"``) holds each robot's own log
+    there; the top level then has the shared parts only (provenance, landmark truth).
     """
 
     provenance: Provenance
@@ -122,3 +124,4 @@ class LogData:
     truth: GroundTruth | None = None
     bounds: dict[str, float] = field(default_factory=dict)
     meta: dict[str, object] = field(default_factory=dict)
+    robots: list[tuple[int, LogData]] | None = None  # a log of several robots: (robot number, its log)

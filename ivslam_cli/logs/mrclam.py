@@ -1,6 +1,7 @@
 """UTIAS MRCLAM dataset directories (``Barcodes.dat``, ``RobotN_*.dat``; plain or ``.xz``).
 
-One robot is read (``robot=N``, default 1). Measurements carry a *barcode*, mapped to a
+One robot is read (``robot=N``, default 1), or all five (:func:`read_mrclam_all`: each robot's
+log in ``LogData.robots``, sharing the landmarks). Measurements carry a *barcode*, mapped to a
 subject through ``Barcodes.dat``: subjects 6-20 are landmarks (``observations``, id =
 subject); measurements of robots (subjects 1-5, id = subject) and of barcodes not in
 ``Barcodes.dat`` (id = -barcode) go to ``other_observations``, never mixed in.
@@ -76,3 +77,29 @@ def read_mrclam(root: Path, robot: int = 1) -> LogData:
     return LogData(provenance=prov, odometry=odometry, observations=obs,
                    other_observations=other, truth=truth,
                    meta={"robot": robot, "barcodes": {int(b): s for b, s in subject_of.items()}})
+
+
+ROBOTS = range(1, 6)
+
+
+def read_mrclam_all(root: Path) -> LogData:
+    """Every robot of the dataset: ``robots`` = ``[(1, log of robot 1), ..., (5, ...)]`` (the
+    robots whose files are present); the top level holds the provenance (each robot's dropped
+    records, prefixed ``robotN/``) and the landmark truth shared by all."""
+    robots = []
+    for r in ROBOTS:
+        if _file(root, f"Robot{r}_Measurement.dat", required=False) is None:
+            continue
+        robots.append((r, read_mrclam(root, robot=r)))
+    if not robots:
+        raise LogError("no RobotN_Measurement.dat file", root)
+    dropped = [Dropped(f"robot{r}/{d.stream}", d.count, d.reason) for r, log in robots for d in log.provenance.dropped]
+    first = robots[0][1]
+    truth = GroundTruth(landmark_id=first.truth.landmark_id, landmark_xy=first.truth.landmark_xy)
+    topics = {f"robot{r}/{k}": v for r, log in robots for k, v in log.provenance.topics.items()}
+    prov = Provenance(path=str(root), format="mrclam", topics=topics, dropped=dropped,
+                      notes=["odometry is the commanded twist (v, omega)",
+                             f"robots {', '.join(str(r) for r, _ in robots)} together (their measurements of each "
+                             "other are observations between them)"])
+    return LogData(provenance=prov, truth=truth, meta={"robot": "all", "barcodes": first.meta["barcodes"]},
+                   robots=robots)

@@ -8,9 +8,9 @@ Containment — the check that the guarantee held — per kind of enclosure:
   of its outer approximation (inner ∪ boundary boxes, closed) does;
 - **pose**: checked at the *truth's own stamps*. A truth stamp equal to a pose stamp k is
   checked against box k; one strictly between pose stamps k and k+1 against the hull of
-  boxes k and k+1. This is the documented stand-in until the pipelines give a true tube
-  between steps, and it is generous for the check: a truth pose anywhere in that hull
-  passes, so it never flags a pose a true tube would hold as long as the robot stays in the
+  boxes k and k+1 (headings: box k+1's moved by the multiple of 2π nearest box k's).
+  This is the documented stand-in until the pipelines give a true tube between steps, and
+  it is generous for the check: a truth pose anywhere in that hull passes, so it never flags a pose a true tube would hold as long as the robot stays in the
   hull between the two steps (bounded motion over one step), and it can accept a pose a
   tighter tube would exclude. Truth stamps outside the span of the pose stamps are not
   checked (counted in ``not_checked``). Heading is compared modulo 2π.
@@ -224,7 +224,12 @@ def pose_containment(poses: Poses, truth: GroundTruth) -> Containment | None:
     k = np.clip(np.searchsorted(s, ts, side="right") - 1, 0, len(s) - 1)
     exact = s[k] == ts
     k1 = np.where(exact, k, np.minimum(k + 1, len(s) - 1))
-    b0, b1 = poses.box[k], poses.box[k1]
+    b0, b1 = poses.box[k], poses.box[k1].copy()
+    # headings: b1 in the branch nearest b0 (the heading turns little between two poses)
+    with np.errstate(invalid="ignore"):
+        turns = np.round((b0[:, 2].mean(axis=-1) - b1[:, 2].mean(axis=-1)) / TWO_PI)
+    turns = np.where(np.isfinite(turns), turns, 0.0)
+    b1[:, 2] = b1[:, 2] + (TWO_PI * turns)[:, None]
     hull = np.stack([np.minimum(b0[..., 0], b1[..., 0]), np.maximum(b0[..., 1], b1[..., 1])], axis=-1)
     ok = in_box(hull[:, :2], tp[:, :2]) & angle_in(hull[:, 2, 0], hull[:, 2, 1], tp[:, 2])
     # centre error: box centres interpolated linearly in time
@@ -331,6 +336,31 @@ def free_cell_containment(r: Result, truth: GroundTruth) -> Containment | None:
             failures.append(f"{name}: {nb} proven-free cell(s) on a true wall")
     return Containment("map_free", checked, checked - bad, failures=failures)
 
+def robot_pose_containment(r: Result) -> dict[int, Containment]:
+    """Per robot of a result of several (``r.robots``): its pose rows against its truth rows."""
+    out: dict[int, Containment] = {}
+    rb, truth = r.robots, r.truth
+    if rb is None or r.poses is None or truth is None or truth.pose is None or truth.pose_stamp is None:
+        return out
+    for i, rid in enumerate(rb.id):
+        a, b = int(rb.pose_offsets[i]), int(rb.pose_offsets[i + 1])
+        ta, tb = int(rb.truth_offsets[i]), int(rb.truth_offsets[i + 1])
+        if b <= a or tb <= ta:
+            continue
+        c = pose_containment(Poses(stamp=r.poses.stamp[a:b], box=r.poses.box[a:b]),
+                             GroundTruth(pose_stamp=truth.pose_stamp[ta:tb], pose=truth.pose[ta:tb]))
+        if c is not None:
+            c.failures = [f"robot {int(rid)}: {f}" for f in c.failures]
+            out[int(rid)] = c
+    return out
+
+
+def _combined(parts: list[Containment], kind: str) -> Containment:
+    return Containment(kind, sum(c.checked for c in parts), sum(c.contained for c in parts),
+                       not_checked=sum(c.not_checked for c in parts),
+                       failures=[f for c in parts for f in c.failures],
+                       centre_error=np.concatenate([c.centre_error for c in parts]) if parts else np.zeros(0))
+
 
 # ---------------------------------------------------------------- widths
 @dataclass
@@ -424,6 +454,7 @@ class Report:
     logodds_cells: dict[str, int] = field(default_factory=dict)  # occupied / free / unknown
     disagreement: dict[str, int] = field(default_factory=dict)  # see slam.lidar.logodds.compare
     disagreement_code: np.ndarray | None = None  # (H, W) uint8 per-cell codes (for the plot)
+    robot_containment: dict[int, Containment] = field(default_factory=dict)  # several robots: poses per robot
 
     @property
     def empty_events(self) -> int:
@@ -454,12 +485,17 @@ def compute_report(r: Result) -> Report:
     """Everything ``ivslam report`` shows, computed from the result alone."""
     cont: dict[str, Containment] = {}
     truth = r.truth
+    per_robot = robot_pose_containment(r)
     if truth is not None:
         framed = truth_in_frame(r.poses, truth) if r.poses is not None else truth
+        poses = None
+        if r.poses is not None:
+            poses = (_combined(list(per_robot.values()), "pose") if r.robots is not None
+                     else pose_containment(r.poses, framed))
         for c in (
             landmark_containment(r.landmarks, framed) if r.landmarks is not None else None,
             pair_containment(r.pairs, truth) if r.pairs is not None else None,
-            pose_containment(r.poses, framed) if r.poses is not None else None,
+            poses,
             relative_containment(r, truth),
             free_cell_containment(r, framed),
         ):
@@ -514,6 +550,7 @@ def compute_report(r: Result) -> Report:
         logodds_cells=lo_cells,
         disagreement=dis,
         disagreement_code=dis_code,
+        robot_containment=per_robot,
     )
 
 

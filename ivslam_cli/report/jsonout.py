@@ -3,7 +3,9 @@
 Top-level keys: ``mode``, ``runtime_s``, ``empty_events`` (int: how many), ``empty_event_list``
 (each: stamp, step, constraint, entity, measurement, text), ``intersections`` (total,
 non_empty), ``containment`` (kind → fraction, only kinds checkable against the truth),
-``containment_detail`` (kind → checked, contained, not_checked, failures), ``soundness``
+``containment_detail`` (kind → checked, contained, not_checked, failures),
+``robot_containment`` (a result of several robots: robot → checked, contained, fraction of its
+poses; empty otherwise), ``soundness``
 (kind → "ok" / "SOUNDNESS FAILURE" / relaxed note), ``sound`` (bool), ``centre_error``
 (kind → median, max [m]), ``final_width`` (kind → median, max, count, empty),
 ``convergence`` (kind → initial/final median and max, increases, curve), ``rejected``,
@@ -69,6 +71,8 @@ def report_dict(rep: Report) -> dict[str, Any]:
             k: {"checked": v.checked, "contained": v.contained, "not_checked": v.not_checked, "failures": v.failures}
             for k, v in rep.containment.items()
         },
+        "robot_containment": {str(k): {"checked": v.checked, "contained": v.contained, "fraction": _num(v.fraction)}
+                              for k, v in rep.robot_containment.items()},
         "soundness": dict(rep.soundness),
         "sound": rep.sound,
         "centre_error": {

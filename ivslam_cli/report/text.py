@@ -120,6 +120,8 @@ def render_text(rep: Report, source: str = "") -> str:
                 add(f"            truth outside: {f}")
             if len(cn.failures) > MAX_LISTED:
                 add(f"            … and {len(cn.failures) - MAX_LISTED} more")
+        for rid, cn in rep.robot_containment.items():
+            add(f"    robot {rid}: poses {cn.contained}/{cn.checked} = {cn.fraction:.4f}")
         if "pose" in rep.containment:
             add("  (poses: truth between two steps checked against the hull of the two pose boxes)")
         if rep.outliers_injected:

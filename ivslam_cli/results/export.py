@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ivslam_cli.atomic import refuse_existing, write_bytes_atomic, write_text_atomic
-from ivslam_cli.results.model import CELL_EMPTY, CELL_OBSTACLE, MapGrid, Poses, box_is_empty
+from ivslam_cli.results.model import CELL_EMPTY, CELL_OBSTACLE, MapGrid, Poses, Robots, box_is_empty
 
 # map_server trinary PGM values (negate = 0): p = (255 − value) / 255 is the occupancy.
 PGM_FREE = 254
@@ -41,10 +41,28 @@ def tum_text(poses: Poses) -> tuple[str, int]:
     return buf.getvalue(), int((~keep).sum())
 
 
-def write_tum(path: str | Path, poses: Poses, *, force: bool = False) -> int:
-    """Write a TUM trajectory; returns how many empty pose boxes were skipped."""
-    text, skipped = tum_text(poses)
-    write_text_atomic(path, text, force=force)
+def tum_paths(path: str | Path, robot_ids=None) -> list[Path]:
+    """The TUM files ``write_tum`` writes: ``path``, or for a result of several robots (their
+    numbers ``robot_ids``) one per robot, ``path`` with ``.robotN`` before its suffix
+    (``all.tum`` → ``all.robot1.tum``)."""
+    path = Path(path)
+    if robot_ids is None:
+        return [path]
+    return [path.with_name(f"{path.stem}.robot{int(i)}{path.suffix}") for i in robot_ids]
+
+
+def write_tum(path: str | Path, poses: Poses, *, force: bool = False, robots: Robots | None = None) -> int:
+    """Write a TUM trajectory (one per robot of a result of several, see :func:`tum_paths`);
+    returns how many empty pose boxes were skipped."""
+    skipped = 0
+    for r, out in enumerate(tum_paths(path, None if robots is None else robots.id)):
+        part = poses
+        if robots is not None:
+            a, b = int(robots.pose_offsets[r]), int(robots.pose_offsets[r + 1])
+            part = Poses(stamp=poses.stamp[a:b], box=poses.box[a:b])
+        text, n = tum_text(part)
+        write_text_atomic(out, text, force=force)
+        skipped += n
     return skipped
 
 

@@ -30,11 +30,13 @@ from ivslam_cli.results.model import (
     MapGrid,
     PairSubpavings,
     Poses,
+    PoseSets,
     Rejections,
     RelativePoses,
     Result,
     Submaps,
     ResultProvenance,
+    Robots,
     WidthHistory,
     _str_array,
 )
@@ -103,6 +105,16 @@ def _write(f: h5py.File, r: Result) -> None:
                              compression_opts=4, shuffle=True)
         else:
             g.create_dataset("state", data=st)
+
+    if r.pose_sets is not None:
+        g = f.create_group("pose_sets")
+        _put(g, "offsets", r.pose_sets.offsets, np.int64)
+        _put(g, "boxes", np.asarray(r.pose_sets.boxes).reshape(-1, 3, 2), np.float64)
+    if r.robots is not None:
+        g = f.create_group("robots")
+        _put(g, "id", r.robots.id, np.int64)
+        _put(g, "pose_offsets", r.robots.pose_offsets, np.int64)
+        _put(g, "truth_offsets", r.robots.truth_offsets, np.int64)
     if r.relative is not None:
         g = f.create_group("relative")
         g.attrs["definition"] = r.relative.definition
@@ -284,6 +296,14 @@ def _read(f: h5py.File) -> Result:
             member_offsets=_get(g, "member_offsets", np.int64), member_row=_get(g, "member_row", np.int64),
             member_box=_get(g, "member_box", np.float64).reshape(-1, 3, 2),
             member_mapped=_get(g, "member_mapped", np.uint8).astype(bool))
+
+    if "pose_sets" in f:  # optional (landmarks)
+        g = f["pose_sets"]
+        r.pose_sets = PoseSets(offsets=_get(g, "offsets", np.int64), boxes=_get(g, "boxes", np.float64).reshape(-1, 3, 2))
+    if "robots" in f:  # optional (several robots)
+        g = f["robots"]
+        r.robots = Robots(id=_get(g, "id", np.int64), pose_offsets=_get(g, "pose_offsets", np.int64),
+                          truth_offsets=_get(g, "truth_offsets", np.int64))
     if "relative" in f:  # optional (lidar with keyframes)
         g = f["relative"]
         r.relative = RelativePoses(pairs=_get(g, "pairs", np.int64), box=_get(g, "box", np.float64),

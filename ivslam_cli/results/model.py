@@ -103,6 +103,36 @@ FRAME_WORLD = "world"
 FRAME_FIRST_POSE = "first pose"
 FRAMES = (FRAME_WORLD, FRAME_FIRST_POSE)
 
+@dataclass
+class PoseSets:
+    """Pose sets (landmarks mode): the enclosure of the pose at row ``k`` of ``Result.poses`` is
+    the union of ``boxes[offsets[k]:offsets[k+1]]`` (each ``(x, y, θ)``, θ on the real line as
+    in ``Poses``); ``Poses.box[k]`` is its hull. A set with no box is empty."""
+
+    offsets: np.ndarray  # (N+1,) int64
+    boxes: np.ndarray  # (B, 3, 2) float64
+
+    def __len__(self) -> int:
+        return int(self.offsets.shape[0] - 1)
+
+    def node_boxes(self, k: int) -> np.ndarray:
+        return self.boxes[self.offsets[k] : self.offsets[k + 1]]
+
+
+@dataclass
+class Robots:
+    """A result of several robots (landmarks mode, ``--robot all``): robot ``id[r]``'s poses
+    are rows ``pose_offsets[r]:pose_offsets[r+1]`` of ``Result.poses`` (stamps non-decreasing
+    within each robot), its ground truth rows ``truth_offsets[r]:truth_offsets[r+1]`` of
+    ``Result.truth.pose`` (all zero when there is none). The landmarks are shared."""
+
+    id: np.ndarray  # (R,) int64
+    pose_offsets: np.ndarray  # (R+1,) int64
+    truth_offsets: np.ndarray  # (R+1,) int64
+
+    def __len__(self) -> int:
+        return int(self.id.shape[0])
+
 
 RELATIVE_DEFINITION = (
     "box[r] holds the robot pose at pose row pairs[r, 1] expressed in the robot frame of the pose at row "
@@ -341,6 +371,8 @@ class Result:
     logodds: LogOddsGrid | None = None  # lidar: the probabilistic baseline (not guaranteed)
     relative: RelativePoses | None = None  # lidar: pose of one row in another's frame
     submaps: Submaps | None = None  # lidar: local frames, their maps and members
+    pose_sets: PoseSets | None = None  # landmarks: the union of boxes each pose box is the hull of
+    robots: Robots | None = None  # several robots in one result: which pose (and truth) rows are whose
     consistency: Consistency = field(default_factory=Consistency)
     truth: GroundTruth | None = None
     stats: dict[str, float | int | str] = field(default_factory=dict)
@@ -391,6 +423,22 @@ def _validate(r: Result) -> None:
         n = len(r.poses)
         _check(bool(np.all((rp.pairs >= 0) & (rp.pairs < n))), "relative.pairs must be pose rows in [0, N)")
         _check(bool(np.all(rp.box[..., 0] <= rp.box[..., 1])), "relative.box must have lo <= hi (no NaN, not empty)")
+    if r.pose_sets is not None:
+        ps = r.pose_sets
+        _check(r.poses is not None and len(ps) == len(r.poses), "pose_sets.offsets must be (N+1,) for the N poses")
+        _check(ps.boxes.ndim == 3 and ps.boxes.shape[1:] == (3, 2), "pose_sets.boxes must be (B, 3, 2)")
+        _check(int(ps.offsets[0]) == 0 and int(ps.offsets[-1]) == ps.boxes.shape[0], "pose_sets.offsets ends")
+        _check(bool(np.all(np.diff(ps.offsets) >= 0)), "pose_sets.offsets must be non-decreasing")
+    if r.robots is not None:
+        rb = r.robots
+        m = len(rb)
+        _check(r.poses is not None, "robots needs the poses (its offsets are pose rows)")
+        _check(rb.pose_offsets.shape == (m + 1,) and rb.truth_offsets.shape == (m + 1,), "robots offsets must be (R+1,)")
+        _check(int(rb.pose_offsets[0]) == 0 and int(rb.pose_offsets[-1]) == len(r.poses), "robots.pose_offsets ends")
+        _check(bool(np.all(np.diff(rb.pose_offsets) >= 0)) and bool(np.all(np.diff(rb.truth_offsets) >= 0)),
+               "robots offsets must be non-decreasing")
+        g = 0 if r.truth is None or r.truth.pose is None else len(r.truth.pose)
+        _check(int(rb.truth_offsets[0]) == 0 and int(rb.truth_offsets[-1]) == g, "robots.truth_offsets ends")
     if r.landmarks is not None:
         n = len(r.landmarks)
         _check(r.landmarks.id.shape == (n,), "landmarks.id must be (L,)")

@@ -48,6 +48,9 @@ def run_pipeline(log: LogData, cfg: Config, mode: str, argv: Sequence[str] | Non
 
     ensure_round_to_nearest()
     pipe = get_pipeline(mode)
+    if log.robots and not getattr(pipe, "MULTI_ROBOT", False):
+        raise IvslamError(f"a log of several robots (--robot all) needs --mode landmarks (not {mode})",
+                          log.provenance.path)
     params = pipe.Params.from_config(cfg)
     t0 = time.perf_counter()
     result = pipe.run(log, params, progress)

@@ -6,5 +6,6 @@ from ivslam_cli.slam.landmarks.params import Params
 from ivslam_cli.slam.landmarks.pipeline import run, summary
 
 MODE = "landmarks"
+MULTI_ROBOT = True  # runs a log of several robots (LogData.robots) as one problem
 
-__all__ = ["MODE", "Params", "run", "summary"]
+__all__ = ["MODE", "MULTI_ROBOT", "Params", "run", "summary"]

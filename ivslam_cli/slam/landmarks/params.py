@@ -22,7 +22,9 @@ class Params:
     q_pose: int
     strict: bool
     pose_window: float
-    heading_slices: int
+    pose_window_obs: int
+    pose_slices: int
+    pose_pieces: int
     max_step: float
     max_iterations: int
     tolerance: float
@@ -35,6 +37,7 @@ class Params:
             initial=InitialPose.from_config(cfg), q_landmark=int(cfg["robust.q_landmark"]),
             q_landmark_frac=float(cfg["robust.q_landmark_frac"]), q_pose=int(cfg["robust.q_pose"]),
             strict=bool(cfg["robust.strict"]), pose_window=float(cfg["landmarks.pose_window"]),
-            heading_slices=int(cfg["landmarks.heading_slices"]), max_step=float(cfg["landmarks.max_step"]),
+            pose_window_obs=int(cfg["landmarks.pose_window_obs"]),
+            pose_slices=int(cfg["landmarks.pose_slices"]), pose_pieces=int(cfg["landmarks.pose_pieces"]), max_step=float(cfg["landmarks.max_step"]),
             max_iterations=int(cfg["landmarks.max_iterations"]), tolerance=float(cfg["landmarks.tolerance"]),
         )

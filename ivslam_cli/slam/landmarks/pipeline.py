@@ -20,13 +20,15 @@ import numpy as np
 
 from ivslam_cli import interval as iv
 from ivslam_cli.errors import IvslamError
-from ivslam_cli.logs.model import Dropped, LogData
+from ivslam_cli.logs.model import Dropped, GroundTruth, LogData
 from ivslam_cli.results.model import (
     FRAME_FIRST_POSE,
     FRAME_WORLD,
     Consistency,
     Landmarks,
     Poses,
+    PoseSets,
+    Robots,
     Rejections,
     Result,
     WidthHistory,
@@ -35,7 +37,8 @@ from ivslam_cli.interval.pose import box_width
 from ivslam_cli.interval.vector import bound_up, point, sym
 from ivslam_cli.slam.landmarks import kernel as K
 from ivslam_cli.slam.landmarks.params import Params
-from ivslam_cli.slam.motion import cumulative_up, initial_box, motion_steps
+from ivslam_cli.slam.landmarks.steps import Steps, chain_steps
+from ivslam_cli.slam.motion import cumulative_up, initial_box
 from ivslam_cli.slam.pipeline import empty_events, make_result
 
 REASONS = {
@@ -45,33 +48,55 @@ REASONS = {
 
 
 @dataclass
-class Problem:
-    """The CSP in arrays (see ``landmarks_kernel``)."""
+class Chain:
+    """One robot's part of the problem: its log, nodes and steps, and its first pose box
+    (None: unknown, every pose of the plane)."""
 
+    robot: int
+    log: LogData
+    steps: Steps
+    initial: np.ndarray | None
+    initial_source: str
+
+
+@dataclass
+class Problem:
+    """The CSP in arrays (see :mod:`.kernel`): the nodes of every chain, one after the other."""
+
+    chains: list[Chain]
+    chain_nodes: np.ndarray  # (C+1,) node offsets of the chains
     node_stamp: np.ndarray  # (N,)
-    kind: np.ndarray  # (N-1,) int8
+    chain_of: np.ndarray  # (N,) chain of each node
+    kind: np.ndarray  # (N-1,) int8: INCREMENT, or STEP_NONE between two chains
     U: np.ndarray  # (N-1, 5, 2)
-    travel: np.ndarray  # (N,) cumulative upper bound of the distance travelled
+    travel: np.ndarray  # (N,) cumulative upper bound of the distance travelled (along each chain)
     turn: np.ndarray  # (N, 2) cumulative heading change [lo, hi] (float sums, error below turn_err)
     turn_err: float
-    obs_index: np.ndarray  # (M,) index of each used observation in log.observations
-    node: np.ndarray  # (M,)
-    lm: np.ndarray  # (M,) landmark index
+    obs_stream: np.ndarray  # (M,) str: the stream of each used observation ("observations", ...)
+    obs_index: np.ndarray  # (M,) its index in that stream
+    node: np.ndarray  # (M,) the observer's node
+    lm: np.ndarray  # (M,) landmark index, or -1: a robot seen at node tnode
+    tnode: np.ndarray  # (M,) the observed robot's node (-1 for landmarks)
+    treach: np.ndarray  # (M, 2) reach of the observed robot at its node
     rho: np.ndarray  # (M, 2)
     alpha: np.ndarray  # (M, 2)
     reach: np.ndarray  # (M, 2)
     ids: np.ndarray  # (L,) landmark ids
     q: np.ndarray  # (L,)
-    initial: np.ndarray  # (3, 2) of the modelled pose
     lag: np.ndarray  # (N, 2): true pose = modelled pose ± (lag_xy, lag_xy, lag_th) at each node
     motion: str
     dropped: list[Dropped]
-    initial_source: str
+
+    @property
+    def initial_source(self) -> str:
+        return "; ".join(f"robot {c.robot}: {c.initial_source}" if len(self.chains) > 1 else c.initial_source
+                         for c in self.chains)
 
 
-def observation_boxes(log: LogData, params: Params) -> tuple[np.ndarray, np.ndarray]:
-    """``rho ∈ z ± (range_abs + range_rel·z)`` (``rho ≥ 0``), ``alpha ∈ z_α ± bearing``; outward."""
-    obs = log.observations
+def observation_boxes(log: LogData, params: Params, obs=None) -> tuple[np.ndarray, np.ndarray]:
+    """``rho ∈ z ± (range_abs + range_rel·z)`` (``rho ≥ 0``), ``alpha ∈ z_α ± bearing``; outward.
+    ``obs``: the observations (default: the log's landmark observations)."""
+    obs = log.observations if obs is None else obs
     z = point(obs.range)
     n = z.shape[0]
     rel = iv.mul(z, np.tile(list(iv.enclose(params.range_rel)), (n, 1)))
@@ -82,47 +107,155 @@ def observation_boxes(log: LogData, params: Params) -> tuple[np.ndarray, np.ndar
     return rho, alpha
 
 
-def build_problem(log: LogData, params: Params) -> Problem:
-    """Nodes, motion steps, observation intervals and landmark q's from a log and a config."""
+def _check_log(log: LogData) -> None:
     path = log.provenance.path
     odo, obs = log.odometry, log.observations
     if obs is None or len(obs) == 0:
         raise IvslamError("no landmark observations: --mode landmarks needs range-bearing observations", path)
     if odo is None or len(odo) < 2:
         raise IvslamError("no odometry (at least two samples): --mode landmarks needs a motion model", path)
+
+
+def _robot_sightings(logs: list[tuple[int, LogData]]) -> list[tuple[int, int, np.ndarray]]:
+    """Per observing chain: (chain, observed chain, indices into its other_observations) of the
+    measurements of another robot of the run made within both robots' odometry spans."""
+    chain_of_robot = {r: c for c, (r, _) in enumerate(logs)}
+    out = []
+    for c, (r, log) in enumerate(logs):
+        oo = log.other_observations
+        if oo is None or len(oo) == 0:
+            continue
+        t = log.odometry.stamp
+        for target, tc in chain_of_robot.items():
+            if target == r:
+                continue
+            tt = logs[tc][1].odometry.stamp
+            s = oo.stamp
+            sel = np.flatnonzero((oo.landmark_id == target) & (s >= max(t[0], tt[0])) & (s <= min(t[-1], tt[-1])))
+            if sel.size:
+                out.append((c, tc, sel))
+    return out
+
+
+def build_problem(logs: list[tuple[int, LogData]] | LogData, params: Params) -> Problem:
+    """Nodes, motion steps, observation intervals and landmark q's from one log, or from the
+    logs of several robots sharing their landmarks ``[(robot, log), ...]`` (their
+    measurements of each other become observations between two chains)."""
+    if isinstance(logs, LogData):
+        logs = [(0, logs)]
+    multi = len(logs) > 1
+    for _, log in logs:
+        _check_log(log)
     dropped: list[Dropped] = []
-    t = np.asarray(odo.stamp, float)
-    s = np.asarray(obs.stamp, float)
-    inside = (s >= t[0]) & (s <= t[-1])
-    if (~inside).any():
-        dropped.append(Dropped("observations", int((~inside).sum()), "outside the odometry's time span (not used)"))
-    used = np.flatnonzero(inside)
-    if used.size == 0:
-        raise IvslamError("no landmark observation falls within the odometry's time span", path)
-    rho_all, alpha_all = observation_boxes(log, params)
+    sightings = _robot_sightings(logs) if multi else []
+    # the event stamps of every chain: its landmark observations, its sightings of others, and
+    # the stamps at which others saw it
+    used, events = [], []
+    for c, (r, log) in enumerate(logs):
+        t = np.asarray(log.odometry.stamp, float)
+        s = np.asarray(log.observations.stamp, float)
+        inside = (s >= t[0]) & (s <= t[-1])
+        if (~inside).any():
+            dropped.append(Dropped(_stream(r, "observations", multi), int((~inside).sum()),
+                                   "outside the odometry's time span (not used)"))
+        u = np.flatnonzero(inside)
+        if u.size == 0:
+            raise IvslamError("no landmark observation falls within the odometry's time span", log.provenance.path)
+        used.append(u)
+        events.append([s[u]])
+    for c, tc, sel in sightings:
+        st = logs[c][1].other_observations.stamp[sel]
+        events[c].append(st)
+        events[tc].append(st)
+    ev = [np.unique(np.concatenate(e)) for e in events]
 
-    m = motion_steps(odo, params.odometry, s[used], prefer="twist", max_step=params.max_step, path=path)
-    motion, node_stamp, kind, U, lag = m.motion, m.node_stamp, m.kind, m.U, m.lag
-    step_travel, step_dth, node, reach = m.step_travel, m.step_dth, m.node, m.reach
-    n = node_stamp.shape[0]
+    chains: list[Chain] = []
+    for c, (r, log) in enumerate(logs):
+        steps = chain_steps(log.odometry, params.odometry, ev[c], params.max_step, log.provenance.path)
+        t0 = float(steps.node_stamp[0])
+        if c == 0 or params.initial.from_truth:
+            box, source = initial_box(log, params.initial, t0)
+            box = iv.add(box, sym(steps.lag[0, [0, 0, 1]]))
+        else:
+            box, source = None, "unknown (located by the shared landmarks and the other robots)"
+        chains.append(Chain(robot=r, log=log, steps=steps, initial=box, initial_source=source))
 
-    lm_ids, lm_index = np.unique(obs.landmark_id[used], return_inverse=True)
-    counts = np.bincount(lm_index, minlength=lm_ids.size)
+    sizes = np.array([ch.steps.node_stamp.size for ch in chains])
+    offs = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    n = int(offs[-1])
+    node_stamp = np.concatenate([ch.steps.node_stamp for ch in chains])
+    chain_of = np.repeat(np.arange(len(chains)), sizes).astype(np.int64)
+    kind = np.full(n - 1, K.INCREMENT, np.int8)
+    U = np.zeros((n - 1, 5, 2))
+    step_travel = np.zeros(n - 1)
+    step_dth = np.zeros((n - 1, 2))
+    for c, ch in enumerate(chains):
+        a, b = offs[c], offs[c + 1]
+        U[a:b - 1] = ch.steps.U
+        step_travel[a:b - 1] = ch.steps.step_travel
+        step_dth[a:b - 1] = ch.steps.step_dth
+        if c + 1 < len(chains):
+            kind[b - 1] = K.STEP_NONE
+    lag = np.concatenate([ch.steps.lag for ch in chains])
+
+    # observations: landmarks of every chain, then robots seen by others
+    parts = {k: [] for k in ("stream", "index", "node", "lmid", "tnode", "treach", "rho", "alpha", "reach")}
+    for c, ch in enumerate(chains):
+        log, u = ch.log, used[c]
+        rho_all, alpha_all = observation_boxes(log, params)
+        e = np.searchsorted(ev[c], log.observations.stamp[u])
+        parts["stream"].append(np.full(u.size, _stream(ch.robot, "observations", multi)))
+        parts["index"].append(u)
+        parts["node"].append(offs[c] + ch.steps.node[e])
+        parts["lmid"].append(log.observations.landmark_id[u])
+        parts["tnode"].append(np.full(u.size, -1, np.int64))
+        parts["treach"].append(np.zeros((u.size, 2)))
+        parts["rho"].append(rho_all[u])
+        parts["alpha"].append(alpha_all[u])
+        parts["reach"].append(ch.steps.reach[e])
+    for c, tc, sel in sightings:
+        ch, tch = chains[c], chains[tc]
+        oo = ch.log.other_observations
+        rho_all, alpha_all = observation_boxes(ch.log, params, oo)
+        st = oo.stamp[sel]
+        e = np.searchsorted(ev[c], st)
+        te = np.searchsorted(ev[tc], st)
+        parts["stream"].append(np.full(sel.size, _stream(ch.robot, "other_observations", multi)))
+        parts["index"].append(sel)
+        parts["node"].append(offs[c] + ch.steps.node[e])
+        parts["lmid"].append(np.full(sel.size, -1, np.int64))
+        parts["tnode"].append(offs[tc] + tch.steps.node[te])
+        parts["treach"].append(tch.steps.reach[te])
+        parts["rho"].append(rho_all[sel])
+        parts["alpha"].append(alpha_all[sel])
+        parts["reach"].append(ch.steps.reach[e])
+    cat = {k: np.concatenate(v) for k, v in parts.items()}
+    is_lm = cat["tnode"] < 0
+    lm_ids, inv = np.unique(cat["lmid"][is_lm], return_inverse=True)
+    lm = np.full(cat["lmid"].size, -1, np.int64)
+    lm[is_lm] = inv
+    counts = np.bincount(inv, minlength=lm_ids.size)
     q = np.maximum(params.q_landmark,
                    np.floor(params.q_landmark_frac * counts).astype(np.int64)).astype(np.int64)
-    initial, source = initial_box(log, params.initial, float(node_stamp[0]))
-    initial = iv.add(initial, sym(lag[0, [0, 0, 1]]))
+    travel = cumulative_up(step_travel)
     return Problem(
-        node_stamp=node_stamp, kind=kind, U=np.ascontiguousarray(U), travel=cumulative_up(step_travel),
+        chains=chains, chain_nodes=offs, node_stamp=node_stamp, chain_of=chain_of, kind=kind,
+        U=np.ascontiguousarray(U), travel=travel,
         turn=np.column_stack([np.concatenate([[0.0], np.cumsum(step_dth[:, 0])]),
                              np.concatenate([[0.0], np.cumsum(step_dth[:, 1])])]),
         # recursive summation: |error| <= (n-1)·u·Σ|terms| (doubled, plus a tiny absolute term)
         turn_err=float((n + 4) * 2.0**-52 * np.abs(step_dth).sum() + 1e-300),
-        obs_index=used, node=node.astype(np.int64), lm=lm_index.astype(np.int64),
-        rho=np.ascontiguousarray(rho_all[used]), alpha=np.ascontiguousarray(alpha_all[used]),
-        reach=np.ascontiguousarray(reach), ids=lm_ids.astype(np.int64), q=q, initial=initial, lag=lag, motion=motion,
-        dropped=dropped, initial_source=source,
+        obs_stream=cat["stream"].astype(str), obs_index=cat["index"].astype(np.int64),
+        node=cat["node"].astype(np.int64), lm=lm, tnode=cat["tnode"].astype(np.int64),
+        treach=np.ascontiguousarray(cat["treach"], dtype=np.float64),
+        rho=np.ascontiguousarray(cat["rho"]), alpha=np.ascontiguousarray(cat["alpha"]),
+        reach=np.ascontiguousarray(cat["reach"], dtype=np.float64), ids=lm_ids.astype(np.int64), q=q, lag=lag,
+        motion=chains[0].steps.motion, dropped=dropped,
     )
+
+
+def _stream(robot: int, stream: str, multi: bool) -> str:
+    return f"robot{robot}/{stream}" if multi else stream
 
 
 @dataclass
@@ -132,47 +265,132 @@ class LandmarksOutput:
     consistency: Consistency
     stats: dict
     dropped: list[Dropped]
+    pose_sets: PoseSets | None = None
+    problem: Problem | None = None
+    robots: Robots | None = None
+    truth: GroundTruth | None = None  # several robots: their truths, one after the other (robots.truth_offsets)
 
 
-def solve_problem(pb: Problem, params: Params):
-    """Run the kernel; returns the arrays it fills."""
+@dataclass
+class Solution:
+    """What the kernel fills: the pose sets and their hulls (modelled poses), the landmark
+    boxes, the observations' status and the event counters."""
+
+    PS: np.ndarray
+    H: np.ndarray
+    L: np.ndarray
+    status: np.ndarray
+    step_events: np.ndarray
+    pose_events: np.ndarray
+    lm_events: np.ndarray
+    trace: np.ndarray
+    sweeps: int
+
+
+def solve_problem(pb: Problem, params: Params, known_landmarks: np.ndarray | None = None) -> Solution:
+    """Run the kernel. ``known_landmarks`` (L, 2, 2): the landmark boxes to start from (the
+    map given: localisation only); default unbounded."""
     n = pb.node_stamp.shape[0]
-    P = np.empty((n, 3, 2))
-    P[:, :, 0] = -np.inf
-    P[:, :, 1] = np.inf
-    P[0] = pb.initial
-    L = np.empty((pb.ids.size, 2, 2))
-    L[:, :, 0] = -np.inf
-    L[:, :, 1] = np.inf
+    S = params.pose_slices
+    BINS = K.make_bins(S)
+    PS = np.empty((n, S, 3, 2))
+    PS[:, :, :2, 0] = -np.inf
+    PS[:, :, :2, 1] = np.inf
+    PS[:, :, 2] = BINS[None]
+    for c, ch in enumerate(pb.chains):
+        if ch.initial is not None:
+            K.set_from_box(PS, int(pb.chain_nodes[c]), np.ascontiguousarray(ch.initial, dtype=np.float64), BINS)
+    H = np.empty((n, 3, 2))
+    if known_landmarks is not None:
+        L = np.ascontiguousarray(known_landmarks, dtype=np.float64).copy()
+    else:
+        L = np.empty((pb.ids.size, 2, 2))
+        L[:, :, 0] = -np.inf
+        L[:, :, 1] = np.inf
     by_node = np.argsort(pb.node, kind="stable").astype(np.int64)
     obs_node_stamp = np.ascontiguousarray(pb.node_stamp[pb.node[by_node]])
+    chain_obs = np.searchsorted(pb.chain_of[pb.node[by_node]], np.arange(len(pb.chains) + 1)).astype(np.int64)
     node_first = np.full(n, -1, np.int64)
     node_first[pb.node[by_node][::-1]] = by_node[::-1]
-    lm_order = np.argsort(pb.lm, kind="stable").astype(np.int64)
-    lm_offsets = np.concatenate([[0], np.cumsum(np.bincount(pb.lm, minlength=pb.ids.size))]).astype(np.int64)
+    robot_obs = np.flatnonzero(pb.tnode >= 0)
+    by_target = robot_obs[np.argsort(pb.tnode[robot_obs], kind="stable")].astype(np.int64)
+    target_first = np.full(n, -1, np.int64)
+    target_first[pb.tnode[by_target][::-1]] = np.arange(by_target.size)[::-1]
+    node_first[(node_first < 0) & (target_first >= 0)] = 0  # nodes seen by others are updated too
+    lm_obs = np.flatnonzero(pb.lm >= 0)
+    lm_order = lm_obs[np.argsort(pb.lm[lm_obs], kind="stable")].astype(np.int64)
+    lm_offsets = np.concatenate([[0], np.cumsum(np.bincount(pb.lm[lm_obs], minlength=pb.ids.size))]).astype(np.int64)
     status = np.zeros(pb.node.size, np.int8)
     step_events = np.zeros(n - 1, np.int64)
     pose_events = np.zeros(n, np.int64)
     lm_events = np.zeros(pb.ids.size, np.int64)
     max_it = params.max_iterations
     trace = np.full(max_it, np.nan)
-    sweeps = K.solve(P, L, pb.kind, pb.U, pb.node_stamp, pb.travel, pb.turn, pb.turn_err, pb.node, pb.lm, pb.rho, pb.alpha,
-                     pb.reach, obs_node_stamp, by_node, node_first, lm_offsets, lm_order, pb.q,
-                     params.q_pose, params.pose_window, params.heading_slices, max_it, params.tolerance, status, step_events, pose_events, lm_events, trace)
-    return P, L, status, step_events, pose_events, lm_events, trace[:sweeps], int(sweeps)
+    sweeps = K.solve(PS, H, L, BINS, pb.kind, pb.U, pb.node_stamp, pb.chain_of, pb.travel, pb.turn, pb.turn_err,
+                     pb.node, pb.lm, pb.tnode, pb.treach, pb.rho, pb.alpha, pb.reach, obs_node_stamp, by_node,
+                     node_first, chain_obs, by_target, target_first, lm_offsets, lm_order, pb.q, params.q_pose,
+                     params.pose_window, params.pose_window_obs, params.pose_pieces, max_it, params.tolerance, status, step_events,
+                     pose_events, lm_events, trace)
+    return Solution(PS, H, L, status, step_events, pose_events, lm_events, trace[:sweeps], int(sweeps))
 
 
-def solve(log: LogData, params: Params) -> LandmarksOutput:
-    """The landmark CSP over a log (see the module docstring)."""
-    t0 = time.perf_counter()
-    pb = build_problem(log, params)
-    P, L, status, step_ev, pose_ev, lm_ev, trace, sweeps = solve_problem(pb, params)
+def true_pose_sets(pb: Problem, sol: Solution) -> tuple[np.ndarray, PoseSets]:
+    """The enclosures of the true poses: the hulls ``(N, 3, 2)`` and the pose sets, each box
+    widened by its node's lag (the true pose within the lag of the modelled one)."""
     n = pb.node_stamp.shape[0]
-    tol = params.tolerance
-    if pb.lag.any():  # enclosures of the true poses
+    nb = K.count_boxes(sol.PS)
+    offsets = np.empty(n + 1, np.int64)
+    flat = np.empty((nb, 3, 2))
+    K.flatten_sets(sol.PS, offsets, flat)
+    P = sol.H.copy()
+    # headings on the real line, each chain unwrapped: a node's set moved by the multiple of 2π
+    # that brings its hull nearest the previous node's (the kernel keeps them in [−π, π])
+    shift = np.zeros(n)
+    ok = np.all(P[..., 0] <= P[..., 1], axis=-1) & np.isfinite(P[:, 2]).all(axis=-1)
+    centre = np.where(ok, 0.5 * (P[:, 2, 0] + P[:, 2, 1]), np.nan)
+    for c in range(len(pb.chains)):
+        a, b = int(pb.chain_nodes[c]), int(pb.chain_nodes[c + 1])
+        prev = np.nan
+        for k in range(a, b):
+            if not ok[k]:
+                continue
+            if np.isfinite(prev):
+                shift[k] = 2 * np.pi * np.round((prev - centre[k]) / (2 * np.pi))
+            prev = centre[k] + shift[k]
+    if shift.any():
+        owner = np.repeat(np.arange(n), np.diff(offsets))
+        P[:, 2] = iv.add(P[:, 2], point(shift))
+        flat[:, 2] = iv.add(flat[:, 2], point(shift[owner]))
+    if pb.lag.any():
         ok = np.all(P[..., 0] <= P[..., 1], axis=-1)
         P = iv.add(P.reshape(-1, 2), sym(pb.lag[:, [0, 0, 1]].reshape(-1))).reshape(n, 3, 2)
         P[~ok] = [np.inf, -np.inf]
+        owner = np.repeat(np.arange(n), np.diff(offsets))
+        flat = iv.add(flat.reshape(-1, 2), sym(pb.lag[owner][:, [0, 0, 1]].reshape(-1))).reshape(-1, 3, 2)
+    return P, PoseSets(offsets=offsets, boxes=flat)
+
+
+def solve(log, params: Params, known_landmarks: dict[int, tuple[float, float]] | None = None,
+          known_margin: float = 0.0) -> LandmarksOutput:
+    """The landmark CSP over a log, or over ``[(robot, log), ...]`` (see the module
+    docstring). ``known_landmarks`` ``{id: (x, y)}``: the map given, each landmark within
+    ``known_margin`` (localisation only; landmarks not in it are unknown)."""
+    t0 = time.perf_counter()
+    pb = build_problem(log.robots if isinstance(log, LogData) and log.robots else log, params)
+    L0 = None
+    if known_landmarks is not None:
+        L0 = np.empty((pb.ids.size, 2, 2))
+        L0[..., 0], L0[..., 1] = -np.inf, np.inf
+        for i, lid in enumerate(pb.ids):
+            if int(lid) in known_landmarks:
+                xy = iv.add(point(np.asarray(known_landmarks[int(lid)], float)), sym(np.full(2, bound_up(known_margin))))
+                L0[i] = xy
+    sol = solve_problem(pb, params, L0)
+    L, status, step_ev, pose_ev, lm_ev, trace, sweeps = (sol.L, sol.status, sol.step_events, sol.pose_events,
+                                                         sol.lm_events, sol.trace, sol.sweeps)
+    n = pb.node_stamp.shape[0]
+    tol = params.tolerance
+    P, sets = true_pose_sets(pb, sol)
     converged = sweeps >= 2 and (trace[-2] - trace[-1]) <= tol * trace[-2] if sweeps >= 2 else False
 
     # consistency record
@@ -193,7 +411,7 @@ def solve(log: LogData, params: Params) -> LandmarksOutput:
     events = empty_events(rows)
     rej = np.flatnonzero(status != K.OBS_USED)
     rejections = Rejections(
-        stream=np.array(["observations"] * rej.size, dtype=str).reshape(-1),
+        stream=np.asarray(pb.obs_stream[rej], dtype=str).reshape(-1),
         index=pb.obs_index[rej].astype(np.int64),
         reason=np.array([REASONS[int(status[j])] for j in rej], dtype=str).reshape(-1),
     )
@@ -232,6 +450,9 @@ def solve(log: LogData, params: Params) -> LandmarksOutput:
         empty_events=events, q={"landmark": params.q_landmark, "pose": params.q_pose},
         rejected=rejections, widths={"pose": pose_hist, "landmark": lm_hist}, assumption=assumption,
     )
+    robots, truth = None, None
+    if len(pb.chains) > 1:
+        robots, truth = _robots_and_truth(pb, log)
     runtime = time.perf_counter() - t0
     stats = {
         "motion": pb.motion, "nodes": int(n), "steps": int(n - 1), "observations": int(pb.node.size),
@@ -239,6 +460,9 @@ def solve(log: LogData, params: Params) -> LandmarksOutput:
         "converged": int(bool(converged)), "final_width_sum": float(trace[-1]) if sweeps else float("nan"),
         "median_pose_width": float(np.nanmedian(pose_w)) if np.isfinite(pose_w).any() else float("nan"),
         "median_landmark_width": float(np.nanmedian(lm_w)) if np.isfinite(lm_w).any() else float("nan"),
+        "median_heading_width": _median_finite(P[:, 2, 1] - P[:, 2, 0]),
+        "pose_slices": int(params.pose_slices), "pose_set_boxes": int(sets.boxes.shape[0]),
+        "pose_set_max_boxes": int(np.diff(sets.offsets).max()) if n else 0,
         "solve_s": float(runtime),
     }
     return LandmarksOutput(
@@ -246,15 +470,42 @@ def solve(log: LogData, params: Params) -> LandmarksOutput:
                     **({"frame": FRAME_WORLD} if params.initial.pose is not None or params.initial.from_truth else
                        {"frame": FRAME_FIRST_POSE, "origin_stamp": float(pb.node_stamp[0])})),
         landmarks=Landmarks(id=pb.ids, box=L),
-        consistency=consistency, stats=stats, dropped=pb.dropped,
+        consistency=consistency, stats=stats, dropped=pb.dropped, pose_sets=sets, problem=pb,
+        robots=robots, truth=truth,
     )
+
+
+def _robots_and_truth(pb: Problem, log: LogData) -> tuple[Robots, GroundTruth]:
+    """Which pose rows are whose, and the robots' truths one after the other."""
+    stamps, poses, counts = [], [], []
+    for ch in pb.chains:
+        tr = ch.log.truth
+        ok = tr is not None and tr.pose is not None and tr.pose_stamp is not None
+        stamps.append(np.asarray(tr.pose_stamp, float) if ok else np.zeros(0))
+        poses.append(np.asarray(tr.pose, float).reshape(-1, 3) if ok else np.zeros((0, 3)))
+        counts.append(stamps[-1].size)
+    top = log.truth if log.truth is not None else GroundTruth()
+    truth = GroundTruth(pose_stamp=np.concatenate(stamps), pose=np.concatenate(poses),
+                        landmark_id=top.landmark_id, landmark_xy=top.landmark_xy)
+    robots = Robots(id=np.array([ch.robot for ch in pb.chains], np.int64), pose_offsets=pb.chain_nodes.astype(np.int64),
+                    truth_offsets=np.concatenate([[0], np.cumsum(counts)]).astype(np.int64))
+    return robots, truth
+
+
+def _median_finite(a: np.ndarray) -> float:
+    a = np.asarray(a, float)
+    a = a[np.isfinite(a)]
+    return float(np.median(a)) if a.size else float("nan")
 
 
 def run(log: LogData, params: Params, progress=None) -> Result:
     """The landmark CSP over ``log`` as a :class:`Result` (pose tube and landmark boxes)."""
     out = solve(log, params)
-    return make_result("landmarks", log, dropped=out.dropped, poses=out.poses, landmarks=out.landmarks,
-                       consistency=out.consistency, stats=out.stats)
+    res = make_result("landmarks", log, dropped=out.dropped, poses=out.poses, landmarks=out.landmarks,
+                      consistency=out.consistency, stats=out.stats, pose_sets=out.pose_sets, robots=out.robots)
+    if out.truth is not None:
+        res.truth = out.truth
+    return res
 
 
 def summary(result: Result) -> str:
