@@ -4,12 +4,21 @@ Each command lives in ``ivslam_cli/commands/<name>.py`` and is imported only whe
 invoked (or when ``--help`` lists it), so ``ivslam --help`` never loads numba kernels.
 Errors a user can cause become one line on stderr and a non-zero exit; ``--debug``
 shows the traceback instead.
+
+Exit codes: 0 success; 1 an I/O failure writing an output (disk full, device error) or an
+internal error; 2 bad input (a file, an option, a configuration value, a limit exceeded);
+3 data proven inconsistent under ``--strict``; 130 interrupted (SIGINT), 143 terminated
+(SIGTERM). A signal ends the command through the same clean-up as an error: no temporary
+file is left and no output is half written.
 """
 
 from __future__ import annotations
 
+import errno
 import importlib
+import signal
 import sys
+import warnings
 
 import click
 
@@ -57,13 +66,18 @@ class IvslamGroup(click.Group):
             if ctx.obj and ctx.obj.get("debug"):
                 raise
             raise UserError(str(exc), exc.exit_code) from exc
-        except KeyboardInterrupt:
-            raise click.exceptions.Abort() from None
         except OSError as exc:
             if ctx.obj and ctx.obj.get("debug"):
                 raise
             where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
-            raise UserError(f"{where}{exc.strerror or exc}", 1) from exc
+            code = 1 if exc.errno in IO_ERRNOS else 2
+            if not where and code == 1:  # e.g. numba writing its kernel cache on a full disk
+                where = "cannot write a cache or temporary file: "
+            raise UserError(f"{where}{exc.strerror or exc}", code) from exc
+        except MemoryError as exc:
+            if ctx.obj and ctx.obj.get("debug"):
+                raise
+            raise UserError("out of memory (an input larger than this machine can hold?)", 1) from exc
         except Exception as exc:  # last resort: still one line, but say it is ours
             if ctx.obj and ctx.obj.get("debug"):
                 raise
@@ -71,6 +85,69 @@ class IvslamGroup(click.Group):
                 f"internal error ({type(exc).__name__}: {exc}); rerun with --debug for a traceback",
                 1,
             ) from exc
+
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
+        """Run the command; every way it can end is one line on stderr and an exit code."""
+        code = 0
+        with _signals_as_exceptions():
+            try:
+                rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+                code = rv if isinstance(rv, int) else 0
+            except click.exceptions.UsageError as exc:  # bad option or argument: one line, exit 2
+                where = f" (see '{exc.ctx.command_path} --help')" if exc.ctx is not None else ""
+                message = " ".join(exc.format_message().split())
+                click.echo(f"ivslam: error: {message}{where}", err=True)
+                code = exc.exit_code
+            except click.ClickException as exc:
+                exc.show()
+                code = exc.exit_code
+            except click.exceptions.Abort:
+                click.echo("ivslam: interrupted", err=True)
+                code = 130
+            except Interrupted as exc:
+                click.echo(f"ivslam: {exc}", err=True)
+                code = 128 + exc.signum
+        if standalone_mode:
+            sys.exit(code)
+        return code
+
+
+#: errors of the device rather than of the path given: exit 1, not 2
+IO_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EFBIG, errno.ENOMEM}
+
+
+class Interrupted(BaseException):
+    """SIGINT or SIGTERM: unwinds like an error (every clean-up runs), then exits 128 + signal."""
+
+    def __init__(self, signum: int):
+        self.signum = signum
+        name = {signal.SIGINT: "interrupted", signal.SIGTERM: "terminated (SIGTERM)"}.get(signum, f"signal {signum}")
+        super().__init__(name)
+
+
+class _signals_as_exceptions:
+    """Raise :class:`Interrupted` on SIGINT/SIGTERM (main thread only; restored on exit)."""
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __enter__(self):
+        import threading
+
+        self.old = {}
+        if threading.current_thread() is threading.main_thread():
+            for sig in self.SIGNALS:
+                self.old[sig] = signal.signal(sig, self._raise)
+        return self
+
+    @staticmethod
+    def _raise(signum, frame):
+        raise Interrupted(signum)
+
+    def __exit__(self, *exc):
+        for sig, old in self.old.items():
+            signal.signal(sig, old)
+        return False
 
 
 @click.group(cls=IvslamGroup, context_settings={"help_option_names": ["-h", "--help"]})
@@ -89,6 +166,8 @@ def cli(ctx: click.Context, debug: bool) -> None:
     """
     ctx.ensure_object(dict)
     ctx.obj["debug"] = debug
+    if not debug:  # numpy's RuntimeWarnings (NaN in, overflow) are not messages for the user
+        warnings.simplefilter("ignore", RuntimeWarning)
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -20,6 +20,7 @@ one ulp before use, so the interval they use contains the decimal one.
 from __future__ import annotations
 
 import math
+import os
 import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -46,10 +47,17 @@ SECTIONS: dict[str, str] = {
 # "float3?" (three floats, unset = None).
 TYPES = ("float", "int", "bool", "str", "int?", "float2", "interval", "float3", "float3?")
 
+#: the largest integer any key takes (the kernels use 32-bit-safe counters; larger is a mistake)
+INT_MAX = 2 ** 31 - 1
+#: the largest noise bound in metres (and per-unit relative bounds) a key takes: wider proves nothing
+BOUND_MAX = 1e4
+
 
 @dataclass(frozen=True)
 class Key:
-    """One configuration key. ``minimum`` (with ``strict_min``) bounds numeric values."""
+    """One configuration key. ``minimum`` (with ``strict_min``) and ``maximum`` bound numeric
+    values (each number of a list, too). Every number must be finite, and every integer at
+    most :data:`INT_MAX`, whatever the key says."""
 
     section: str
     name: str
@@ -59,6 +67,7 @@ class Key:
     unit: str = ""
     minimum: float | None = None
     strict_min: bool = False
+    maximum: float | None = None
 
     @property
     def dotted(self) -> str:
@@ -67,21 +76,21 @@ class Key:
 
 KEYS: tuple[Key, ...] = (
     # --- [bounds]: |true − measured| ≤ bound
-    Key("bounds", "range_abs", 0.1, "float", "absolute range bound: |ρ − z_ρ| ≤ range_abs + range_rel·z_ρ", "m", 0.0),
-    Key("bounds", "range_rel", 0.0, "float", "range bound proportional to the measured range", "", 0.0),
-    Key("bounds", "bearing", 0.05, "float", "bearing bound: |α − z_α| ≤ bearing", "rad", 0.0),
-    Key("bounds", "odom_trans_abs", 0.0, "float", "odometry translation bound per step (absolute)", "m", 0.0),
-    Key("bounds", "odom_trans_rel", 0.0, "float", "odometry translation bound per metre travelled", "", 0.0),
-    Key("bounds", "odom_rot_abs", 0.0, "float", "odometry rotation bound per step (absolute)", "rad", 0.0),
-    Key("bounds", "odom_rot_rel", 0.0, "float", "odometry rotation bound per radian turned", "", 0.0),
-    Key("bounds", "odom_v", 0.0, "float", "twist odometry: speed bound |z_v − v| ≤ odom_v + odom_v_rel·|v| (v the true speed)", "m/s", 0.0),
-    Key("bounds", "odom_v_rel", 0.0, "float", "twist odometry: speed bound proportional to the true speed", "", 0.0),
-    Key("bounds", "odom_w", 0.0, "float", "twist odometry: turn-rate bound |z_ω − ω| ≤ odom_w + odom_w_rel·|v|", "rad/s", 0.0),
-    Key("bounds", "odom_lag_xy", 0.0, "float", "twist odometry: the true position stays within this of the one the twist bounds drive (lag of commanded velocities, transients)", "m", 0.0),
-    Key("bounds", "odom_lag_th", 0.0, "float", "twist odometry: the true heading stays within this of the one the twist bounds drive", "rad", 0.0),
-    Key("bounds", "odom_lag_time", 0.0, "float", "twist odometry: the drive follows its commands this late: the lag bounds grow by odom_lag_time × the largest commanded |v| (position) and |ω| (heading) over the last odom_lag_memory seconds", "s", 0.0),
-    Key("bounds", "odom_lag_memory", 2.0, "float", "twist odometry: the window of past commands odom_lag_time applies to (a few time constants of the drive)", "s", 0.0),
-    Key("bounds", "odom_w_rel", 0.0, "float", "twist odometry: turn-rate bound proportional to the true speed", "rad/m", 0.0),
+    Key("bounds", "range_abs", 0.1, "float", "absolute range bound: |ρ − z_ρ| ≤ range_abs + range_rel·z_ρ", "m", 0.0, maximum=BOUND_MAX),
+    Key("bounds", "range_rel", 0.0, "float", "range bound proportional to the measured range", "", 0.0, maximum=10.0),
+    Key("bounds", "bearing", 0.05, "float", "bearing bound: |α − z_α| ≤ bearing", "rad", 0.0, maximum=2 * math.pi),
+    Key("bounds", "odom_trans_abs", 0.0, "float", "odometry translation bound per step (absolute)", "m", 0.0, maximum=BOUND_MAX),
+    Key("bounds", "odom_trans_rel", 0.0, "float", "odometry translation bound per metre travelled", "", 0.0, maximum=10.0),
+    Key("bounds", "odom_rot_abs", 0.0, "float", "odometry rotation bound per step (absolute)", "rad", 0.0, maximum=2 * math.pi),
+    Key("bounds", "odom_rot_rel", 0.0, "float", "odometry rotation bound per radian turned", "", 0.0, maximum=10.0),
+    Key("bounds", "odom_v", 0.0, "float", "twist odometry: speed bound |z_v − v| ≤ odom_v + odom_v_rel·|v| (v the true speed)", "m/s", 0.0, maximum=BOUND_MAX),
+    Key("bounds", "odom_v_rel", 0.0, "float", "twist odometry: speed bound proportional to the true speed", "", 0.0, maximum=10.0),
+    Key("bounds", "odom_w", 0.0, "float", "twist odometry: turn-rate bound |z_ω − ω| ≤ odom_w + odom_w_rel·|v|", "rad/s", 0.0, maximum=BOUND_MAX),
+    Key("bounds", "odom_lag_xy", 0.0, "float", "twist odometry: the true position stays within this of the one the twist bounds drive (lag of commanded velocities, transients)", "m", 0.0, maximum=BOUND_MAX),
+    Key("bounds", "odom_lag_th", 0.0, "float", "twist odometry: the true heading stays within this of the one the twist bounds drive", "rad", 0.0, maximum=2 * math.pi),
+    Key("bounds", "odom_lag_time", 0.0, "float", "twist odometry: the drive follows its commands this late: the lag bounds grow by odom_lag_time × the largest commanded |v| (position) and |ω| (heading) over the last odom_lag_memory seconds", "s", 0.0, maximum=BOUND_MAX),
+    Key("bounds", "odom_lag_memory", 2.0, "float", "twist odometry: the window of past commands odom_lag_time applies to (a few time constants of the drive)", "s", 0.0, maximum=BOUND_MAX),
+    Key("bounds", "odom_w_rel", 0.0, "float", "twist odometry: turn-rate bound proportional to the true speed", "rad/m", 0.0, maximum=BOUND_MAX),
     # --- [robust]
     Key("robust", "q_pair", 0, "int", "q-relaxed intersection per pair: tolerate up to q inconsistent observations (0 = plain intersection)", "", 0),
     Key("robust", "q_landmark", 0, "int", "landmarks mode: inconsistent observations tolerated per landmark (q-relaxed intersection of its observations)", "", 0),
@@ -91,15 +100,16 @@ KEYS: tuple[Key, ...] = (
     # --- [pairs]
     Key("pairs", "heading", (0.0, 0.0), "interval", "known heading interval [lo, hi] at every step; with heading_source = odometry, the bound added to the odometry heading", "rad"),
     Key("pairs", "heading_source", "option", "str", "where the heading comes from: option (the heading interval) or odometry (the log's odometry poses, per step)"),
-    Key("pairs", "eps", 0.05, "float", "resolution ε of the subpavings: boxes narrower than ε are not bisected", "m", 0.0, True),
+    Key("pairs", "eps", 0.05, "float", "resolution ε of the subpavings: boxes narrower than ε are not bisected", "m", 1e-6),
     Key("pairs", "anchor_id", None, "int?", "id of the anchoring landmark (known position); unset: relative map"),
     Key("pairs", "anchor_xy", (0.0, 0.0), "float2", "position [x, y] of the anchoring landmark", "m"),
     Key("pairs", "reference_id", None, "int?", "landmark a relative map is expressed against; unset: the smallest id"),
-    Key("pairs", "max_pairs", 10_000, "int", "safety limit: error out beyond this many landmark pairs", "", 1),
-    Key("pairs", "max_boxes", 100_000, "int", "safety limit on the boxes of one pair's subpaving", "", 1),
+    Key("pairs", "max_pairs", 10_000, "int", "safety limit: error out beyond this many landmark pairs", "", 1, maximum=1_000_000),
+    Key("pairs", "max_boxes", 100_000, "int", "safety limit on the boxes of one pair's subpaving", "", 1, maximum=10_000_000),
+    Key("pairs", "max_work", 20_000_000, "int", "safety limit on the work of the whole run: box tests of the subpavings (0.1–0.2 M/s on one core); beyond it the run stops with an error naming this key", "", 1),
     Key("landmarks", "initial_pose", None, "float3?", "initial pose [x, y, θ] (the map frame's anchor); unset: from the truth with --initial-pose-from-truth, else the origin", "m, m, rad"),
     Key("landmarks", "initial_pose_from_truth", False, "bool", "take the initial pose from the log's ground truth (interpolated at the first odometry stamp)"),
-    Key("landmarks", "initial_margin", (0.01, 0.01, 0.01), "float3", "half-widths of the initial pose box around initial_pose", "m, m, rad"),
+    Key("landmarks", "initial_margin", (0.01, 0.01, 0.01), "float3", "half-widths of the initial pose box around initial_pose", "m, m, rad", 0.0),
     Key("landmarks", "pose_window", 0.0, "float", "observations within this time of a pose join its q-relaxed intersection (their pose sets widened by the motion possible in between); 0: only the pose's own", "s", 0.0),
     Key("landmarks", "pose_slices", 64, "int", "pose sets: the circle of headings is cut into this many fixed slices and each pose is a union of at most one (x, y, θ) box per slice (what falls into a slice is merged into its box); the hull is the pose box", "", 4),
     Key("landmarks", "pose_window_obs", 6, "int", "at most this many observations join a pose's q-relaxed intersection: its own, then the others of its window nearest in time (a subset of the window: the same assumption holds)", "", 1),
@@ -108,7 +118,7 @@ KEYS: tuple[Key, ...] = (
     Key("landmarks", "max_iterations", 30, "int", "cap on forward-backward sweeps over the trajectory", "", 1),
     Key("landmarks", "tolerance", 1e-3, "float", "stop when a sweep shrinks the summed widths by less than this fraction", "", 0.0),
     # --- [lidar]: range/bearing bounds of the beams are [bounds] range_abs, range_rel, bearing
-    Key("lidar", "eps", 0.05, "float", "cell side ε of the map grid", "m", 0.0, True),
+    Key("lidar", "eps", 0.05, "float", "cell side ε of the map grid", "m", 1e-3),
     Key("lidar", "max_range", 0.0, "float", "valid returns longer than this are treated as no return (they prove nothing); 0: the scan's own range_max", "m", 0.0),
     Key("lidar", "motion", "auto", "str", "dead reckoning from: twist (v, ω with odom_v/odom_w bounds), pose (odometry pose increments with odom_trans/odom_rot bounds), or auto (the stream whose bounds are set; twist if both or neither)"),
     Key("lidar", "max_pose_width", 2.0, "float", "scans whose robot pose box (in their submap's frame; with poses_known, the given one) is wider than this in x or y are not mapped (they would prove no free space and mark obstacle rings metres wide); 0: map every scan", "m", 0.0),
@@ -124,10 +134,10 @@ KEYS: tuple[Key, ...] = (
     Key("lidar", "match_stride", 4, "int", "scan-to-submap matching: every n-th beam of the scan, and of the scans it is matched against, is tested", "", 1),
     Key("lidar", "match_resolution", 0.02, "float", "scan-to-submap matching: the bounds of the pose set are found to this resolution in x, y and in beam-end motion (median range × θ)", "m", 0.0, True),
     Key("lidar", "match_slices", 8, "int", "scan-to-submap matching: the pose set kept per scan as at most this many boxes (one per heading slice)", "", 1),
-    Key("lidar", "relocalise", (0.5, 0.5), "float2", "when no pose of a scan's predicted box agrees with its submap (the motion step broke its bounds: an odometry jump), the scan is matched again over its box widened by this much in x, y [m] and θ [rad]; a pose found there is kept, the step recorded as an outlier and the assumption relaxed to say so; [0, 0]: never (the box is kept, an empty event)", "m, rad"),
+    Key("lidar", "relocalise", (0.5, 0.5), "float2", "when no pose of a scan's predicted box agrees with its submap (the motion step broke its bounds, an odometry jump, or more than q_beams beams did), the scan is matched again over its box widened by this much in x, y [m] and θ [rad]; a pose found there is kept, the step recorded as an outlier and the assumption relaxed to say so; [0, 0]: never (the box is kept, an empty event)", "m, rad"),
     Key("lidar", "poses_known", False, "bool", "guaranteed mapping only: the poses are given (known_poses) within pose_margin; no odometry needed"),
     Key("lidar", "known_poses", "auto", "str", "with poses_known, where the poses come from: truth (the log's ground truth), scan (poses recorded with each scan, e.g. CARMEN FLASER), odometry (odometry poses), or auto (the first of these the log has); interpolated at scan stamps between given poses"),
-    Key("lidar", "pose_margin", (0.05, 0.05, 0.01), "float3", "with poses_known: half-widths of the pose box around each given pose (must cover their error and any interpolation)", "m, m, rad"),
+    Key("lidar", "pose_margin", (0.05, 0.05, 0.01), "float3", "with poses_known: half-widths of the pose box around each given pose (must cover their error and any interpolation)", "m, m, rad", 0.0),
 )
 
 KEYS_BY_NAME: dict[str, Key] = {k.dotted: k for k in KEYS}
@@ -170,9 +180,12 @@ def _coerce(key: Key, value: Any, where: str) -> Any:
     def as_float(v: Any) -> float:
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise bad("a number" if key.type == "float" else "a list of two numbers")
-        x = float(v)
-        if math.isnan(x):
-            raise bad("a number (not NaN)")
+        try:
+            x = float(v)
+        except OverflowError:
+            raise bad("a finite number") from None
+        if not math.isfinite(x):
+            raise bad("a finite number (not NaN or infinite)")
         return x
 
     t = key.type
@@ -202,26 +215,40 @@ def _coerce(key: Key, value: Any, where: str) -> Any:
             raise bad("an interval [lo, hi] with lo <= hi")
     else:  # pragma: no cover - table error
         raise AssertionError(t)
-    if key.minimum is not None and isinstance(out, (int, float)) and not isinstance(out, bool):
-        if out < key.minimum or (key.strict_min and out == key.minimum):
+    numbers = (out if isinstance(out, tuple) else (out,)) if not isinstance(out, (bool, str)) else ()
+    for x in (v for v in numbers if v is not None):
+        if t in ("int", "int?") and abs(x) > INT_MAX:
+            raise bad(f"an integer of at most {INT_MAX}")
+        if key.minimum is not None and (x < key.minimum or (key.strict_min and x == key.minimum)):
             raise bad(f"{'>' if key.strict_min else '>='} {key.minimum:g}")
+        if key.maximum is not None and x > key.maximum:
+            raise bad(f"<= {key.maximum:g}")
     return out
 
 
 def load_toml(path: str | Path) -> dict[str, Any]:
     """Parse a TOML config file; unreadable or invalid TOML is a one-line ConfigError."""
+    from ivslam_cli import limits
+    from ivslam_cli.inputs import check_input
+
     path = Path(path)
+    if not os.path.lexists(path):
+        raise ConfigError("config file not found", path)
+    check_input(path, "TOML config file", error=ConfigError)  # no FIFO, device, directory
     try:
+        limits.check("JSON_BYTES", path.stat().st_size, "the config file's size")
         with open(path, "rb") as f:
             return tomllib.load(f)
-    except FileNotFoundError:
-        raise ConfigError("config file not found", path) from None
-    except IsADirectoryError:
-        raise ConfigError("is a directory, not a TOML config file", path) from None
+    except limits.LimitExceeded as exc:
+        raise exc.about(path) from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"invalid TOML: {str(exc).splitlines()[0]}", path) from None
     except UnicodeDecodeError:
         raise ConfigError("invalid TOML: not UTF-8 text", path) from None
+    except RecursionError:
+        raise ConfigError("invalid TOML: nested too deeply", path) from None
+    except OSError as exc:
+        raise ConfigError(f"cannot read: {exc.strerror or exc}", path) from None
 
 
 def _file_layer(data: Mapping[str, Any], where: str) -> dict[str, Any]:
@@ -298,6 +325,15 @@ def _fmt_default(v: Any) -> str:
     return repr(v)
 
 
+def _fmt_range(k: Key) -> str:
+    parts = []
+    if k.minimum is not None:
+        parts.append(f"{'>' if k.strict_min else '≥'} {k.minimum:g}")
+    if k.maximum is not None:
+        parts.append(f"≤ {k.maximum:g}")
+    return f" ({', '.join(parts)})" if parts else ""
+
+
 def markdown_table() -> str:
     """The configuration reference as a markdown table (one row per key, grouped by section)."""
     lines = [
@@ -308,7 +344,12 @@ def markdown_table() -> str:
         keys = [k for k in KEYS if k.section == section]
         lines.append(f"| **[{section}]** | | | | {doc}{'' if keys else ' (no keys yet)'} |")
         for k in keys:
-            lines.append(f"| `{k.name}` | `{_fmt_default(k.default)}` | {k.type} | {k.unit} | {k.doc} |")
+            lines.append(f"| `{k.name}` | `{_fmt_default(k.default)}` | {k.type} | {k.unit} | {k.doc}{_fmt_range(k)} |")
+    lines.append("")
+    lines.append(
+        f"Every number must be finite, and every integer at most {INT_MAX}; a value outside the range "
+        "given above is a one-line error naming the key."
+    )
     lines.append("")
     lines.append(
         "Decimal values such as 0.1 are not exact doubles: the loader returns the nearest float and the "

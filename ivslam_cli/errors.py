@@ -17,7 +17,17 @@ class IvslamError(Exception):
 
     def __init__(self, message: str, path: str | Path | None = None):
         self.path = None if path is None else str(path)
+        self.message = message
         super().__init__(f"{self.path}: {message}" if self.path else message)
+
+    def about(self, path: str | Path) -> IvslamError:
+        """This error said of ``path`` (unchanged if it already names a file)."""
+        if self.path is not None:
+            return self
+        new = type(self).__new__(type(self))
+        IvslamError.__init__(new, self.message, path)
+        new.exit_code = self.exit_code
+        return new
 
 
 class LogError(IvslamError):
@@ -26,6 +36,12 @@ class LogError(IvslamError):
 
 class ConfigError(IvslamError):
     """A configuration file or option is invalid."""
+
+
+class OutputError(IvslamError):
+    """An output cannot be written: the disk is full, a device error (an I/O failure, exit 1)."""
+
+    exit_code = 1
 
 
 class InconsistentData(IvslamError):

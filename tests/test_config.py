@@ -65,7 +65,7 @@ def test_types_are_normalised_and_json_safe(tmp_path):
         ("[bounds]\nrange_abs = nan\n", "not NaN"),
         ("[robust]\nq_pair = 1.5\n", r"q_pair must be an integer"),
         ("[robust]\nstrict = 1\n", "strict must be true or false"),
-        ("[pairs]\neps = 0\n", r"eps must be > 0"),
+        ("[pairs]\neps = 0\n", r"eps must be >= 1e-06"),
         ("[pairs]\nheading = [0.2, 0.1]\n", "lo <= hi"),
         ("[pairs]\nanchor_xy = [1]\n", "two numbers"),
         ("[lidar]\nresolution = 0.05\n", r"unknown key 'resolution' in \[lidar\] \(known: eps, max_range"),

@@ -108,6 +108,11 @@ def test_refuses_to_overwrite_without_force(tmp_path):
         write_result(path, example_result())
     assert "\n" not in str(info.value) and str(path) in str(info.value)
     assert path.read_bytes() == b"precious"
+    with pytest.raises(IvslamError, match="not a result written by ivslam"):
+        write_result(path, example_result(), force=True)  # --force replaces only a result
+    assert path.read_bytes() == b"precious"
+    path.unlink()
+    write_result(path, example_result())
     write_result(path, example_result(), force=True)
     assert read_result(path).mode == "pairs"
 

@@ -115,15 +115,17 @@ def command(log, fmt, as_json, robot, scan_topic, odom_topic, landmark_topic, tr
     and what the reader dropped.
 
     \b
-    Formats: ros1, ros2, mcap, carmen, mrclam, urg, victoria, keyframe-json, ivslam-h5.
+    Formats: ros1, ros2, mcap, carmen, gfs, mrclam, urg, victoria, keyframe-json, ivslam-h5.
     Examples:
       ivslam inspect recording.bag
       ivslam inspect MRCLAM_Dataset6 --robot 2 --json
       ivslam inspect run.mcap --scan-topic /front/scan
     """
-    from ivslam_cli.logs import read_log
+    from ivslam_cli.logs import check_reader_options, read_log
 
     data = read_log(log, fmt, scan_topic=scan_topic, odom_topic=odom_topic,
                     landmark_topic=landmark_topic, truth_topic=truth_topic, robot=robot)
+    check_reader_options(data, robot=robot, scan_topic=scan_topic, odom_topic=odom_topic,
+                         landmark_topic=landmark_topic, truth_topic=truth_topic)
     summary = summarize(data)
     click.echo(json.dumps(summary, indent=2) if as_json else _text(summary))

@@ -44,49 +44,68 @@ def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, ma
       ivslam report lidar.h5 --plot submap3.png --submap 3
       ivslam report intel.h5 --relations ../shared/datasets/intel_lab/intel.relations.xz
     """
+    import math
+
+    from ivslam_cli.atomic import refuse_existing, transaction
     from ivslam_cli.errors import IvslamError
     from ivslam_cli.report.core import compute_report
     from ivslam_cli.results.hdf5 import read_result
 
     if stamp_tol is not None and relations is None:
         raise IvslamError("--stamp-tol applies to --relations only")
+    if stamp_tol is not None and not (math.isfinite(stamp_tol) and stamp_tol >= 0):
+        raise IvslamError(f"--stamp-tol must be a finite number >= 0, not {stamp_tol}")
     if max_hops is not None and relations is None:
         raise IvslamError("--max-hops applies to --relations only")
     if submap is not None and plot is None:
         raise IvslamError("--submap applies to --plot only")
-    res = read_result(result)
-    rep = compute_report(res)
-    rel_check = None
-    if relations is not None:
-        from ivslam_cli.report.relations import DEFAULT_MAX_HOPS, DEFAULT_TOL, check_relations, read_relations
+    with transaction(force=force, inputs=[result, relations]):
+        # every output checked before any work: existing, special, an input, or given twice
+        if map_pgm is not None:
+            refuse_existing(map_pgm.with_name(map_pgm.name + ".pgm"), force, kind="pgm")
+            refuse_existing(map_pgm.with_name(map_pgm.name + ".yaml"), force, kind="map-yaml")
+        if plot is not None:
+            refuse_existing(plot, force, kind="plot")
+        res = read_result(result)
+        if tum is not None:
+            from ivslam_cli.results.export import tum_paths
 
-        if res.poses is None:
-            raise IvslamError(f"has no pose enclosures ({res.mode} mode): nothing to check --relations against",
-                              result)
-        rel_check = check_relations(res.poses, read_relations(relations),
-                                    DEFAULT_TOL if stamp_tol is None else stamp_tol, relative=res.relative,
-                                    max_hops=DEFAULT_MAX_HOPS if max_hops is None else max_hops)
-    if tum is not None:
-        if res.poses is None:
+            for path in tum_paths(tum, None if res.robots is None else res.robots.id):
+                refuse_existing(path, force, kind="tum")
+        rep = compute_report(res)
+        rel_check = None
+        if relations is not None:
+            from ivslam_cli.report.relations import (DEFAULT_MAX_HOPS, DEFAULT_TOL, check_relations,
+                                                     read_relations)
+
+            if res.poses is None:
+                raise IvslamError(f"has no pose enclosures ({res.mode} mode): nothing to check --relations "
+                                  "against", result)
+            rel_check = check_relations(res.poses, read_relations(relations),
+                                        DEFAULT_TOL if stamp_tol is None else stamp_tol, relative=res.relative,
+                                        max_hops=DEFAULT_MAX_HOPS if max_hops is None else max_hops)
+        if tum is not None and res.poses is None:
             raise IvslamError(f"has no pose enclosures ({res.mode} mode): nothing to export to --tum", result)
-        from ivslam_cli.results.export import write_tum
-
-        skipped = write_tum(tum, res.poses, force=force, robots=res.robots)
-        if skipped:
-            click.echo(f"ivslam: note: {tum}: skipped {skipped} empty pose box(es)", err=True)
-    if map_pgm is not None:
-        if res.grid is None:
+        if map_pgm is not None and res.grid is None:
             raise IvslamError(f"has no map grid ({res.mode} mode): nothing to export to --map-pgm", result)
-        from ivslam_cli.results.export import write_map_server
+        skipped = 0
+        if tum is not None:
+            from ivslam_cli.results.export import write_tum
 
-        write_map_server(map_pgm, res.grid, force=force)
-    if plot is not None:
-        from ivslam_cli.report.plot import plot_report, plot_submap
+            skipped = write_tum(tum, res.poses, force=force, robots=res.robots)
+        if map_pgm is not None:
+            from ivslam_cli.results.export import write_map_server
 
-        if submap is None:
-            plot_report(rep, plot, force=force)
-        else:
-            plot_submap(rep, submap, plot, force=force)
+            write_map_server(map_pgm, res.grid, force=force)
+        if plot is not None:
+            from ivslam_cli.report.plot import plot_report, plot_submap
+
+            if submap is None:
+                plot_report(rep, plot, force=force)
+            else:
+                plot_submap(rep, submap, plot, force=force)
+    if skipped:
+        click.echo(f"ivslam: note: {tum}: skipped {skipped} empty pose box(es)", err=True)
     if as_json:
         from ivslam_cli.report.jsonout import render_json
 

@@ -93,50 +93,69 @@ def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, 
       ivslam run sample_logs/landmarks.bag --mode landmarks --initial-pose-from-truth
       ivslam run ../shared/datasets/mrclam/MRCLAM_Dataset6 --robot 1 --mode landmarks
           --config configs/mrclam.toml --tum robot1.tum -o robot1.h5
-      ivslam run ../shared/datasets/mrclam/MRCLAM_Dataset6 --robot all --mode landmarks
-          --config configs/mrclam.toml --tum all.tum -o all.h5
       ivslam run sample_logs/lidar_rooms.h5 --mode lidar --initial-pose-from-truth
       ivslam run ../shared/datasets/carmen_corrected/aces-corrected.log.gz --mode lidar --poses-known
     """
-    from ivslam_cli.atomic import refuse_existing
+    from ivslam_cli.atomic import refuse_existing, transaction
     from ivslam_cli.config import resolve_config
     from ivslam_cli.errors import InconsistentData, IvslamError
-    from ivslam_cli.logs import read_log
+    from ivslam_cli.logs import check_reader_options, read_log
     from ivslam_cli.results.hdf5 import write_result
     from ivslam_cli.slam import run_pipeline, summary
 
-    out = Path(output) if output else _default_output(log, mode)
-    if tum is not None and mode == "pairs":
-        raise IvslamError(f"--tum needs pose enclosures: --mode landmarks or lidar (not {mode})")
+    given = {"--q": q_pair, "--heading": heading, "--heading-source": heading_source, "--anchor": anchor,
+             "--reference": reference, "--q-landmark": q_landmark, "--q-pose": q_pose,
+             "--max-iterations": max_iterations, "--tolerance": tolerance, "--initial-pose": initial_pose,
+             "--initial-pose-from-truth": initial_pose_from_truth, "--tum": tum, "--poses-known": poses_known,
+             "--max-range": max_range, "--eps": eps}
+    for name, value in given.items():
+        if value is not None and mode not in OPTION_MODES[name]:
+            raise IvslamError(f"{name} applies to --mode {' or '.join(OPTION_MODES[name])} only (not {mode})")
     if robot == "all" and mode != "landmarks":
         raise IvslamError(f"--robot all needs --mode landmarks (not {mode})")
-    from ivslam_cli.results.export import tum_paths
+    out = Path(output) if output else _default_output(log, mode)
+    with transaction(force=force, inputs=[log, config_file]):
+        refuse_existing(out, force, kind="result")  # fail before the run, not after it
+        data = read_log(log, fmt, scan_topic=scan_topic, odom_topic=odom_topic, landmark_topic=landmark_topic,
+                        truth_topic=truth_topic, robot=robot)
+        if tum is not None:
+            from ivslam_cli.results.export import tum_paths
 
-    refuse_existing(out, force)  # fail before the run, not after it
-    data = read_log(log, fmt, scan_topic=scan_topic, odom_topic=odom_topic, landmark_topic=landmark_topic,
-                    truth_topic=truth_topic, robot=robot)
-    if tum is not None:
-        for path in tum_paths(tum, None if data.robots is None else [r for r, _ in data.robots]):
-            refuse_existing(path, force)
-    overrides = {
-        "bounds.range_abs": range_abs, "bounds.range_rel": range_rel, "bounds.bearing": bearing,
-        "robust.q_pair": q_pair, "robust.strict": strict,
-        "pairs.eps": eps if mode != "lidar" else None, "lidar.eps": eps if mode == "lidar" else None,
-        "lidar.poses_known": poses_known, "lidar.max_range": max_range,
-        "pairs.heading": heading, "pairs.heading_source": heading_source, "pairs.reference_id": reference,
-        "pairs.anchor_id": anchor[0] if anchor else None,
-        "pairs.anchor_xy": (anchor[1], anchor[2]) if anchor else None,
-        "landmarks.initial_pose": initial_pose, "landmarks.initial_pose_from_truth": initial_pose_from_truth,
-        "robust.q_landmark": q_landmark, "robust.q_pose": q_pose, "landmarks.max_iterations": max_iterations,
-        "landmarks.tolerance": tolerance,
-    }
-    cfg = resolve_config(config_file, overrides, log_bounds=data.bounds)
-    result = run_pipeline(data, cfg, mode, argv=sys.argv[1:] if ctx.parent else None)
-    write_result(out, result, force=force)
-    if tum is not None:
-        from ivslam_cli.results.export import write_tum
+            for path in tum_paths(tum, None if data.robots is None else [r for r, _ in data.robots]):
+                refuse_existing(path, force, kind="tum")
+        check_reader_options(data, robot=robot, scan_topic=scan_topic, odom_topic=odom_topic,
+                             landmark_topic=landmark_topic, truth_topic=truth_topic)
+        overrides = {
+            "bounds.range_abs": range_abs, "bounds.range_rel": range_rel, "bounds.bearing": bearing,
+            "robust.q_pair": q_pair, "robust.strict": strict,
+            "pairs.eps": eps if mode == "pairs" else None, "lidar.eps": eps if mode == "lidar" else None,
+            "lidar.poses_known": poses_known, "lidar.max_range": max_range,
+            "pairs.heading": heading, "pairs.heading_source": heading_source, "pairs.reference_id": reference,
+            "pairs.anchor_id": anchor[0] if anchor else None,
+            "pairs.anchor_xy": (anchor[1], anchor[2]) if anchor else None,
+            "landmarks.initial_pose": initial_pose, "landmarks.initial_pose_from_truth": initial_pose_from_truth,
+            "robust.q_landmark": q_landmark, "robust.q_pose": q_pose, "landmarks.max_iterations": max_iterations,
+            "landmarks.tolerance": tolerance,
+        }
+        cfg = resolve_config(config_file, overrides, log_bounds=data.bounds)
+        result = run_pipeline(data, cfg, mode, argv=sys.argv[1:] if ctx.parent else None)
+        write_result(out, result, force=force)
+        if tum is not None:
+            from ivslam_cli.results.export import write_tum
 
-        write_tum(tum, result.poses, force=force, robots=result.robots)
+            write_tum(tum, result.poses, force=force, robots=result.robots)
     click.echo(f"{summary(result)}, {result.runtime_s:.2f} s -> {out}", err=True)
     if result.consistency.stopped:
         raise InconsistentData(f"stopped (--strict): {result.consistency.stopped}; result written to {out}")
+
+
+#: the modes each mode-specific option applies to (given for another mode: an error, not ignored)
+OPTION_MODES: dict[str, tuple[str, ...]] = {
+    "--q": ("pairs",), "--heading": ("pairs",), "--heading-source": ("pairs",), "--anchor": ("pairs",),
+    "--reference": ("pairs",), "--eps": ("pairs", "lidar"),
+    "--q-landmark": ("landmarks",), "--q-pose": ("landmarks",), "--max-iterations": ("landmarks",),
+    "--tolerance": ("landmarks",),
+    "--initial-pose": ("landmarks", "lidar"), "--initial-pose-from-truth": ("landmarks", "lidar"),
+    "--tum": ("landmarks", "lidar"),
+    "--poses-known": ("lidar",), "--max-range": ("lidar",),
+}

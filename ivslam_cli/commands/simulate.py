@@ -75,14 +75,16 @@ def command(scenario, output, fmt, seed, steps, duration, rate, landmarks, world
       ivslam simulate --scenario lidar --sensor sick --beam-model ray -o rays.mcap
       ivslam simulate --scenario landmarks --noise edges --outlier-rate 0.01 -o lm.h5
     """
+    import os
     from pathlib import Path
 
-    from ivslam_cli.atomic import refuse_existing
+    from ivslam_cli.atomic import refuse_existing, transaction
     from ivslam_cli.logs.writers import format_from_path, write_log
     from ivslam_cli.simulate import SimConfig, simulate
 
     out = Path(output)
-    refuse_existing(out, force)
+    world_file = Path(world) if scenario == "lidar" and os.path.lexists(world) else None
+    refuse_existing(out, force, kind="log", inputs=[world_file] if world_file else ())
     fmt = fmt or format_from_path(out)
     cfg = SimConfig(scenario=scenario, seed=seed, steps=steps, duration=duration, rate=rate,
                     landmarks=landmarks, world_size=world_size, world=world, sensor=sensor,
@@ -100,6 +102,7 @@ def command(scenario, output, fmt, seed, steps, duration, rate, landmarks, world
                            show_eta=False) as bar:
         log = simulate(cfg, progress=bar.update)
         log.provenance.notes.append(f"simulated: scenario {scenario}, seed {seed} (config in meta)")
-        write_log(out, log, fmt, force=force)
+        with transaction(force=force, inputs=[world_file]):
+            write_log(out, log, fmt, force=force)
         bar.update(1)
     click.echo(f"wrote {out} ({fmt}, scenario {scenario}, seed {seed})", err=True)

@@ -30,7 +30,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ivslam_cli.interval.angles import angle_meet, shift
+from ivslam_cli.interval.angles import angle_meet
 from ivslam_cli.interval.arith import (
     EMPTY_HI,
     EMPTY_LO,

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ivslam_cli.errors import LogError
+from ivslam_cli.errors import IvslamError, LogError
 from ivslam_cli.logs.model import LogData
 
 FORMATS: dict[str, str] = {
@@ -19,6 +19,8 @@ FORMATS: dict[str, str] = {
     "mcap": "standalone .mcap (ros2/cdr or ros1 profile), via mcap + rosbags typestore",
     "carmen": "CARMEN text log (.log, .clf, .gfs.log; plain, .gz or .xz): FLASER, "
               "ROBOTLASER1, ODOM",
+    "gfs": "GMapping's own log output (.gfs: LASER_READING, ODOM, SIMULATOR_POS; its particle "
+           "records are not used; plain, .gz or .xz)",
     "mrclam": "UTIAS MRCLAM directory (Barcodes.dat, RobotN_*.dat)",
     "urg": "CoreSLAM/BreezySLAM URG-04LX .dat log (wheel ticks + 683 ranges in mm)",
     "victoria": "Victoria Park graph text (ODOMETRY / LANDMARK lines)",
@@ -33,6 +35,21 @@ def list_formats() -> dict[str, str]:
     return dict(FORMATS)
 
 
+#: the formats (as ``Provenance.format`` names them) the topic options apply to
+TOPIC_FORMATS = ("ros1", "ros2", "mcap-ros1", "mcap-ros2")
+
+
+def check_reader_options(log: LogData, *, robot: int | None = None, **topics: str | None) -> None:
+    """Refuse reader options that do not apply to the log read (never ignore them silently)."""
+    fmt = log.provenance.format
+    if robot is not None and fmt != "mrclam":
+        raise LogError(f"--robot applies to MRCLAM datasets only (this log is {fmt})", log.provenance.path)
+    for name, value in topics.items():
+        if value is not None and fmt not in TOPIC_FORMATS:
+            raise LogError(f"--{name.replace('_', '-')} applies to ROS bags and MCAP files only "
+                           f"(this log is {fmt})", log.provenance.path)
+
+
 def read_log(path, fmt: str | None = None, *, scan_topic: str | None = None,
              odom_topic: str | None = None, landmark_topic: str | None = None,
              truth_topic: str | None = None, robot: int | str | None = None) -> LogData:
@@ -41,15 +58,23 @@ def read_log(path, fmt: str | None = None, *, scan_topic: str | None = None,
     Topic options apply to ROS/MCAP logs, ``robot`` to MRCLAM (default 1; ``"all"``: every
     robot, in ``LogData.robots``).
     """
+    from ivslam_cli.errors import IvslamError
+    from ivslam_cli.inputs import check_input
+
+    path = check_input(path, "log", dir_ok=True, error=LogError)
+    if fmt is not None and fmt not in FORMATS:
+        raise LogError(f"unknown format {fmt!r} (known: {', '.join(FORMATS)})", path)
+    try:
+        return _read(path, fmt, scan_topic, odom_topic, landmark_topic, truth_topic, robot)
+    except IvslamError as exc:
+        raise exc.about(path) from None
+
+
+def _read(path: Path, fmt, scan_topic, odom_topic, landmark_topic, truth_topic, robot) -> LogData:
     from ivslam_cli.logs.detect import detect_format
 
-    path = Path(path)
-    if not path.exists():
-        raise LogError("no such file or directory", path)
     if fmt is None:
         fmt = detect_format(path)
-    elif fmt not in FORMATS:
-        raise LogError(f"unknown format {fmt!r} (known: {', '.join(FORMATS)})", path)
     topic_opts = dict(scan_topic=scan_topic, odom_topic=odom_topic,
                       landmark_topic=landmark_topic, truth_topic=truth_topic)
     try:
@@ -65,6 +90,10 @@ def read_log(path, fmt: str | None = None, *, scan_topic: str | None = None,
             from ivslam_cli.logs.carmen import read_carmen
 
             return read_carmen(path)
+        if fmt == "gfs":
+            from ivslam_cli.logs.gfs import read_gfs
+
+            return read_gfs(path)
         if fmt == "mrclam":
             from ivslam_cli.logs.mrclam import read_mrclam, read_mrclam_all
 
@@ -84,11 +113,15 @@ def read_log(path, fmt: str | None = None, *, scan_topic: str | None = None,
 
             return read_keyframe_json(path)
         return _read_h5(path)
-    except LogError:
+    except IvslamError:
         raise
     except (OSError, EOFError) as exc:
         raise LogError(f"cannot read: {exc.strerror or exc}", path) from None
-    except (ValueError, IndexError, KeyError, UnicodeDecodeError, MemoryError) as exc:
+    except MemoryError:
+        raise LogError("not enough memory to read it (a size the file declares is too large?)",
+                       path) from None
+    except (ValueError, IndexError, KeyError, UnicodeDecodeError, OverflowError, TypeError,
+            RecursionError) as exc:
         text = " ".join(str(exc).split())[:160]
         raise LogError(f"corrupt {fmt} log ({type(exc).__name__}: {text})", path) from None
 

@@ -10,24 +10,33 @@ Records read (every other keyword, e.g. ``NEFF``, ``PARAM`` except the laser off
   laser_x laser_y laser_th robot_x robot_y robot_th tv rv fsd ssd turn ipc_t host t``.
 * ``ODOM x y th tv rv accel ipc_t host logger_t`` -> odometry pose and (v, omega).
 
-Stamps are the ``ipc_t`` field. Without a stated maximum range, a value that is the
+Stamps are the ``ipc_t`` field. When they cannot order the log (too few digits, mixed
+clocks: :mod:`.stamps`), the records keep their file order with repaired stamps, and a note
+says so. Without a stated maximum range, a value that is the
 maximum of the whole log, above twice the median range, and occurs in >= 0.5% of
 at least 1000 beams is the "no return" value
 (81.83 m in the Intel log): ``range_max`` is set just below it, so those beams are
 invalid and counted. Without ``ODOM`` lines, the FLASER odometry poses are the odometry.
+
+The file is streamed (:func:`~.textfile.iter_lines`) into compact columns: memory stays
+near the size of the numbers, whatever the file's size up to ``limits.TEXT_BYTES``.
 """
 
 from __future__ import annotations
 
 import math
+from array import array
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from ivslam_cli import limits
 from ivslam_cli.errors import LogError
 from ivslam_cli.logs.conventions import ScanSink, make_odometry
-from ivslam_cli.logs.model import LogData, Provenance
-from ivslam_cli.logs.textfile import read_text
+from ivslam_cli.logs.model import Dropped, LogData, Provenance
+from ivslam_cli.logs.stamps import file_order_stamps, unusable
+from ivslam_cli.logs.textfile import iter_lines
 
 
 def _fov(n: int) -> tuple[float, float]:
@@ -35,15 +44,47 @@ def _fov(n: int) -> tuple[float, float]:
     return -math.pi / 2, inc
 
 
+@dataclass
+class Records:
+    """What a text laser log gives, in file order, in compact columns."""
+
+    scan_meta: array = field(default_factory=lambda: array("d"))  # amin, inc, rmax (nan: unknown)
+    scan_pose: array = field(default_factory=lambda: array("d"))  # odometry pose at each scan
+    ranges: list = field(default_factory=list)  # float32 array per scan
+    odom: array = field(default_factory=lambda: array("d"))  # x, y, th, v, w (nan: absent)
+    stamp: array = field(default_factory=lambda: array("d"))  # every record, file order
+    kind: array = field(default_factory=lambda: array("b"))  # 0 scan, 1 odometry
+    beams: int = 0
+
+    def add_scan(self, stamp: float, amin: float, inc: float, rmax: float, ranges: np.ndarray,
+                 pose) -> None:
+        limits.check("SCANS", len(self.ranges) + 1, "scans in the log")
+        self.beams += ranges.size
+        limits.check("BEAMS", self.beams, "beams in the log")
+        self.scan_meta.extend((amin, inc, rmax))
+        self.scan_pose.extend(pose)
+        self.ranges.append(ranges)
+        self.stamp.append(stamp)
+        self.kind.append(0)
+
+    def add_odom(self, stamp: float, row) -> None:
+        limits.check("RECORDS", len(self.odom) // 5 + 1, "odometry records")
+        self.odom.extend(row)
+        self.stamp.append(stamp)
+        self.kind.append(1)
+
+
+def _ranges(tok: list[str], a: int, n: int, lineno: int) -> np.ndarray:
+    if n > limits.get("BEAMS_PER_SCAN"):
+        limits.check("BEAMS_PER_SCAN", n, f"line {lineno} declares beams")
+    return np.array(tok[a:a + n], np.float32)
+
+
 def read_carmen(path: Path) -> LogData:
-    text = read_text(path)
-    dropped, notes = [], []
-    scan_rows: list[tuple] = []  # stamp, amin, inc, rmax(or nan), ranges
-    scan_odo: list[tuple] = []
-    odom: list[tuple] = []
+    rec = Records()
     mount_x = 0.0
     bad = 0
-    for lineno, line in enumerate(text.splitlines(), 1):
+    for lineno, line in enumerate(iter_lines(path), 1):
         tok = line.split()
         if not tok:
             continue
@@ -54,70 +95,106 @@ def read_carmen(path: Path) -> LogData:
                 if n <= 0 or len(tok) != n + 11:
                     bad += 1
                     continue
-                r = np.array(tok[2:2 + n], np.float32)
+                r = _ranges(tok, 2, n, lineno)
                 amin, inc = _fov(n)
                 rest = [float(x) for x in tok[2 + n: 8 + n]]
-                scan_rows.append((float(tok[8 + n]), amin, inc, math.nan, r))
-                scan_odo.append((float(tok[8 + n]), *rest[3:6]))
+                rec.add_scan(float(tok[8 + n]), amin, inc, math.nan, r, rest[3:6])
             elif key == "ROBOTLASER1":
                 n = int(tok[8])
-                m = int(tok[9 + n])
-                if n <= 0 or m < 0 or len(tok) != 10 + n + m + 14:
+                if n <= 0 or len(tok) < 10 + n:
                     bad += 1
                     continue
-                r = np.array(tok[9:9 + n], np.float32)
+                m = int(tok[9 + n])
+                if m < 0 or len(tok) != 10 + n + m + 14:
+                    bad += 1
+                    continue
+                r = _ranges(tok, 9, n, lineno)
                 start, fov, res, rmax = (float(x) for x in tok[2:6])
                 after = 10 + n + m
-                stamp = float(tok[after + 11])
-                scan_rows.append((stamp, start, res if res else fov / max(n - 1, 1), rmax, r))
-                scan_odo.append((stamp, *(float(x) for x in tok[after + 3: after + 6])))
+                inc = res if res else fov / max(n - 1, 1)
+                rec.add_scan(float(tok[after + 11]), start, inc, rmax, r,
+                             [float(x) for x in tok[after + 3: after + 6]])
             elif key == "ODOM":
                 if len(tok) != 10:
                     bad += 1
                     continue
-                odom.append(tuple(float(x) for x in tok[1:6]) + (float(tok[7]),))
+                rec.add_odom(float(tok[7]), [float(x) for x in tok[1:6]])
             elif key == "PARAM" and len(tok) > 2 and tok[1] == "robot_frontlaser_offset":
                 mount_x = float(tok[2])
-        except ValueError:
+        except (ValueError, IndexError):
             bad += 1
-    if not scan_rows and not odom:
+    if not rec.ranges and not rec.odom:
         raise LogError("no FLASER, ROBOTLASER1 or ODOM records (empty or not a CARMEN log)",
                        path)
+    dropped: list[Dropped] = []
     if bad:
-        from ivslam_cli.logs.model import Dropped
-
         dropped.append(Dropped("records", bad, "malformed FLASER/ROBOTLASER1/ODOM lines "
                                "(wrong field count or not numbers)"))
-    scans = None
+    if not math.isfinite(mount_x):
+        raise LogError("PARAM robot_frontlaser_offset is not a finite number", path)
+    return assemble(path, "carmen", rec, dropped, mount=(mount_x, 0.0, 0.0),
+                    scan_topic="FLASER/ROBOTLASER1", odom_topic="ODOM",
+                    scan_pose_topic="FLASER odometry poses",
+                    angles="FLASER: 180 deg field of view from -90 deg assumed")
+
+
+def _no_return(allr: np.ndarray) -> float:
+    fin = allr[np.isfinite(allr)]
+    vmax = float(fin.max()) if fin.size else math.inf
+    saturated = (fin.size >= 1000 and vmax > 2 * float(np.median(fin))
+                 and np.count_nonzero(fin == vmax) >= 0.005 * allr.size)
+    return vmax if saturated else math.nan
+
+
+def assemble(path: Path, fmt: str, rec: Records, dropped: list[Dropped], *, mount, scan_topic: str,
+             odom_topic: str, scan_pose_topic: str, angles: str) -> LogData:
+    """The :class:`LogData` of a text laser log read into ``rec`` (CARMEN, GMapping .gfs)."""
+    notes: list[str] = []
     meta: dict[str, object] = {}
-    if scan_rows:
-        allr = np.concatenate([row[4] for row in scan_rows])
-        fin = allr[np.isfinite(allr)]
-        vmax = float(fin.max()) if fin.size else math.inf
-        saturated = (fin.size >= 1000 and vmax > 2 * float(np.median(fin))
-                     and np.count_nonzero(fin == vmax) >= 0.005 * allr.size)
-        default_max = float(np.nextafter(np.float32(vmax), np.float32(0))) if saturated \
-            else math.inf
-        if saturated:
+    stamp = np.frombuffer(rec.stamp, np.float64).copy()
+    kind = np.frombuffer(rec.kind, np.int8)
+    why = unusable(stamp, np.where(kind == 0, "scan", "odometry"))
+    if why is not None:
+        stamp = file_order_stamps(stamp, kind)
+        notes.append(f"stamps cannot order the records ({why}); records kept in file order, "
+                     "with strictly increasing stamps (those out of order or tied interpolated by "
+                     "their position in the file)")
+        meta["stamps"] = "file order (the log's stamps cannot order it)"
+    scan_stamp, odom_stamp = stamp[kind == 0], stamp[kind == 1]
+    scans = None
+    n_scans = len(rec.ranges)
+    if n_scans:
+        sm = np.frombuffer(rec.scan_meta, np.float64).reshape(-1, 3)
+        allr = np.concatenate(rec.ranges)
+        vmax = _no_return(allr)
+        default_max = math.inf
+        if not math.isnan(vmax):
+            default_max = float(np.nextafter(np.float32(vmax), np.float32(0)))
             notes.append(f"value {vmax:g} m is the log's max-range 'no return' value")
-        sink = ScanSink(len(scan_rows))
-        for k, (stamp, amin, inc, rmax, r) in enumerate(scan_rows):
-            rm = default_max if math.isnan(rmax) else rmax
-            sink.add([k], [stamp], [amin], [inc], [0.0], [rm], r.reshape(1, -1))
+        del allr
+        sink = ScanSink(n_scans)
+        for k in range(n_scans):
+            rm = default_max if math.isnan(sm[k, 2]) else sm[k, 2]
+            sink.add([k], [scan_stamp[k]], [sm[k, 0]], [sm[k, 1]], [0.0], [rm],
+                     rec.ranges[k].reshape(1, -1))
         scans = sink.finish(dropped, zero_reason="beams equal to 0 (no return, marked invalid)",
-                            mount=(mount_x, 0.0, 0.0), frame_id="laser")
-        meta["scan_odometry_pose"] = [list(row[1:]) for row in scan_odo]
-        meta["angles"] = "FLASER: 180 deg field of view from -90 deg assumed"
-    if odom:
-        a = np.asarray(odom, np.float64)
-        odometry = make_odometry(a[:, 5], a[:, 0:3], a[:, 3:5], dropped=dropped)
-        src = "ODOM"
+                            mount=mount, frame_id="laser")
+        meta["scan_odometry_pose"] = np.frombuffer(rec.scan_pose, np.float64).reshape(-1, 3).tolist()
+        meta["angles"] = angles
+    if rec.odom:
+        a = np.frombuffer(rec.odom, np.float64).reshape(-1, 5)
+        twist = a[:, 3:5] if np.isfinite(a[:, 3:5]).any() else None
+        odometry = make_odometry(odom_stamp, a[:, 0:3], twist, dropped=dropped)
+        src = odom_topic
+    elif n_scans:
+        odometry = make_odometry(scan_stamp, np.frombuffer(rec.scan_pose, np.float64).reshape(-1, 3),
+                                 None, dropped=dropped)
+        src = scan_pose_topic
     else:
-        a = np.asarray(scan_odo, np.float64)
-        odometry = make_odometry(a[:, 0], a[:, 1:4], None, dropped=dropped)
-        src = "FLASER odometry poses"
-    prov = Provenance(path=str(path), format="carmen",
-                      topics={"scan": "FLASER/ROBOTLASER1", "odom": src} if scans else
-                      {"odom": src}, dropped=dropped, notes=notes)
-    meta["counts"] = {"FLASER/ROBOTLASER1": len(scan_rows), "ODOM": len(odom)}
+        odometry = None
+        src = odom_topic
+    prov = Provenance(path=str(path), format=fmt,
+                      topics={"scan": scan_topic, "odom": src} if scans else {"odom": src},
+                      dropped=dropped, notes=notes)
+    meta["counts"] = {scan_topic: n_scans, odom_topic: len(rec.odom) // 5}
     return LogData(provenance=prov, scans=scans, odometry=odometry, meta=meta)

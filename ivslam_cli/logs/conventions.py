@@ -3,9 +3,11 @@
 * no-return beams (``inf``, NaN, 0, below ``range_min``, above ``range_max``, error
   codes) stay in ``ranges`` but are marked invalid in ``Scans.valid``;
 * the duplicated last beam of a 360° scanner (first and last beam at the same angle,
-  e.g. the Neato's 361 beams from -pi to +pi) is dropped;
+  e.g. the Neato's 361 beams from -pi to +pi: ``(n - 1) * increment`` is 2π) is dropped;
 * out-of-order stamps are sorted (stable), and counted;
-* odometry / observation rows with NaN or inf are dropped, and counted.
+* odometry / observation rows with NaN or inf are dropped, and counted;
+* odometry rows that repeat the stamp of the row before them (after sorting) are dropped,
+  the first kept, and counted: a motion step needs a positive duration.
 
 Everything removed or marked is recorded as a :class:`Dropped` line.
 """
@@ -16,6 +18,7 @@ import math
 
 import numpy as np
 
+from ivslam_cli import limits
 from ivslam_cli.logs.model import Dropped, Odometry, Observations, Scans
 
 
@@ -25,10 +28,13 @@ class ScanSink:
     ``capacity`` (messages) is a hint; ranges are allocated at ``capacity * beams``
     of the first block and grown geometrically when needed, so the peak memory is the
     final arrays plus one block (plus one growth copy when the hint was too small).
+    Scans, beams and beams per scan are checked against ``limits.SCANS``, ``BEAMS`` and
+    ``BEAMS_PER_SCAN`` before anything is allocated for them (a declared count is only a
+    hint: it is capped by the limits).
     """
 
     def __init__(self, capacity: int = 1024):
-        self.cap = max(int(capacity), 1)
+        self.cap = min(max(int(capacity), 1), limits.get("SCANS"))
         self.n = 0
         self.nb = 0
         self.cols = {k: np.empty(self.cap, np.float64) for k in
@@ -45,7 +51,8 @@ class ScanSink:
     def _grow_rows(self, need: int) -> None:
         if need <= self.cap:
             return
-        cap = max(need, 2 * self.cap)
+        limits.check("SCANS", need, "scans in the log")
+        cap = min(max(need, 2 * self.cap), limits.get("SCANS"))
         for k, a in self.cols.items():
             self.cols[k] = np.resize(a, cap)
         self.order = np.resize(self.order, cap)
@@ -53,12 +60,14 @@ class ScanSink:
         self.cap = cap
 
     def _grow_beams(self, need: int, per_scan: int) -> None:
+        limits.check("BEAMS", need, "beams in the log")
+        cap = limits.get("BEAMS")
         if self.ranges is None:
-            size = max(need, self.cap * per_scan)
+            size = max(need, min(self.cap * per_scan, cap))
             self.ranges = np.empty(size, np.float32)
             self.valid = np.empty(size, bool)
         elif need > self.ranges.shape[0]:
-            size = max(need, 2 * self.ranges.shape[0])
+            size = max(need, min(2 * self.ranges.shape[0], cap))
             new = np.empty(size, np.float32)
             new[: self.nb] = self.ranges[: self.nb]
             self.ranges = new
@@ -78,10 +87,10 @@ class ScanSink:
         k, n = ranges.shape
         if k == 0:
             return
+        limits.check("BEAMS_PER_SCAN", n, "beams in one scan")
         if angle_max is not None and n > 1:
-            span = np.asarray(angle_max) - np.asarray(angle_min)
-            inc = np.abs(np.asarray(angle_increment))
-            dup = np.abs(np.abs(span) - 2 * math.pi) < 0.5 * inc
+            inc = np.abs(np.asarray(angle_increment, np.float64))
+            dup = np.abs((n - 1) * inc - 2 * math.pi) < 0.5 * inc
             if dup.all():
                 ranges = ranges[:, : n - 1]
                 self.dup_beams += k
@@ -209,6 +218,13 @@ def make_odometry(stamp, pose=None, twist=None, *, dropped: list[Dropped],
         twist = None if twist is None else twist[perm]
     if stamp.size == 0:
         return None
+    tied = np.concatenate([[False], stamp[1:] == stamp[:-1]])
+    if tied.any():
+        dropped.append(Dropped(stream, int(tied.sum()), "rows repeating the previous row's stamp "
+                               "(dropped, the first kept)"))
+        stamp = stamp[~tied]
+        pose = None if pose is None else pose[~tied]
+        twist = None if twist is None else twist[~tied]
     return Odometry(stamp=stamp, pose=pose, twist=twist)
 
 

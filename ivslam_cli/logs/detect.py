@@ -43,19 +43,25 @@ def detect_format(path: Path) -> str:
 
 def _sniff_text(path: Path) -> str:
     lines = first_lines(path, 200)
+    from ivslam_cli.logs.gfs import KEYS as GFS_KEYS
     from ivslam_cli.logs.keyframe_json import is_keyframe_json
 
     if is_keyframe_json("".join(lines[:3])):
         return "keyframe-json"
+    first = [line.split()[:1] for line in lines]
+    if any(t and t[0] in GFS_KEYS for t in first):
+        return "gfs"
     for line in lines:
         tok = line.split()
         if not tok or tok[0].startswith("#"):
             continue
+        if tok[0] == "ODOM" and len(tok) == 5:  # GMapping's ODOM x y theta time
+            return "gfs"
         if tok[0] in CARMEN_KEYS:
             return "carmen"
         if tok[0] in ("ODOMETRY", "LANDMARK", "VERTEX2", "EDGE2"):
             return "victoria"
         if len(tok) == 707 and all(t.isdigit() for t in tok[:4]):  # 24 + 683 ranges
             return "urg"
-    raise LogError("unknown log format (not a bag, MCAP, HDF5, CARMEN, URG .dat, "
+    raise LogError("unknown log format (not a bag, MCAP, HDF5, CARMEN, GMapping .gfs, URG .dat, "
                    "Victoria Park text or keyframe JSON; use --format)", path)

@@ -77,7 +77,7 @@ def is_keyframe_json(head: str) -> bool:
 
 
 def read_keyframe_json(path: Path) -> LogData:
-    text = read_text(path)
+    text = read_text(path, "JSON_BYTES")
     if not text.strip():
         raise LogError("empty file", path)
     try:
@@ -87,6 +87,9 @@ def read_keyframe_json(path: Path) -> LogData:
                        f"column {exc.colno}", path) from None
     except RecursionError:
         raise LogError("not a keyframe JSON log (nested too deeply)", path) from None
+    except ValueError as exc:  # e.g. an integer literal too long to convert
+        raise LogError(f"not valid JSON ({' '.join(str(exc).split())[:120]})", path) from None
+    del text
     if not isinstance(doc, dict) or not isinstance(doc.get("map"), dict):
         raise LogError('not a keyframe JSON log (expected {"map": {"<unix time>": {x, y, theta, range}}})',
                        path)

@@ -18,7 +18,7 @@ import numpy as np
 from ivslam_cli.errors import LogError
 from ivslam_cli.logs.conventions import make_observations, make_odometry
 from ivslam_cli.logs.model import Dropped, GroundTruth, LogData, Provenance
-from ivslam_cli.logs.textgrid import table
+from ivslam_cli.logs.textgrid import int_column, table
 
 LANDMARK_SUBJECTS = range(6, 21)
 
@@ -36,12 +36,15 @@ def read_mrclam(root: Path, robot: int = 1) -> LogData:
     if not 1 <= robot <= 5:
         raise LogError(f"MRCLAM robot must be 1..5, not {robot}", root)
     dropped: list[Dropped] = []
-    bc = table(_file(root, "Barcodes.dat"), 2).astype(np.int64)
+    bc_path = _file(root, "Barcodes.dat")
+    bc = table(bc_path, 2)
+    bc = np.column_stack([int_column(bc[:, 0], "subject", bc_path), int_column(bc[:, 1], "barcode", bc_path)])
     subject_of = {int(b): int(s) for s, b in bc}
-    meas = table(_file(root, f"Robot{robot}_Measurement.dat"), 4)
+    meas_path = _file(root, f"Robot{robot}_Measurement.dat")
+    meas = table(meas_path, 4)
     odo = table(_file(root, f"Robot{robot}_Odometry.dat"), 3)
-    barcode = meas[:, 1].astype(np.int64)
-    subject = np.array([subject_of.get(int(b), -int(b)) for b in barcode], np.int64)
+    barcode = int_column(meas[:, 1], "barcode", meas_path)
+    subject = np.array([subject_of.get(int(b), -int(b)) for b in barcode], np.int64).reshape(-1)
     is_lm = np.isin(subject, list(LANDMARK_SUBJECTS))
     n_robot = int(np.count_nonzero((subject >= 1) & (subject <= 5)))
     n_unknown = int(np.count_nonzero(subject < 0))
@@ -65,7 +68,7 @@ def read_mrclam(root: Path, robot: int = 1) -> LogData:
     lm_path = _file(root, "Landmark_Groundtruth.dat", required=False)
     if lm_path is not None:
         lm = table(lm_path, 5)
-        truth.landmark_id, truth.landmark_xy = lm[:, 0].astype(np.int64), lm[:, 1:3]
+        truth.landmark_id, truth.landmark_xy = int_column(lm[:, 0], "landmark id", lm_path), lm[:, 1:3]
     if obs is None and odometry is None:
         raise LogError(f"robot {robot}: no measurements and no odometry", root)
     prov = Provenance(path=str(root), format="mrclam",

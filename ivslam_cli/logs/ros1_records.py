@@ -10,12 +10,14 @@ raises :class:`LogError` instead of reading out of bounds or looping.
 
 from __future__ import annotations
 
-import bz2
+import mmap
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
 
+from ivslam_cli import limits
 from ivslam_cli.errors import LogError
+from ivslam_cli.logs.compression import decompress
 
 MAGIC = b"#ROSBAG V2.0\n"
 OP_MSG, OP_BAG, OP_INDEX, OP_CHUNK, OP_INFO, OP_CONN = 2, 3, 4, 5, 6, 7
@@ -70,18 +72,12 @@ def _records(buf: bytes, start: int, path, what: str) -> Iterator[tuple[dict, in
 
 
 def _decompress(kind: bytes, data: bytes, size: int, path) -> bytes:
+    if kind not in (b"none", b"bz2", b"lz4"):
+        raise LogError(f"unknown chunk compression {kind!r}", path)
+    limits.check("CHUNK_BYTES", size, "a bag chunk's uncompressed size")
     try:
-        if kind == b"none":
-            out = data
-        elif kind == b"bz2":
-            out = bz2.decompress(data)
-        elif kind == b"lz4":
-            import lz4.frame
-
-            out = lz4.frame.decompress(data)
-        else:
-            raise LogError(f"unknown chunk compression {kind!r}", path)
-    except LogError:
+        out = decompress(kind.decode(), data, None)
+    except (LogError, limits.LimitExceeded):
         raise
     except Exception as exc:  # corrupt compressed stream
         raise LogError(f"corrupt chunk ({type(exc).__name__})", path) from None
@@ -93,8 +89,11 @@ def _decompress(kind: bytes, data: bytes, size: int, path) -> bytes:
 def read_records(path) -> tuple[dict[int, Conn], list[tuple[int, int, bytes]]]:
     """Every connection, and every message as ``(conn id, time ns, payload)``, file order."""
     with open(path, "rb") as f:
-        buf = f.read()
-    if not buf.startswith(MAGIC):
+        try:  # mapped, not read: a bag may be far larger than the memory
+            buf = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
+        except ValueError:  # an empty file cannot be mapped
+            buf = b""
+    if not buf[: len(MAGIC)] == MAGIC:
         raise LogError("not a ROS 1 bag v2.0 (bad magic)", path)
     conns: dict[int, Conn] = {}
     messages: list[tuple[int, int, bytes]] = []
@@ -132,6 +131,7 @@ def read_records(path) -> tuple[dict[int, Conn], list[tuple[int, int, bytes]]]:
                         sec, nsec = struct.unpack("<II", ch["time"])
                     except (KeyError, struct.error):
                         raise LogError("corrupt message record", path) from None
+                    limits.check("RECORDS", len(messages) + 1, "messages in the bag")
                     messages.append((cid, sec * 1_000_000_000 + nsec,
                                      chunk[coff: coff + cdl]))
         elif op not in (OP_BAG, OP_INDEX, OP_INFO):

@@ -7,7 +7,8 @@ batches by :mod:`laserscan_wire`. For ROS 1 the payloads are sliced straight out
 decompressed chunks through rosbags' own index (``Reader1.indexes`` / ``chunks``), the
 per-message cost of ``Reader1.messages`` being the bottleneck. Bags whose index rosbags
 cannot use (assertion on non-standard index records) are re-read sequentially by
-:mod:`ros1_records`.
+:mod:`ros1_records`. ROS 1 chunks are decompressed with a bound (:mod:`.compression`), by
+ivslam and by rosbags (whose bz2/lz4 decompressors are replaced by the bounded ones).
 """
 
 from __future__ import annotations
@@ -17,12 +18,22 @@ from pathlib import Path
 
 import numpy as np
 
+from ivslam_cli import limits
 from ivslam_cli.errors import LogError
+from ivslam_cli.logs.compression import decompress
 from ivslam_cli.logs.model import LogData
 from ivslam_cli.logs.ros_streams import KNOWN, StreamCollector, choose_topics, normalize_type
 from ivslam_cli.logs.typestore import typestore
 
 BATCH = 4096
+
+
+def _bound_rosbags_decompressors() -> None:
+    """rosbags inflates ROS 1 chunks without a bound: give it the bounded decompressors."""
+    from rosbags.rosbag1 import reader as r1
+
+    r1.decompressors.update({"bz2": lambda d: decompress("bz2", d),
+                             "lz4": lambda d: decompress("lz4", d)})
 
 
 def _topics(connections) -> dict[str, tuple[str, int]]:
@@ -38,9 +49,12 @@ def read_bag(path: Path, fmt: str, **opts) -> LogData:
     """Read a ROS 1 bag (``fmt='ros1'``) or a ROS 2 bag (``fmt='ros2'``)."""
     from rosbags.highlevel import AnyReader
 
+    _bound_rosbags_decompressors()
     try:
         reader = AnyReader([path], default_typestore=typestore(2))
         reader.open()
+    except limits.LimitExceeded:
+        raise
     except AssertionError:
         if fmt == "ros1":
             return _read_ros1_sequential(path, **opts)
@@ -57,7 +71,7 @@ def read_bag(path: Path, fmt: str, **opts) -> LogData:
         raise LogError(f"cannot read bag: {_msg(exc)}", path) from None
     try:
         return _read_open(reader, path, fmt, **opts)
-    except LogError:
+    except (LogError, limits.LimitExceeded):
         raise
     except AssertionError:
         if fmt == "ros1":
@@ -122,6 +136,7 @@ def _ros1_scans(r1, conns, col: StreamCollector, path: Path) -> None:
                 col.add_scan_payloads(payloads, np.asarray(times, np.int64) * 1e-9)
                 payloads, times = [], []
             head = r1.chunks[e.chunk_pos]
+            limits.check("CHUNK_BYTES", head.datasize, "a bag chunk's compressed size")
             bio.seek(head.datapos)
             raw = bio.read(head.datasize)
             if len(raw) != head.datasize:

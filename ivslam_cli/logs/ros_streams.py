@@ -9,13 +9,15 @@ Message type names are normalised to the ROS 2 form ``pkg/msg/Name``.
 from __future__ import annotations
 
 import math
+from array import array
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ivslam_cli import limits
 from ivslam_cli.errors import LogError
 from ivslam_cli.logs.conventions import ScanSink, make_observations, make_odometry
-from ivslam_cli.logs.laserscan_wire import decode_laserscans
+from ivslam_cli.logs.laserscan_wire import ScanBlock, decode_laserscans
 from ivslam_cli.logs.model import Dropped, GroundTruth, LogData, Provenance
 from ivslam_cli.logs.msgdefs import LANDMARK_MSG_ROS2
 from ivslam_cli.logs.meta import META_TOPIC, decode_meta
@@ -120,21 +122,45 @@ class StreamCollector:
     def __post_init__(self):
         self.sink = ScanSink(self.scan_capacity)
         self.scan_seq = 0
-        self.scan_log_time: list[np.ndarray] = []
         self.bad_scans = 0
-        self.odom: list[tuple] = []
-        self.truth: list[tuple] = []
-        self.lm: list[tuple] = []
+        self.bad_angles = 0
+        # compact columns (8 bytes a value): memory stays near the size of the data
+        self.odom = array("d")  # stamp, x, y, yaw, v, omega
+        self.truth = array("d")  # stamp, x, y, yaw
+        self.lm_stamp = array("d")
+        self.lm_id = array("q")
+        self.lm_range = array("d")
+        self.lm_bearing = array("d")
+        self.lm_messages = 0
         self.bad_lm = 0
-        self.tf: dict[str, tuple[str, float, float, float]] = {}
-        self.meta_text: str | None = None
+        self.tf: dict[str, tuple[float, str, float, float, float]] = {}  # child -> earliest
+        self.meta: tuple[float, str] | None = None  # the earliest metadata record
 
     # -- scans: raw payloads, decoded in batches ---------------------------------
     def add_scan_payloads(self, payloads: list, log_times: np.ndarray) -> None:
-        """Decode a batch of serialized LaserScans (log times in seconds)."""
+        """Decode a batch of serialized LaserScans (log times in seconds).
+
+        A scan whose beam count disagrees with its own angles (``n`` beams should span
+        ``angle_max - angle_min = (n - 1) * angle_increment``; one beam of slack for drivers
+        that count the span differently), or whose angles are not finite or whose increment
+        is 0, is dropped and counted: its beams cannot be given an angle.
+        """
         blocks, bad = decode_laserscans(payloads, self.ros)
         self.bad_scans += int(bad.size)
         for b in blocks:
+            n = b.ranges.shape[1]
+            with np.errstate(all="ignore"):
+                span = (b.angle_max - b.angle_min) / b.angle_increment
+            ok = (np.isfinite(b.angle_min) & np.isfinite(b.angle_max) & np.isfinite(b.angle_increment)
+                  & (b.angle_increment != 0) & np.isfinite(span) & (np.abs(span + 1 - n) <= 1.0 + 1e-3))
+            if not ok.all():
+                self.bad_angles += int(np.count_nonzero(~ok))
+                if not ok.any():
+                    continue
+                b = ScanBlock(index=b.index[ok], stamp=b.stamp[ok], angle_min=b.angle_min[ok],
+                              angle_max=b.angle_max[ok], angle_increment=b.angle_increment[ok],
+                              range_min=b.range_min[ok], range_max=b.range_max[ok], ranges=b.ranges[ok],
+                              frame_id=b.frame_id)
             stamp = np.where(b.stamp > 0, b.stamp, log_times[b.index])
             self.sink.add(self.scan_seq + b.index, stamp, b.angle_min, b.angle_increment,
                           b.range_min, b.range_max, b.ranges, b.frame_id, b.angle_max)
@@ -142,40 +168,50 @@ class StreamCollector:
 
     # -- everything else: deserialised messages -----------------------------------
     def add_message(self, role: str, msg, log_time: float) -> None:
+        """One deserialised message (any order: the result does not depend on it)."""
         if role == "odom":
+            limits.check("RECORDS", len(self.odom) // 6 + 1, "odometry messages")
             mtype = self.topics[self.roles["odom"]][0]
             if mtype == ODOM:
                 p, tw = msg.pose.pose, msg.twist.twist
-                self.odom.append((_stamp(msg.header), p.position.x, p.position.y,
+                self.odom.extend((_stamp(msg.header), p.position.x, p.position.y,
                                   _yaw(p.orientation), tw.linear.x, tw.angular.z))
                 self.odom_child = msg.child_frame_id
             elif mtype == TWIST_STAMPED:
                 tw = msg.twist
-                self.odom.append((_stamp(msg.header), math.nan, math.nan, math.nan,
+                self.odom.extend((_stamp(msg.header), math.nan, math.nan, math.nan,
                                   tw.linear.x, tw.angular.z))
             else:
-                self.odom.append((log_time, math.nan, math.nan, math.nan, msg.linear.x,
+                self.odom.extend((log_time, math.nan, math.nan, math.nan, msg.linear.x,
                                   msg.angular.z))
         elif role == "truth":
+            limits.check("RECORDS", len(self.truth) // 4 + 1, "ground-truth messages")
             pose = msg.pose.pose if hasattr(msg.pose, "pose") else msg.pose
-            self.truth.append((_stamp(msg.header), pose.position.x, pose.position.y,
+            self.truth.extend((_stamp(msg.header), pose.position.x, pose.position.y,
                                _yaw(pose.orientation)))
         elif role == "landmarks":
             n = len(msg.id)
             if len(msg.range) != n or len(msg.bearing) != n:
                 self.bad_lm += 1
                 return
-            self.lm.append((_stamp(msg.header), np.asarray(msg.id), np.asarray(msg.range),
-                            np.asarray(msg.bearing)))
+            limits.check("RECORDS", len(self.lm_id) + n, "landmark observations")
+            self.lm_messages += 1
+            self.lm_stamp.extend([_stamp(msg.header)] * n)
+            self.lm_id.frombytes(np.asarray(msg.id, np.int64).tobytes())
+            self.lm_range.frombytes(np.asarray(msg.range, np.float64).tobytes())
+            self.lm_bearing.frombytes(np.asarray(msg.bearing, np.float64).tobytes())
         elif role == "meta":
-            if self.meta_text is None:
-                self.meta_text = msg.data
+            if self.meta is None or log_time < self.meta[0]:
+                self.meta = (log_time, msg.data)
         elif role in ("tf", "tf_static"):
             for t in msg.transforms:
                 child = t.child_frame_id.lstrip("/")
-                if child not in self.tf:  # the mount is static: keep the first one
+                old = self.tf.get(child)
+                if old is None or log_time < old[0]:  # the mount is static: the first one
+                    if old is None:
+                        limits.check("RECORDS", len(self.tf) + 1, "tf frames")
                     tr = t.transform
-                    self.tf[child] = (t.header.frame_id.lstrip("/"), tr.translation.x,
+                    self.tf[child] = (log_time, t.header.frame_id.lstrip("/"), tr.translation.x,
                                       tr.translation.y, _yaw(tr.rotation))
 
     # -- assembly ----------------------------------------------------------------
@@ -184,7 +220,7 @@ class StreamCollector:
         laser = laser_frame.lstrip("/")
         chain = [laser]
         while chain[-1] in self.tf and len(chain) < 64:
-            chain.append(self.tf[chain[-1]][0])
+            chain.append(self.tf[chain[-1]][1])
         bases = [getattr(self, "odom_child", "").lstrip("/"), "base_link", "base_footprint"]
         base = next((b for b in bases if b and b in chain), None)
         if base is None:
@@ -194,7 +230,7 @@ class StreamCollector:
             return (0.0, 0.0, 0.0)
         x = y = th = 0.0  # T_base_laser = T_base_a * ... * T_z_laser
         for child in reversed(chain[: chain.index(base)]):
-            _, tx, ty, tth = self.tf[child]
+            _, _, tx, ty, tth = self.tf[child]
             c, s = math.cos(th), math.sin(th)
             x, y, th = x + c * tx - s * ty, y + s * tx + c * ty, th + tth
         th = math.atan2(math.sin(th), math.cos(th))
@@ -207,19 +243,23 @@ class StreamCollector:
         if self.bad_scans:
             dropped.append(Dropped("scans", self.bad_scans,
                                    "messages with mismatched array lengths (dropped)"))
+        if self.bad_angles:
+            dropped.append(Dropped("scans", self.bad_angles,
+                                   "scans whose beam count disagrees with angle_min/angle_max/"
+                                   "angle_increment, or with non-finite or zero angles (dropped)"))
         scans = self.sink.finish(dropped, zero_reason="beams equal to 0 (no return, marked "
                                  "invalid)", mount=(0.0, 0.0, 0.0))
         if scans is not None:
             scans.mount = self.mount(scans.frame_id)
         odometry = None
         if self.odom:
-            a = np.asarray(self.odom, np.float64)
+            a = np.frombuffer(self.odom, np.float64).reshape(-1, 6)
             has_pose = bool(np.isfinite(a[:, 1:4]).any())
             odometry = make_odometry(a[:, 0], a[:, 1:4] if has_pose else None, a[:, 4:6],
                                      dropped=dropped)
         truth = None
         if self.truth:
-            a = np.asarray(self.truth, np.float64)
+            a = np.frombuffer(self.truth, np.float64).reshape(-1, 4)
             order = np.argsort(a[:, 0], kind="stable")
             ok = np.isfinite(a[order]).all(axis=1)
             truth = GroundTruth(pose_stamp=a[order][ok, 0], pose=a[order][ok, 1:4])
@@ -227,13 +267,11 @@ class StreamCollector:
         if self.bad_lm:
             dropped.append(Dropped("observations", self.bad_lm,
                                    "messages with mismatched array lengths (dropped)"))
-        if self.lm:
-            counts = [len(x[1]) for x in self.lm]
+        if self.lm_messages:
             observations = make_observations(
-                np.repeat([x[0] for x in self.lm], counts),
-                np.concatenate([x[1] for x in self.lm]),
-                np.concatenate([x[2] for x in self.lm]),
-                np.concatenate([x[3] for x in self.lm]), dropped=dropped)
+                np.frombuffer(self.lm_stamp, np.float64), np.frombuffer(self.lm_id, np.int64),
+                np.frombuffer(self.lm_range, np.float64), np.frombuffer(self.lm_bearing, np.float64),
+                dropped=dropped)
         if scans is None and odometry is None and observations is None:
             have = ", ".join(f"{t} ({ty})" for t, (ty, _) in sorted(self.topics.items()))
             raise LogError(f"no LaserScan, odometry or landmark messages found "
@@ -244,14 +282,14 @@ class StreamCollector:
         meta = {"topics": {t: {"type": ty, "count": c} for t, (ty, c) in self.topics.items()}}
         log = LogData(provenance=prov, scans=scans, odometry=odometry,
                       observations=observations, truth=truth, meta=meta)
-        if self.meta_text is not None:
+        if self.meta is not None:
             self._apply_meta(log)
         return log
 
     def _apply_meta(self, log: LogData) -> None:
         """Recover the bounds, true map and outlier masks a simulated log carries."""
         try:
-            rec = decode_meta(self.meta_text)
+            rec = decode_meta(self.meta[1])
         except ValueError as exc:
             self.notes.append(f"{META_TOPIC} ignored: {exc}")
             return

@@ -11,14 +11,16 @@ the geometry used is written into ``LogData.meta``.
 from __future__ import annotations
 
 import math
+from array import array
 from pathlib import Path
 
 import numpy as np
 
+from ivslam_cli import limits
 from ivslam_cli.errors import LogError
 from ivslam_cli.logs.conventions import ScanSink, make_odometry
 from ivslam_cli.logs.model import Dropped, LogData, Provenance
-from ivslam_cli.logs.textfile import read_text
+from ivslam_cli.logs.textfile import iter_lines
 
 ROVER = {"wheel_radius_m": 0.077, "half_axle_m": 0.165, "ticks_per_revolution": 2000,
          "laser_offset_x_m": 0.145}
@@ -28,20 +30,38 @@ INC = 2 * math.pi / 1024
 
 
 def read_urg(path: Path) -> LogData:
-    lines = [ln.split() for ln in read_text(path).splitlines() if ln.strip()]
+    head = array("d")  # the FIRST_RANGE leading tokens of every scan line
+    ranges = array("f")  # the BEAMS ranges [m]
     dropped: list[Dropped] = []
-    good = [t for t in lines if len(t) == FIRST_RANGE + BEAMS]
-    if len(good) != len(lines):
-        dropped.append(Dropped("records", len(lines) - len(good),
-                               f"lines without {FIRST_RANGE + BEAMS} tokens (dropped)"))
-    if not good:
+    short = 0
+    for line in iter_lines(path):
+        tok = line.split()
+        if not tok:
+            continue
+        if len(tok) != FIRST_RANGE + BEAMS:
+            short += 1
+            continue
+        try:
+            row = np.array(tok, dtype=np.float64)
+        except ValueError:
+            raise LogError("non-numeric token in a URG .dat log", path) from None
+        limits.check("SCANS", len(head) // FIRST_RANGE + 1, "scans in the log")
+        limits.check("BEAMS", len(ranges) + BEAMS, "beams in the log")
+        head.frombytes(row[:FIRST_RANGE].tobytes())
+        ranges.frombytes((row[FIRST_RANGE:] * 1e-3).astype(np.float32).tobytes())
+    if short:
+        dropped.append(Dropped("records", short, f"lines without {FIRST_RANGE + BEAMS} tokens (dropped)"))
+    if not head:
         raise LogError("no URG scan lines (empty or not a URG .dat log)", path)
-    try:
-        a = np.array(good, dtype=np.float64)
-    except ValueError:
-        raise LogError("non-numeric token in a URG .dat log", path) from None
+    a = np.frombuffer(head, np.float64).reshape(-1, FIRST_RANGE)
+    ticks = a[:, 2:4]
+    ok = np.isfinite(ticks) & (ticks == np.round(ticks)) & (np.abs(ticks) < 2.0 ** 53)
+    if not ok.all():
+        k = int(np.flatnonzero(~ok.all(axis=1))[0])
+        raise LogError(f"scan line {k + 1}: wheel ticks {ticks[k].tolist()} are not integers below 2^53 "
+                       "(the odometry cannot be integrated past them)", path)
     stamp = a[:, 0] * 1e-6
-    r = (a[:, FIRST_RANGE:] * 1e-3).astype(np.float32)
+    r = np.frombuffer(ranges, np.float32).reshape(-1, BEAMS)
     k = len(stamp)
     sink = ScanSink(k)
     sink.add(np.arange(k), stamp, np.full(k, -(BEAMS - 1) / 2 * INC), np.full(k, INC),

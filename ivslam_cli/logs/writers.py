@@ -197,7 +197,7 @@ def _write_mcap(path: Path, msgs, meta_json: str) -> None:
 
     ts = typestore(2)
     with open(path, "wb") as fh:
-        w = Writer(fh, compression=CompressionType.ZSTD)
+        w = Writer(fh, compression=CompressionType.ZSTD, enable_crcs=True, enable_data_crcs=True)
         w.start(profile="ros2", library="ivslam")
         channels: dict[str, int] = {}
         for topic in dict.fromkeys(t for _, t, _ in msgs):
@@ -240,6 +240,40 @@ def _write_ros2(path: Path, msgs, storage: str) -> None:
             conns[topic] = w.add_connection(topic, TOPICS[topic][0], typestore=ts)
         for ns, topic, data in msgs:
             w.write(conns[topic], ns, data)
+    if storage == "mcap":
+        for f in sorted(path.glob("*.mcap")):
+            _rewrite_mcap_with_crcs(f)
+
+
+def _rewrite_mcap_with_crcs(path: Path) -> None:
+    """Rewrite an MCAP file (rosbags writes one uncompressed chunk without CRCs) with the
+    ``mcap`` writer: the same schemas, channels, messages and metadata records, in zstd
+    chunks with chunk, data-section and summary CRCs."""
+    import os
+
+    from mcap.reader import make_reader
+    from mcap.writer import CompressionType, Writer
+
+    tmp = path.with_name(path.name + ".crc")
+    with open(path, "rb") as src, open(tmp, "wb") as dst:
+        reader = make_reader(src)
+        header = reader.get_header()
+        summary = reader.get_summary()
+        w = Writer(dst, compression=CompressionType.ZSTD, enable_crcs=True, enable_data_crcs=True)
+        w.start(profile=header.profile, library="ivslam")
+        schema_ids = {sid: w.register_schema(name=s.name, encoding=s.encoding, data=s.data)
+                      for sid, s in sorted(summary.schemas.items())}
+        channel_ids = {cid: w.register_channel(topic=c.topic, message_encoding=c.message_encoding,
+                                               schema_id=schema_ids.get(c.schema_id, 0),
+                                               metadata=dict(c.metadata))
+                       for cid, c in sorted(summary.channels.items())}
+        for _, ch, m in reader.iter_messages(log_time_order=False):
+            w.add_message(channel_id=channel_ids[ch.id], log_time=m.log_time, data=m.data,
+                          publish_time=m.publish_time, sequence=m.sequence)
+        for md in reader.iter_metadata():
+            w.add_metadata(md.name, dict(md.metadata))
+        w.finish()
+    os.replace(tmp, path)
 
 
 def write_log(path: str | Path, log: LogData, fmt: str | None = None, force: bool = False) -> Path:
@@ -250,7 +284,7 @@ def write_log(path: str | Path, log: LogData, fmt: str | None = None, force: boo
     if fmt not in FORMATS:
         raise IvslamError(f"unknown format '{fmt}' (choose from {', '.join(FORMATS)})", path)
     path = Path(path)
-    with atomic_output(path, force=force) as tmp:
+    with atomic_output(path, force=force, kind="log") as tmp:
         if fmt == "h5":
             from ivslam_cli.logs.ivslam_h5 import write_h5_file
 

@@ -207,8 +207,7 @@ def plot_report(rep: Report, path: str | Path, *, force: bool = False) -> None:
         ax_map, ax_w = fig.subplots(1, 2, width_ratios=(1.3, 1))
         _draw_map(ax_map, rep)
         _draw_widths(ax_w, rep)
-    with atomic_path(path, force=force) as tmp:
-        fig.savefig(tmp, format=fmt, dpi=120)
+    _save(fig, path, fmt, force)
 
 
 def plot_submap(rep: Report, m: int, path: str | Path, *, force: bool = False) -> None:
@@ -271,5 +270,14 @@ def plot_submap(rep: Report, m: int, path: str | Path, *, force: bool = False) -
     ax_m.set_aspect("equal")
     ax_m.set_title("mosaic of the submaps at their anchors' box centres (display only)")
     ax_m.legend(fontsize="x-small")
-    with atomic_path(path, force=force) as tmp:
-        fig.savefig(tmp, format=fmt, dpi=120)
+    _save(fig, path, fmt, force)
+
+
+def _save(fig, path: Path, fmt: str, force: bool) -> None:
+    from ivslam_cli import __version__
+
+    # the ivslam marker lets a later --force replace this plot (and nothing that is not ours)
+    marker = {"png": {"Software": f"ivslam {__version__} (matplotlib)"},
+              "svg": {"Creator": f"ivslam {__version__} (matplotlib)"}}[fmt]
+    with atomic_path(path, force=force, kind="plot") as tmp:
+        fig.savefig(tmp, format=fmt, dpi=120, metadata=marker)

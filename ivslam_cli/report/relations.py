@@ -55,7 +55,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -92,38 +91,42 @@ class Relations:
 
 
 def read_relations(path) -> Relations:
-    """Read a relations file; any problem is a one-line :class:`IvslamError` naming it."""
-    from ivslam_cli.logs.textfile import read_text
+    """Read a relations file; any problem is a one-line :class:`IvslamError` naming it.
 
-    path = Path(path)
-    if not path.exists():
-        raise IvslamError("no such relations file", path)
-    if path.is_dir():
-        raise IvslamError("is a directory, not a relations file", path)
+    Streamed (bounded by ``limits.TEXT_BYTES`` and ``RECORDS``) into a compact column."""
+    from array import array
+
+    from ivslam_cli import limits
+    from ivslam_cli.inputs import check_input
+    from ivslam_cli.logs.textfile import iter_lines
+
+    path = check_input(path, "relations file")
+    rows = array("d")
     try:
-        text = read_text(path)
-    except LogError as exc:  # the same message, said of a relations file
-        raise IvslamError(str(exc).removeprefix(f"{path}: ") + " (relations file)", path) from None
-    rows: list[list[float]] = []
-    for lineno, line in enumerate(text.splitlines(), 1):
-        s = line.split("#", 1)[0].strip()
-        if not s:
-            continue
-        tok = s.split()
-        if len(tok) != 8:
-            raise IvslamError(f"line {lineno}: {len(tok)} fields, a relation has 8 "
-                              "(t1 t2 dx dy dz droll dpitch dyaw)", path)
-        try:
-            vals = [float(t) for t in tok]
-        except ValueError:
-            raise IvslamError(f"line {lineno}: not a number in {s[:80]!r}", path) from None
-        if not all(math.isfinite(v) for v in vals):
-            raise IvslamError(f"line {lineno}: NaN or infinite value", path)
-        rows.append(vals)
+        for lineno, line in enumerate(iter_lines(path), 1):
+            s = line.split("#", 1)[0].strip()
+            if not s:
+                continue
+            tok = s.split()
+            if len(tok) != 8:
+                raise IvslamError(f"line {lineno}: {len(tok)} fields, a relation has 8 "
+                                  "(t1 t2 dx dy dz droll dpitch dyaw)", path)
+            try:
+                vals = [float(t) for t in tok]
+            except ValueError:
+                raise IvslamError(f"line {lineno}: not a number in {s[:80]!r}", path) from None
+            if not all(math.isfinite(v) for v in vals):
+                raise IvslamError(f"line {lineno}: NaN or infinite value", path)
+            limits.check("RECORDS", len(rows) // 8 + 1, "relations")
+            rows.extend(vals)
+    except (LogError, limits.LimitExceeded) as exc:  # the same message, said of a relations file
+        if exc.path is not None:
+            raise
+        raise IvslamError(exc.message + " (relations file)", path) from None
     if not rows:
         raise IvslamError("no relations (empty file or only comments)", path)
-    a = np.asarray(rows, np.float64)
-    return Relations(path=str(path), t1=a[:, 0], t2=a[:, 1], rel=np.ascontiguousarray(a[:, [2, 3, 7]]))
+    a = np.frombuffer(rows, np.float64).reshape(-1, 8)
+    return Relations(path=str(path), t1=a[:, 0].copy(), t2=a[:, 1].copy(), rel=np.ascontiguousarray(a[:, [2, 3, 7]]))
 
 
 def _relative_graph(rp: RelativePoses, slices: int) -> dict[int, dict[int, list[np.ndarray]]]:

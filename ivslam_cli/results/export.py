@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ivslam_cli.atomic import refuse_existing, write_bytes_atomic, write_text_atomic
+from ivslam_cli.atomic import check_output, transaction, write_bytes_atomic, write_text_atomic
 from ivslam_cli.results.model import CELL_EMPTY, CELL_OBSTACLE, MapGrid, Poses, Robots, box_is_empty
 
 # map_server trinary PGM values (negate = 0): p = (255 − value) / 255 is the occupancy.
@@ -61,7 +61,7 @@ def write_tum(path: str | Path, poses: Poses, *, force: bool = False, robots: Ro
             a, b = int(robots.pose_offsets[r]), int(robots.pose_offsets[r + 1])
             part = Poses(stamp=poses.stamp[a:b], box=poses.box[a:b])
         text, n = tum_text(part)
-        write_text_atomic(out, text, force=force)
+        write_text_atomic(out, text, force=force, kind="tum")
         skipped += n
     return skipped
 
@@ -93,8 +93,9 @@ def write_map_server(prefix: str | Path, grid: MapGrid, *, force: bool = False) 
     """Write ``PREFIX.pgm`` and ``PREFIX.yaml`` (the YAML names the PGM relative to itself)."""
     prefix = Path(prefix)
     pgm, yml = prefix.with_name(prefix.name + ".pgm"), prefix.with_name(prefix.name + ".yaml")
-    refuse_existing(pgm, force)
-    refuse_existing(yml, force)
-    write_bytes_atomic(pgm, pgm_bytes(grid), force=force)
-    write_text_atomic(yml, map_yaml(grid, pgm.name), force=force)
+    check_output(pgm, force=force, kind="pgm")  # either file refused: neither is written
+    check_output(yml, force=force, kind="map-yaml")
+    with transaction(force=force):  # both files or neither
+        write_bytes_atomic(pgm, pgm_bytes(grid), force=force, kind="pgm")
+        write_text_atomic(yml, map_yaml(grid, pgm.name), force=force, kind="map-yaml")
     return pgm, yml

@@ -19,6 +19,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from ivslam_cli import limits
 from ivslam_cli.errors import IvslamError
 from ivslam_cli.logs.model import Dropped, GroundTruth
 from ivslam_cli.atomic import atomic_path
@@ -210,14 +211,28 @@ def _write(f: h5py.File, r: Result) -> None:
 
 
 def write_result(path: str | Path, result: Result, *, force: bool = False) -> None:
-    """Write ``result`` to ``path`` atomically; an existing file is refused unless ``force``.
+    """Write ``result`` to ``path`` atomically; an existing file is refused unless ``force``
+    (and then only a previous result is replaced).
 
     Raises ValueError if the Result is malformed (a pipeline bug) before touching the disk.
+    The file is built in memory and written with plain file I/O, so a full disk is one
+    :class:`~ivslam_cli.errors.OutputError` (libhdf5 never meets the failing write).
     """
     result.validate()
-    with atomic_path(path, force=force) as tmp:
-        with h5py.File(tmp, "w") as f:
-            _write(f, result)
+    image = hdf5_image(lambda f: _write(f, result))
+    with atomic_path(path, force=force, kind="result") as tmp:
+        with open(tmp, "wb") as fh:
+            fh.write(image)
+
+
+def hdf5_image(fill) -> memoryview:
+    """The bytes of an HDF5 file built in memory by ``fill(h5py.File)``."""
+    import io
+
+    buf = io.BytesIO()
+    with h5py.File(buf, "w") as f:
+        fill(f)
+    return buf.getbuffer()
 
 
 # ------------------------------------------------------------------- read helpers
@@ -225,17 +240,35 @@ class _Corrupt(Exception):
     pass
 
 
+def _dataset(g: h5py.Group, name: str, kinds: str = "biuf") -> h5py.Dataset:
+    """``g[name]``, checked before anything is read: a dataset (not a group, broken or looping
+    link) of a plain type of ``kinds`` whose declared size is within the limits (a map grid's
+    cells ``limits.CELLS``, any other dataset ``limits.ROWS``)."""
+    where = f"{g.name.rstrip('/')}/{name}"
+    try:
+        if name not in g:
+            raise _Corrupt(f"missing dataset {where}")
+        ds = g[name]
+    except (KeyError, RuntimeError, RecursionError, ValueError, OSError) as exc:
+        raise _Corrupt(f"{where} cannot be opened ({_first_line(exc)})") from None
+    if not isinstance(ds, h5py.Dataset):
+        raise _Corrupt(f"{where} is not a dataset")
+    if ds.dtype.kind not in kinds or ds.dtype.fields is not None or ds.dtype.subdtype is not None:
+        raise _Corrupt(f"{where} has type {ds.dtype}, not a plain {'number' if kinds == 'biuf' else 'text'} type")
+    limit = "CELLS" if name in ("state", "value") else "ROWS"
+    limits.check(limit, float(np.prod(ds.shape, dtype=np.float64)), f"{where} declares values")
+    return ds
+
+
 def _get(g: h5py.Group, name: str, dtype: Any) -> np.ndarray:
-    if name not in g:
-        raise _Corrupt(f"missing dataset {g.name.rstrip('/')}/{name}")
-    return np.asarray(g[name][()], dtype=dtype)
+    return np.asarray(_dataset(g, name)[()], dtype=dtype)
 
 
 def _get_text(g: h5py.Group, name: str) -> np.ndarray:
     codes = _get(g, f"{name}_code", np.int64)
     if f"{name}_vocab" not in g:
         raise _Corrupt(f"missing dataset {g.name}/{name}_vocab")
-    vocab = np.asarray(g[f"{name}_vocab"].asstr()[()], dtype=object)
+    vocab = np.asarray(_dataset(g, f"{name}_vocab", "SOU").asstr()[()], dtype=object)
     if codes.size == 0:
         return _str_array()
     if codes.min() < 0 or codes.max() >= vocab.shape[0]:
@@ -247,6 +280,8 @@ def _attr(g: h5py.Group | h5py.File, name: str) -> Any:
     if name not in g.attrs:
         raise _Corrupt(f"missing attribute {name!r} on {g.name}")
     v = g.attrs[name]
+    if isinstance(v, (bytes, str)):
+        limits.check("JSON_BYTES", len(v), f"attribute {name!r} is bytes long")
     if isinstance(v, bytes):
         return v.decode("utf-8")
     if isinstance(v, np.ndarray):
@@ -393,11 +428,9 @@ def _read(f: h5py.File) -> Result:
 
 def read_result(path: str | Path) -> Result:
     """Read a result file; any problem becomes a one-line :class:`IvslamError` naming ``path``."""
-    path = Path(path)
-    if not path.exists():
-        raise IvslamError("no such file", path)
-    if path.is_dir():
-        raise IvslamError("is a directory, not a result file", path)
+    from ivslam_cli.inputs import check_input
+
+    path = check_input(path, "result file")
     try:
         f = h5py.File(path, "r")
     except OSError as exc:
@@ -419,11 +452,49 @@ def read_result(path: str | Path) -> Result:
         if version < 1:
             raise IvslamError(f"corrupt result: unknown schema version {version}", path)
         try:
-            return _read(f)
+            r = _read(f)
+            _check_values(r)
+            return r
         except _Corrupt as exc:
             raise IvslamError(f"corrupt result: {exc}", path) from exc
-        except (OSError, KeyError, ValueError, TypeError, json.JSONDecodeError) as exc:
+        except limits.LimitExceeded as exc:
+            raise exc.about(path) from None
+        except MemoryError:
+            raise IvslamError("corrupt result: a dataset too large to read", path) from None
+        except (OSError, KeyError, ValueError, TypeError, json.JSONDecodeError, RuntimeError, RecursionError,
+                AttributeError, OverflowError, IndexError) as exc:
             raise IvslamError(f"corrupt or truncated result ({type(exc).__name__}: {_first_line(exc)})", path) from exc
+
+
+def _check_values(r: Result) -> None:
+    """What the shapes do not say: no NaN in any enclosure; every interval ``lo <= hi`` or the
+    empty interval ``[+inf, -inf]`` (an inverted interval is a corrupt file, not a proof);
+    pose stamps finite and sorted; map geometry finite. A corrupt file must not be reported as
+    a soundness failure."""
+    boxes = {"poses/box": r.poses.box if r.poses is not None else None,
+             "poses/relative": r.poses.relative if r.poses is not None else None,
+             "landmarks/box": r.landmarks.box if r.landmarks is not None else None,
+             "pairs/boxes": r.pairs.boxes if r.pairs is not None else None,
+             "relative/box": r.relative.box if r.relative is not None else None,
+             "submaps/anchor_box": r.submaps.anchor_box if r.submaps is not None else None,
+             "submaps/member_box": r.submaps.member_box if r.submaps is not None else None}
+    for name, box in boxes.items():
+        if box is None or box.size == 0:
+            continue
+        if np.isnan(box).any():
+            raise _Corrupt(f"{name} has NaN bounds")
+        lo, hi = box[..., 0], box[..., 1]
+        inverted = (lo > hi) & ~((lo == np.inf) & (hi == -np.inf))
+        if inverted.any():
+            row = int(np.flatnonzero(inverted.reshape(inverted.shape[0], -1).any(axis=1))[0])
+            raise _Corrupt(f"{name} row {row} has an interval with lo > hi (not the empty interval "
+                           "[+inf, -inf])")
+    if r.poses is not None and len(r.poses):
+        st = r.poses.stamp
+        if not np.isfinite(st).all() or np.any(np.diff(st) < 0):
+            raise _Corrupt("poses/stamp is not finite and sorted")
+    if r.grid is not None and not (np.isfinite(r.grid.origin).all() and np.isfinite(r.grid.resolution)):
+        raise _Corrupt("map origin or resolution is not finite")
 
 
 def _first_line(exc: BaseException) -> str:

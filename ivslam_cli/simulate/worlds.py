@@ -21,6 +21,7 @@ The robot must be enclosed by walls (the controller keeps it clear of every segm
 from __future__ import annotations
 
 import math
+import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -117,8 +118,16 @@ def load_world(spec: str) -> World:
     if spec in BUILTIN:
         return _build(spec, *_builtin(spec))
     path = Path(spec)
-    if not path.is_file():
+    if not os.path.lexists(path):
         raise ConfigError(f"unknown world '{spec}' (built-in: {', '.join(BUILTIN)}; or a TOML file)")
+    from ivslam_cli import limits
+    from ivslam_cli.inputs import check_input
+
+    check_input(path, "TOML world file", error=ConfigError)
+    try:
+        limits.check("JSON_BYTES", path.stat().st_size, "the world file's size")
+    except limits.LimitExceeded as exc:
+        raise exc.about(path) from None
     try:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:

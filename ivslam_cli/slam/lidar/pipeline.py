@@ -230,14 +230,15 @@ def solve(log: LogData, params: Params) -> LidarOutput:
         for j, sidx in tracking.relocalised:
             rows.append((float(stamp[j]), int(used[j]), "motion_outlier", (int(used[j]), int(sidx)), -1,
                          f"scan {int(used[j])} (t={float(stamp[j]):.3f} s) in submap {sidx}: no pose of its predicted "
-                         "box agrees with the submap (the motion step broke its bounds); relocalised within "
+                         f"box agrees with the submap (the motion step broke its bounds, or more than q_beams = {params.q_beams} "
+                         "beams did); relocalised within "
                          f"±{params.relocalise[0]:g} m, ±{params.relocalise[1]:g} rad of it"))
         rows.sort(key=lambda r: r[0])
     events = empty_events(rows)
     assumption = _assumption(params, scans, pred, tracking is not None, int((~narrow).sum()), len(events))
     if tracking is not None and tracking.relocalised:
-        assumption += (f"; {len(tracking.relocalised)} motion step(s) broke their bounds (empty events "
-                       f"motion_outlier): their scans were relocalised, assuming the true pose within "
+        assumption += (f"; {len(tracking.relocalised)} motion step(s) broke their bounds, or more than "
+                       f"q_beams beams of their scans did (empty events motion_outlier): their scans were relocalised, assuming the true pose within "
                        f"±{params.relocalise[0]:g} m, ±{params.relocalise[1]:g} rad of the predicted box there")
     consistency = Consistency(empty_events=events, q={}, widths={"pose": pose_hist}, assumption=assumption)
     duration = float(stamp[-1] - stamp[0]) if stamp.size > 1 else 0.0

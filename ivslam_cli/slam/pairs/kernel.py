@@ -180,22 +180,28 @@ def _push(buf, m, row):
 
 
 @njit(cache=True)
-def refine(paving, obs, q, eps, max_boxes):
+def refine(paving, obs, q, eps, max_boxes, budget):
     """Intersect a pair's subpaving with one more displacement set (SIVIA on the grid).
 
     ``paving`` is (B, ROW): each row a box, the integer range ``[a0, a1) x [b0, b1)`` (as
     floats) of the grid cells it lies in, and its ``fails``/``notin`` counters. Returns the new
-    paving and a flag that is True when ``max_boxes`` cut the refinement short (boundary boxes
-    larger than a cell were then kept whole: still an outer approximation, less tight).
+    paving, a flag that is True when ``max_boxes`` cut the refinement short (boundary boxes
+    larger than a cell were then kept whole: still an outer approximation, less tight), and
+    the number of box tests made. When ``budget`` box tests are not enough, it stops at once
+    and returns ``budget + 1`` tests (the paving returned is then meaningless).
     """
     out = np.empty((max(16, 2 * paving.shape[0]), ROW))
     stack = np.empty((64, ROW))
     m = 0
     truncated = False
+    work = 0
     for k in range(paving.shape[0]):
         stack[0] = paving[k]
         top = 1
         while top > 0:
+            work += 1
+            if work > budget:
+                return out[:0].copy(), truncated, work
             top -= 1
             r = stack[top].copy()
             contract = r[FAILS] == q
@@ -229,7 +235,7 @@ def refine(paving, obs, q, eps, max_boxes):
                     r[0], r[1], r[2], r[3] = xl, xh, yl, yh
             # INSIDE: counters unchanged
             out, m = _push(out, m, r)
-    return out[:m].copy(), truncated
+    return out[:m].copy(), truncated, work
 
 
 @njit(cache=True)
@@ -373,7 +379,7 @@ def _append(buf, m, rows):
 
 
 @njit(cache=True)
-def process_pairs(rows, row_stamp, pair_offsets, q, eps, max_boxes, checkpoints):
+def process_pairs(rows, row_stamp, pair_offsets, q, eps, max_boxes, checkpoints, max_work):
     """Run every pair's history: the q-relaxed intersection of its displacement sets over time.
 
     ``rows`` are grouped by pair and time-ordered within a pair (``pair_offsets``). Returns
@@ -384,6 +390,8 @@ def process_pairs(rows, row_stamp, pair_offsets, q, eps, max_boxes, checkpoints)
     pair sets at each of the ``checkpoints`` stamps: ``snap_boxes`` with ``snap_offsets`` indexed
     ``c * P + p`` (no box: the pair gives no bounded set yet at that time).
     A pair seen at most ``q`` times has no bounded enclosure: one box ``R^2``.
+    The last two values are the box tests made and the pair being refined when they exceeded
+    ``max_work`` (then the run stopped there and the other values are meaningless), else -1.
     """
     n_rows = rows.shape[0]
     n_pairs = pair_offsets.shape[0] - 1
@@ -398,6 +406,7 @@ def process_pairs(rows, row_stamp, pair_offsets, q, eps, max_boxes, checkpoints)
     snap_start = np.zeros(n_cp * n_pairs, dtype=np.int64)
     ns = 0
     m = 0
+    work = 0
     none = np.empty((0, 4))
     for p in range(n_pairs):
         r0 = pair_offsets[p]
@@ -417,7 +426,11 @@ def process_pairs(rows, row_stamp, pair_offsets, q, eps, max_boxes, checkpoints)
                     snap_count[c * n_pairs + p] = cur.shape[0]
                     snap, ns = _append(snap, ns, cur)
                     c += 1
-                new, trunc = refine(paving, rows[k], q, eps, max_boxes)
+                new, trunc, used = refine(paving, rows[k], q, eps, max_boxes, max_work - work)
+                work += used
+                if work > max_work:
+                    return (out[:0, :4].copy(), np.zeros(0, dtype=np.bool_), box_offsets, width, rejected,
+                            truncated, np.empty((0, 4)), np.zeros(1, dtype=np.int64), work, p)
                 if trunc:
                     truncated[p] = True
                 if new.shape[0] == 0:
@@ -449,4 +462,4 @@ def process_pairs(rows, row_stamp, pair_offsets, q, eps, max_boxes, checkpoints)
         w += cnt
         snap_offsets[idx + 1] = w
     inner = out[:m, 4] > 0.5
-    return out[:m, :4].copy(), inner, box_offsets, width, rejected, truncated, snap_boxes, snap_offsets
+    return out[:m, :4].copy(), inner, box_offsets, width, rejected, truncated, snap_boxes, snap_offsets, work, -1

@@ -28,6 +28,7 @@ class Params:
     reference_id: int | None
     max_pairs: int
     max_boxes: int
+    max_work: int
 
     @classmethod
     def from_config(cls, cfg) -> Params:
@@ -42,4 +43,5 @@ class Params:
             heading_source=source, eps=float(cfg["pairs.eps"]), anchor_id=cfg["pairs.anchor_id"],
             anchor_xy=tuple(float(v) for v in cfg["pairs.anchor_xy"]), reference_id=cfg["pairs.reference_id"],
             max_pairs=int(cfg["pairs.max_pairs"]), max_boxes=int(cfg["pairs.max_boxes"]),
+            max_work=int(cfg["pairs.max_work"]),
         )

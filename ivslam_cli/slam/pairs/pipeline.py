@@ -199,6 +199,23 @@ def _landmark_width_history(ids, pair_i, pair_j, snap_boxes, snap_offsets, check
     )
 
 
+#: grid cells per side of a pair's domain the subpaving indexes exactly (cell indices are floats)
+MAX_CELLS_PER_SIDE = 2.0 ** 40
+
+
+def _check_grid(rows: np.ndarray, eps: float, log: LogData) -> None:
+    """Refuse an ``eps`` too fine for the displacement sets' extent (cell indices would lose
+    integers, bisection could not reach a cell): one line naming the key."""
+    extent = 0.0
+    if rows.shape[0]:
+        rho_hi = max(float(np.max(rows[:, 1])), float(np.max(rows[:, 5])))
+        extent = 4.0 * rho_hi  # |m_i - m_j| <= rho_i + rho_j, on either side of 0
+    if not np.isfinite(extent) or extent / eps > MAX_CELLS_PER_SIDE:
+        raise IvslamError(f"pairs.eps = {eps:g} m is too fine for displacement sets {extent:.4g} m across "
+                          f"(more than 2^40 cells a side); coarsen pairs.eps or narrow the bounds",
+                          log.provenance.path)
+
+
 def solve(log: LogData, params: Params, progress=None) -> PairsOutput:
     """The pairs pipeline over a log's landmark observations (see the module docstring)."""
     obs = log.observations
@@ -223,9 +240,15 @@ def solve(log: LogData, params: Params, progress=None) -> PairsOutput:
     step_stamps = obs.stamp[steps[:-1]]
     cp_index = np.unique(np.linspace(0, step_stamps.shape[0] - 1, CHECKPOINTS).round().astype(np.int64))
     checkpoints = np.ascontiguousarray(step_stamps[cp_index], dtype=np.float64)
-    boxes, inner, box_offsets, width, rejected, truncated, snap_boxes, snap_offsets = K.process_pairs(
-        rows, row_stamp, pair_offsets, q, eps, params.max_boxes, checkpoints
-    )
+    _check_grid(rows, eps, log)
+    (boxes, inner, box_offsets, width, rejected, truncated, snap_boxes, snap_offsets, work,
+     over) = K.process_pairs(rows, row_stamp, pair_offsets, q, eps, params.max_boxes, checkpoints, params.max_work)
+    if over >= 0:
+        raise IvslamError(
+            f"the subpavings need more than pairs.max_work = {params.max_work:,} box tests (stopped at landmark "
+            f"pair ({int(pi[pair_offsets[over]])}, {int(pj[pair_offsets[over]])}) of {n_pairs}): the bounds are wide "
+            f"for eps = {eps:g} m; coarsen pairs.eps, narrow the bounds, or raise pairs.max_work",
+            log.provenance.path)
     if progress:
         progress(1.0)
     first_i = pi[pair_offsets[:-1]]
@@ -295,6 +318,7 @@ def solve(log: LogData, params: Params, progress=None) -> PairsOutput:
         "pairs_truncated": int(truncated.sum()),
         "network_sweeps": int(sweeps),
         "pair_observations_per_s": float(rows.shape[0] / max(time.perf_counter() - t0, 1e-9)),
+        "box_tests": int(work),
         "eps": eps,
     }
     return PairsOutput(pairs=pairs, landmarks=landmarks, consistency=consistency, stats=stats)
