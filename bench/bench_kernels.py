@@ -217,7 +217,7 @@ def throughput(n: int = N_POLAR, n_codac: int = N_CODAC, rounds: int = ROUNDS) -
 
 def _looser(ours: np.ndarray, cod: np.ndarray) -> tuple[int, int]:
     """Boxes (columns of ``(4, n, 2)`` arrays) where some bound of ours is outside Codac's: by
-    any amount, and beyond the rounding tolerance of ``tests/test_codac_crosscheck.py`` (see its
+    any amount, and beyond the rounding tolerance of ``tests/contractors/test_codac_crosscheck.py`` (see its
     docstring: ``LOOSER_ULPS`` ulps of the scale plus the tan conditioning and ``rho^2 - dy^2``
     cancellation terms, through which both kernels' roundings are amplified)."""
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):

@@ -40,7 +40,7 @@ GTSAM's ``Pose2`` covariance is in the pose's own frame (``retract = pose ∘ Ex
 error is rotated into that frame before the Mahalanobis distance.
 
 Importing gtsam 4.3 leaves the FPU in round-to-nearest and does not disturb h5py or numba
-(checked by ``tests/test_gtsam_baseline.py``), so this runs in-process.
+(checked by ``tests/bench/test_gtsam_baseline.py``), so this runs in-process.
 
     python -m bench.gtsam_baseline --robot 1          # MRCLAM Dataset 6, robot 1
     python -m bench.gtsam_baseline --robot 1 --plain  # without the Huber kernel

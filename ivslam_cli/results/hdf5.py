@@ -491,7 +491,14 @@ def _check_values(r: Result) -> None:
                            "[+inf, -inf])")
     if r.poses is not None and len(r.poses):
         st = r.poses.stamp
-        if not np.isfinite(st).all() or np.any(np.diff(st) < 0):
+        d = np.diff(st)
+        if r.robots is not None and len(r.robots):  # sorted within each robot's rows
+            off = np.asarray(r.robots.pose_offsets, dtype=np.int64)
+            if off[0] != 0 or off[-1] != st.size or np.any(np.diff(off) < 0):
+                raise _Corrupt("robots/pose_offsets do not partition the poses")
+            cut = off[1:-1]
+            d[cut[(cut > 0) & (cut < st.size)] - 1] = 0.0
+        if not np.isfinite(st).all() or np.any(d < 0):
             raise _Corrupt("poses/stamp is not finite and sorted")
     if r.grid is not None and not (np.isfinite(r.grid.origin).all() and np.isfinite(r.grid.resolution)):
         raise _Corrupt("map origin or resolution is not finite")

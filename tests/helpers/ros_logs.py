@@ -2,7 +2,7 @@
 ros2 profile, CDR) and a ROS 1 bag (``rosbags``' writer) of 360-beam ``sensor_msgs/LaserScan``
 (random ranges, 5% inf), one scan every 0.1 s on ``/scan``.
 
-Shared by the reader tests (tests/test_logs_corrupt.py) and the reader benchmark
+Shared by the reader tests (tests/logs/test_logs_corrupt.py) and the reader benchmark
 (bench/bench_readers.py, which writes 50,000 scans): moved here from the benchmark unchanged.
 """
 

@@ -61,7 +61,7 @@ def test_readme_and_docs_relative_links_exist():
     import re
     from pathlib import Path
 
-    repo = Path(__file__).resolve().parents[1]
+    repo = Path(__file__).resolve().parents[2]
     pages = [repo / "README.md", *sorted((repo / "docs").glob("*.md"))]
     assert len(pages) > 1, "docs/ has no pages"
     link = re.compile(r"!?\[[^\]]*\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"]*\")?\s*\)")

@@ -1,0 +1,472 @@
+"""Observations in the landmark CSP (:mod:`.kernel`): landmark boxes from q-relaxed
+intersections of the candidates the pose sets and the measurements allow, and pose sets
+contracted piece by piece by the q-relaxed intersection of what the observations in a window
+allow (Kieffer, Jaulin, Walter & Meizel 2000). An observation whose candidate misses the
+q-relaxed result is rejected (its status). Every bound is rounded outward.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ivslam_cli.contractors.ctc_qinter import qinter_interval
+from ivslam_cli.contractors.ctc_range_bearing import range_bearing_pass
+from ivslam_cli.interval.angles import angle_meet, angle_meet_narrow, arg_box
+from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO, INF, add, cos, mul, sin, sqr, sqrt, sub
+from ivslam_cli.interval.rounding import down, up
+from ivslam_cli.slam.landmarks.pose_sets import _commit, _empty, _hull_into, _set_empty3
+
+OBS_USED = 0
+OBS_REJECTED_LANDMARK = 1  # its landmark candidate misses the q-relaxed landmark box
+OBS_REJECTED_POSE = 2  # its pose candidate misses the q-relaxed pose set
+
+MIN_PIECE = 1e-3  # a piece narrower than this (metres; headings times the observed range) is not bisected
+SUB_MAX_LIVE = 8  # slices are paved by several pieces only in sets of at most this many slices
+
+
+# ------------------------------------------------------------------ observations
+@njit(cache=True)
+def _widen(lo, hi, r):
+    return down(lo - r), up(hi + r)
+
+
+@njit(cache=True)
+def _target_box(H, L, j, lm, tnode, treach):
+    """(x lo, x hi, y lo, y hi) of what observation ``j`` sees: its landmark's box, or the
+    observed robot's position hull widened by its reach."""
+    i = lm[j]
+    if i >= 0:
+        return L[i, 0, 0], L[i, 0, 1], L[i, 1, 0], L[i, 1, 1]
+    t = tnode[j]
+    r = treach[j, 0]
+    a, b = _widen(H[t, 0, 0], H[t, 0, 1], r)
+    c, d = _widen(H[t, 1, 0], H[t, 1, 1], r)
+    return a, b, c, d
+
+
+@njit(cache=True)
+def _all_live(PS, k):
+    for b in range(PS.shape[1]):
+        if _empty(PS, k, b):
+            return False
+    return True
+
+
+@njit(cache=True)
+def image_candidate(PS, H, j, node, rho, alpha, reach, out):
+    """``out`` (2, 2) = the hull over the slices of ``PS[node[j]] ⊕ reach[j]`` of the positions
+    observation ``j`` allows for what it sees (one pass: the annulus sector moved by the pose
+    box). False if none."""
+    k = node[j]
+    rp = reach[j, 0]
+    rt = reach[j, 1]
+    S = PS.shape[1]
+    xl, xh, yl, yh = INF, -INF, INF, -INF
+    for b in range(S):
+        if _empty(PS, k, b):
+            continue
+        full = b == 0 and _all_live(PS, k)
+        # a whole ring of slices: the hull's image is as good as the hull of the slices' images
+        B = H[k] if full else PS[k, b]
+        sxl, sxh = _widen(B[0, 0], B[0, 1], rp)
+        syl, syh = _widen(B[1, 0], B[1, 1], rp)
+        stl, sth = _widen(B[2, 0], B[2, 1], rt)
+        r = range_bearing_pass(sxl, sxh, syl, syh, stl, sth, -INF, INF, -INF, INF,
+                               rho[j, 0], rho[j, 1], alpha[j, 0], alpha[j, 1], 1)
+        if r[0] <= r[1]:
+            xl = min(xl, r[6])
+            xh = max(xh, r[7])
+            yl = min(yl, r[8])
+            yh = max(yh, r[9])
+        if full:
+            break
+    out[0, 0], out[0, 1], out[1, 0], out[1, 1] = xl, xh, yl, yh
+    return xl <= xh
+
+
+@njit(cache=True)
+def landmark_update(PS, H, L, q, lm_offsets, lm_order, node, rho, alpha, reach, status, events_lm, cand, cver, lrej,
+                    lver, ver, clock, lo, hi):
+    """``L_i ∩= qinter(candidates, q_i − r_i)`` for every landmark, ``r_i`` of its observations
+    being rejected already (proven outliers count against the q allowed); rejects the
+    observations whose candidate misses the result. A landmark the q-relaxed intersection
+    would empty keeps its box and counts an event in ``events_lm[i]``.
+
+    ``cand[j]`` caches observation ``j``'s candidate, computed at ``clock`` value ``cver[j]``
+    (recomputed when its node's set changed since, ``ver``); a landmark none of whose
+    candidates or rejections changed is skipped. ``lver[i]``: when ``L_i`` last changed."""
+    n_lm = L.shape[0]
+    new = np.empty((2, 2))
+    for i in range(n_lm):
+        a = lm_offsets[i]
+        b = lm_offsets[i + 1]
+        m = 0
+        rejected = 0
+        fresh = False
+        for t in range(a, b):
+            j = lm_order[t]
+            if status[j] != OBS_USED:
+                rejected += 1
+                continue
+            if ver[node[j]] > cver[j]:
+                if not image_candidate(PS, H, j, node, rho, alpha, reach, cand[j]):
+                    cand[j, 0, 0] = EMPTY_LO
+                    cand[j, 0, 1] = EMPTY_HI
+                    cand[j, 1, 0] = EMPTY_LO
+                    cand[j, 1, 1] = EMPTY_HI
+                cver[j] = clock[0]
+                fresh = True
+            m += 1
+        if m == 0 or (not fresh and rejected == lrej[i]):
+            continue
+        lrej[i] = rejected
+        ok = True
+        for d in range(2):
+            m = 0
+            for t in range(a, b):
+                j = lm_order[t]
+                if status[j] == OBS_USED:
+                    lo[m] = cand[j, d, 0]
+                    hi[m] = cand[j, d, 1]
+                    m += 1
+            rl, rh = qinter_interval(lo[:m], hi[:m], max(q[i] - rejected, 0))
+            rl = max(rl, L[i, d, 0])
+            rh = min(rh, L[i, d, 1])
+            if not (rl <= rh):
+                ok = False
+            new[d, 0] = rl
+            new[d, 1] = rh
+        if not ok:
+            events_lm[i] += 1
+            continue
+        if new[0, 0] != L[i, 0, 0] or new[0, 1] != L[i, 0, 1] or new[1, 0] != L[i, 1, 0] or new[1, 1] != L[i, 1, 1]:
+            L[i] = new
+            clock[0] += 1
+            lver[i] = clock[0]
+        for t in range(a, b):
+            j = lm_order[t]
+            if status[j] != OBS_USED:
+                continue
+            c = cand[j]
+            if (not (c[0, 0] <= c[0, 1]) or c[0, 1] < new[0, 0] or c[0, 0] > new[0, 1]
+                    or c[1, 1] < new[1, 0] or c[1, 0] > new[1, 1]):
+                status[j] = OBS_REJECTED_LANDMARK
+
+
+CARRY_OWN = 0  # the observation is the node's own
+CARRY_FORWARD = 1  # made later on the chain: carried through the composed increment
+CARRY_BACKWARD = 2  # made earlier on the chain: carried through the inverse of the composed increment
+CARRY_TRAVEL = 3  # too far along the chain: carried by the distance and turn bounds
+MAX_CARRY_STEPS = 256  # observations more steps away are carried by the travel bounds
+
+
+@njit(cache=True)
+def compose_range(U, a, b, out):
+    """``out`` (3, 2) ⊇ the composition of steps ``a .. b − 1`` (rows ``ρ, α, δθ``): node
+    ``b`` relative to node ``a``, in the frame of node ``a``. Outward rounding."""
+    xl, xh, yl, yh, tl, th = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    for f in range(a, b):
+        pl, ph = add(tl, th, U[f, 1, 0], U[f, 1, 1])
+        cl, ch = cos(pl, ph)
+        sl, sh = sin(pl, ph)
+        xl, xh = add(xl, xh, *mul(U[f, 0, 0], U[f, 0, 1], cl, ch))
+        yl, yh = add(yl, yh, *mul(U[f, 0, 0], U[f, 0, 1], sl, sh))
+        tl, th = add(tl, th, U[f, 2, 0], U[f, 2, 1])
+    out[0, 0], out[0, 1] = sqrt(*add(*sqr(xl, xh), *sqr(yl, yh)))
+    out[1, 0], out[1, 1] = arg_box(xl, xh, yl, yh)
+    out[2, 0], out[2, 1] = tl, th
+
+
+@njit(cache=True)
+def _move(xl, xh, yl, yh, tl, th, cr, back):
+    """``p + ρ e^{i(θ + α)}`` (``back``: ``p − ρ e^{i(θ + α)}``) for the increment ``cr``
+    (``ρ, α`` rows), ``θ`` the heading at the increment's start. Outward rounding."""
+    pl, ph = add(tl, th, cr[1, 0], cr[1, 1])
+    cl, ch = cos(pl, ph)
+    sl, sh = sin(pl, ph)
+    dxl, dxh = mul(cr[0, 0], cr[0, 1], cl, ch)
+    dyl, dyh = mul(cr[0, 0], cr[0, 1], sl, sh)
+    if back:
+        return (*sub(xl, xh, dxl, dxh), *sub(yl, yh, dyl, dyh))
+    return (*add(xl, xh, dxl, dxh), *add(yl, yh, dyl, dyh))
+
+
+@njit(cache=True)
+def _obs_pose_candidate(H, L, B, k, j, node, lm, tnode, treach, rho, alpha, reach, travel, turn, turn_err, cr, mode,
+                        out):
+    """The part of pose box ``B`` (of node ``k``) that observation ``j`` allows, in ``out``;
+    False if none.
+
+    ``B`` is carried to the observation's node (through ``cr``, the composed increment between
+    the two nodes, as ``mode`` says; or widened by the distance and turn possible in between),
+    met with that node's hull, widened to the observation's stamp (``reach[j]``), contracted
+    there with the observation and what it sees, and carried back; headings are matched
+    modulo 2π in each box's branch.
+    """
+    kj = node[j]
+    rp = reach[j, 0]
+    rt = reach[j, 1]
+    dp = 0.0
+    dl = 0.0
+    dh = 0.0
+    if mode == CARRY_TRAVEL:
+        dp = up(up(abs(travel[k] - travel[kj])) * (1.0 + 1e-15))
+        a = min(k, kj)
+        b = max(k, kj)
+        el = down(down(turn[b, 0] - turn[a, 0]) - turn_err)
+        eh = up(up(turn[b, 1] - turn[a, 1]) + turn_err)
+        if kj > k:
+            dl, dh = el, eh
+        else:
+            dl, dh = -eh, -el
+    # B at node kj (the modelled pose there)
+    if mode == CARRY_FORWARD:  # k -> kj is the increment
+        xl, xh, yl, yh = _move(B[0, 0], B[0, 1], B[1, 0], B[1, 1], B[2, 0], B[2, 1], cr, False)
+        tl, th = add(B[2, 0], B[2, 1], cr[2, 0], cr[2, 1])
+    elif mode == CARRY_BACKWARD:  # kj -> k is the increment
+        tl, th = sub(B[2, 0], B[2, 1], cr[2, 0], cr[2, 1])
+        xl, xh, yl, yh = _move(B[0, 0], B[0, 1], B[1, 0], B[1, 1], tl, th, cr, True)
+    else:
+        xl, xh = _widen(B[0, 0], B[0, 1], dp)
+        yl, yh = _widen(B[1, 0], B[1, 1], dp)
+        tl, th = down(B[2, 0] + dl), up(B[2, 1] + dh)
+    if mode != CARRY_OWN:
+        xl, xh = max(xl, H[kj, 0, 0]), min(xh, H[kj, 0, 1])
+        yl, yh = max(yl, H[kj, 1, 0]), min(yh, H[kj, 1, 1])
+        tl, th = angle_meet_narrow(H[kj, 2, 0], H[kj, 2, 1], tl, th)
+        if not (xl <= xh) or not (yl <= yh) or not (tl <= th):
+            return False
+    # the true pose at the observation's stamp
+    xl, xh = _widen(xl, xh, rp)
+    yl, yh = _widen(yl, yh, rp)
+    tl, th = _widen(tl, th, rt)
+    mxl, mxh, myl, myh = _target_box(H, L, j, lm, tnode, treach)
+    r = range_bearing_pass(xl, xh, yl, yh, tl, th, mxl, mxh, myl, myh,
+                           rho[j, 0], rho[j, 1], alpha[j, 0], alpha[j, 1], 2)
+    if not (r[0] <= r[1]):
+        return False
+    # back to the modelled pose at node kj, then to node k, within B
+    xl, xh = _widen(r[0], r[1], rp)
+    yl, yh = _widen(r[2], r[3], rp)
+    tl, th = _widen(r[4], r[5], rt)
+    if mode == CARRY_FORWARD:
+        tl, th = angle_meet(B[2, 0], B[2, 1], *sub(tl, th, cr[2, 0], cr[2, 1]))
+        if not (tl <= th):
+            return False
+        xl, xh, yl, yh = _move(xl, xh, yl, yh, tl, th, cr, True)
+    elif mode == CARRY_BACKWARD:
+        xl, xh, yl, yh = _move(xl, xh, yl, yh, tl, th, cr, False)
+        tl, th = add(tl, th, cr[2, 0], cr[2, 1])
+    elif mode == CARRY_TRAVEL:
+        xl, xh = _widen(xl, xh, dp)
+        yl, yh = _widen(yl, yh, dp)
+        tl, th = down(tl - dh), up(th - dl)
+    out[0, 0], out[0, 1] = max(xl, B[0, 0]), min(xh, B[0, 1])
+    out[1, 0], out[1, 1] = max(yl, B[1, 0]), min(yh, B[1, 1])
+    out[2, 0], out[2, 1] = angle_meet(B[2, 0], B[2, 1], tl, th)
+    return out[0, 0] <= out[0, 1] and out[1, 0] <= out[1, 1] and out[2, 0] <= out[2, 1]
+
+
+@njit(cache=True)
+def _contract_piece(H, L, B, k, m, idx, src, node, lm, tnode, treach, rho, alpha, reach, travel, turn, turn_err,
+                    q_pose, timg, carry, cmode, buf, lo, hi, piece):
+    """``piece`` = ``B`` ∩ the q-relaxed intersection (``q_pose``) of the ``m`` candidates
+    (``buf``: each candidate, empty when the observation allows nothing in ``B``). Returns
+    False as soon as more than ``q_pose`` candidates are empty, or if the result is empty."""
+    n_empty = 0
+    for s in range(m):
+        j = idx[s]
+        if src[s] == 0:
+            ok = _obs_pose_candidate(H, L, B, k, j, node, lm, tnode, treach, rho, alpha, reach, travel,
+                                     turn, turn_err, carry[s], cmode[s], buf[s])
+        else:
+            ok = timg[s, 0, 0] <= timg[s, 0, 1]
+            if ok:
+                buf[s, 0, 0], buf[s, 0, 1] = max(B[0, 0], timg[s, 0, 0]), min(B[0, 1], timg[s, 0, 1])
+                buf[s, 1, 0], buf[s, 1, 1] = max(B[1, 0], timg[s, 1, 0]), min(B[1, 1], timg[s, 1, 1])
+                buf[s, 2, 0], buf[s, 2, 1] = B[2, 0], B[2, 1]
+                ok = buf[s, 0, 0] <= buf[s, 0, 1] and buf[s, 1, 0] <= buf[s, 1, 1]
+        if not ok:
+            _set_empty3(buf[s])
+            n_empty += 1
+            if n_empty > q_pose:
+                return False
+    for d in range(3):
+        for s in range(m):
+            lo[s] = buf[s, d, 0]
+            hi[s] = buf[s, d, 1]
+        rl, rh = qinter_interval(lo[:m], hi[:m], q_pose)
+        rl = max(rl, B[d, 0])
+        rh = min(rh, B[d, 1])
+        if not (rl <= rh):
+            return False
+        piece[d, 0] = rl
+        piece[d, 1] = rh
+    return True
+
+
+@njit(cache=True)
+def _mark_agree(buf, m, piece, agree):
+    """``agree[s]`` = True for the candidates that meet ``piece``."""
+    for s in range(m):
+        inside = True
+        for d in range(3):
+            if not (buf[s, d, 0] <= buf[s, d, 1]) or buf[s, d, 1] < piece[d, 0] or buf[s, d, 0] > piece[d, 1]:
+                inside = False
+        if inside:
+            agree[s] = True
+
+
+@njit(cache=True)
+def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, chain_hi, travel, turn, turn_err,
+                window, window_obs, q_pose, pieces, node, lm, tnode, treach, by_target, target_first, rho, alpha,
+                reach, status, buf, lo, hi, idx, src, agree, timg, carry, cmode, stack, NEW, h_lo, h_hi, ver, posedone,
+                lver, clock):
+    """Node ``k``'s set ∩= what the observations in its window allow, slice by slice (see the
+    module docstring). Returns False if no slice survives (nothing written).
+
+    ``node_obs`` are the observation indices sorted by node, ``obs_node_stamp`` their nodes'
+    stamps (sorted within each chain), ``[chain_lo, chain_hi)`` the part of them on node
+    ``k``'s chain; ``by_target[target_first[k]:]`` the observations of this node's robot by
+    others (``tnode = k``), or ``target_first[k] = −1``.
+    """
+    t = node_stamp[k]
+    first = chain_lo + np.searchsorted(obs_node_stamp[chain_lo:chain_hi], t - window, side="left")
+    last = chain_lo + np.searchsorted(obs_node_stamp[chain_lo:chain_hi], t + window, side="right")
+    m = 0
+    # the node's own observations first (the tightest: the early exit sees them first), then
+    # the others of the window nearest in time, up to window_obs in all (a q-relaxed
+    # intersection over a subset of the window holds under the same assumption)
+    for s in range(first, last):
+        j = node_obs[s]
+        if status[j] == OBS_USED and node[j] == k:
+            idx[m] = j
+            src[m] = 0
+            agree[m] = False
+            m += 1
+    left = chain_lo + np.searchsorted(obs_node_stamp[chain_lo:chain_hi], t, side="left") - 1
+    right = left + 1
+    while m < window_obs and (left >= first or right < last):
+        if right >= last or (left >= first and t - obs_node_stamp[left] <= obs_node_stamp[right] - t):
+            s = left
+            left -= 1
+        else:
+            s = right
+            right += 1
+        j = node_obs[s]
+        if status[j] == OBS_USED and node[j] != k:
+            idx[m] = j
+            src[m] = 0
+            agree[m] = False
+            m += 1
+    f = target_first[k]
+    if f >= 0:
+        s = f
+        while s < by_target.shape[0] and tnode[by_target[s]] == k:
+            j = by_target[s]
+            s += 1
+            if status[j] != OBS_USED:
+                continue
+            if not image_candidate(PS, H, j, node, rho, alpha, reach, timg[m]):
+                timg[m, 0, 0] = EMPTY_LO
+                timg[m, 0, 1] = EMPTY_HI
+            else:  # the observed robot's modelled pose: within its reach of the true one
+                r = treach[j, 0]
+                timg[m, 0, 0], timg[m, 0, 1] = _widen(timg[m, 0, 0], timg[m, 0, 1], r)
+                timg[m, 1, 0], timg[m, 1, 1] = _widen(timg[m, 1, 0], timg[m, 1, 1], r)
+            idx[m] = j
+            src[m] = 1
+            agree[m] = False
+            m += 1
+    if m == 0:
+        return True
+    # nothing this update reads changed since it last ran: skip it (ver, lver: clock values
+    # of the last change of a set, of a landmark box; posedone: of this node's last update)
+    stale = ver[k] > posedone[k]
+    for s in range(m):
+        j = idx[s]
+        if src[s] == 1 or node[j] != k:
+            stale = stale or ver[node[j]] > posedone[k]
+        if lm[j] >= 0:
+            stale = stale or lver[lm[j]] > posedone[k]
+        elif src[s] == 0:
+            stale = stale or ver[tnode[j]] > posedone[k]
+    if not stale:
+        return True
+    for s in range(m):
+        j = idx[s]
+        cmode[s] = CARRY_OWN
+        if src[s] == 0 and node[j] != k:
+            kj = node[j]
+            if abs(kj - k) > MAX_CARRY_STEPS:
+                cmode[s] = CARRY_TRAVEL
+            elif kj > k:
+                cmode[s] = CARRY_FORWARD
+                compose_range(U, k, kj, carry[s])
+            else:
+                cmode[s] = CARRY_BACKWARD
+                compose_range(U, kj, k, carry[s])
+    S = PS.shape[1]
+    B = np.empty((3, 2))
+    piece = np.empty((3, 2))
+    n_live = 0
+    live0 = 0
+    for b in range(S):
+        if not _empty(PS, k, b):
+            live0 += 1
+    budget = pieces if live0 <= SUB_MAX_LIVE else 1  # a lost heading: each slice as one box
+    lever = 0.0  # metres per radian of heading at the observations (their largest range)
+    for s in range(m):
+        lever = max(lever, rho[idx[s], 1])
+    for b in range(S):
+        _set_empty3(NEW[b])
+        if _empty(PS, k, b):
+            continue
+        # a paving of the slice (SIVIA with contraction, depth first, at most `budget`
+        # contractions): each box is contracted by the q-relaxed intersection of its candidates
+        # (most boxes of a lost heading die after q_pose + 1 of them); a survivor is bisected
+        # across its widest side (the heading weighted by `lever`) while the budget allows,
+        # else it joins the slice's hull
+        for d in range(3):
+            stack[0, d, 0], stack[0, d, 1] = PS[k, b, d, 0], PS[k, b, d, 1]
+        top = 1
+        used = 0
+        while top > 0:
+            top -= 1
+            for d in range(3):
+                B[d, 0], B[d, 1] = stack[top, d, 0], stack[top, d, 1]
+            used += 1
+            if not _contract_piece(H, L, B, k, m, idx, src, node, lm, tnode, treach, rho, alpha, reach, travel, turn,
+                                   turn_err, q_pose, timg, carry, cmode, buf, lo, hi, piece):
+                continue
+            wx = piece[0, 1] - piece[0, 0]
+            wy = piece[1, 1] - piece[1, 0]
+            wt = (piece[2, 1] - piece[2, 0]) * lever
+            wmax = max(wx, max(wy, wt))
+            if used + top + 2 <= budget and wmax > MIN_PIECE and wmax < INF:
+                d = 0 if wx == wmax else (1 if wy == wmax else 2)
+                mid = 0.5 * (piece[d, 0] + piece[d, 1])  # both halves hold mid: they cover the box
+                for h in range(2):
+                    for e in range(3):
+                        stack[top, e, 0], stack[top, e, 1] = piece[e, 0], piece[e, 1]
+                    if h == 0:
+                        stack[top, d, 1] = mid
+                    else:
+                        stack[top, d, 0] = mid
+                    top += 1
+            else:
+                _hull_into(NEW[b], piece[0, 0], piece[0, 1], piece[1, 0], piece[1, 1], piece[2, 0], piece[2, 1])
+                _mark_agree(buf, m, piece, agree)
+        if NEW[b, 0, 0] <= NEW[b, 0, 1]:
+            n_live += 1
+    if n_live == 0:
+        posedone[k] = clock[0]
+        return False
+    _commit(PS, H, k, NEW, h_lo, h_hi, ver, clock)
+    posedone[k] = clock[0]
+    for s in range(m):
+        j = idx[s]
+        if not agree[s] and ((src[s] == 0 and node[j] == k) or src[s] == 1):
+            status[j] = OBS_REJECTED_POSE
+    return True
