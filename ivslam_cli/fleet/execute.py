@@ -122,7 +122,7 @@ def run_dask(jobs: Sequence[Job], done: Done, address: str) -> None:
                              key=[f"ivslam-run-{i}-{os.getpid()}-{id(jobs)}" for i in range(len(jobs))])
         index = {f.key: i for i, f in enumerate(futures)}
         try:
-            for fut in as_completed(futures):
+            for fut in as_completed(futures, loop=client.loop):
                 i = index[fut.key]
                 try:
                     rec = fut.result()
