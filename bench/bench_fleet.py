@@ -6,7 +6,9 @@ process each, the kernel cache warm), the best of ``--repeat`` runs. Printed: bo
 times and the speed-up; the per-log overhead (everything but the pipelines: process and
 worker start, reading, writing, the audit — in core-seconds per log); what the runs achieved
 (containment, median pose and landmark widths, empty events); and whether the pool's results
-equal the sequential ones (datasets, runtime aside).
+equal the sequential ones (datasets, runtime aside). The cores each command obtained (its CPU
+time over its wall time) are printed too: on a machine shared with other work the pool cannot
+be faster than the cores it gets.
 
 Target (exit code 1 otherwise): the pool ≥ 1.7× faster than one after another on 2 workers,
 every log ok, containment 1.0 and equal results.
@@ -20,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -31,13 +34,21 @@ LOGS = 8
 WORKERS = 2
 
 
-def _ivslam(*args: str) -> float:
-    t0 = time.perf_counter()
+def _cpu() -> float:
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
+
+
+def _ivslam(*args: str, cpu: list | None = None) -> float:
+    c0, t0 = _cpu(), time.perf_counter()
     r = subprocess.run([sys.executable, "-m", "ivslam_cli", *args], stdout=subprocess.DEVNULL,
                        stderr=subprocess.PIPE, text=True)
     if r.returncode:
         raise SystemExit(f"ivslam {' '.join(args)} failed ({r.returncode}): {r.stderr.strip()}")
-    return time.perf_counter() - t0
+    wall = time.perf_counter() - t0
+    if cpu is not None:
+        cpu.append((_cpu() - c0) / wall)
+    return wall
 
 
 def _same(a: Path, b: Path) -> bool:
@@ -74,10 +85,10 @@ def main(argv: list[str] | None = None) -> int:
                       "mcap")
         warm = _ivslam("run", str(logs / "lm1.mcap"), "--mode", "landmarks", "-o", str(tmp / "warm.h5"))
         print(f"{LOGS} landmark logs of {args.steps} steps; one `ivslam run` (warms the kernel cache): {warm:.1f} s")
-        seq_t, pool_t = [], []
+        seq_t, pool_t, seq_c = [], [], []
         for k in range(args.repeat):
             seq_t.append(_ivslam("run", str(logs), "--mode", "landmarks", "-o", str(tmp / f"seq{k}"), "--jobs", "1",
-                                 "--quiet"))
+                                 "--quiet", cpu=seq_c))
             pool_t.append(_ivslam("run", str(logs), "--mode", "landmarks", "-o", str(tmp / f"pool{k}"), "--jobs",
                                   str(WORKERS), "--quiet"))
         best_seq, best_pool = min(seq_t), min(pool_t)
@@ -91,6 +102,11 @@ def main(argv: list[str] | None = None) -> int:
     pipe_pool = sum(r["runtime_s"] for r in pool_doc["logs"])
     print(f"one after another (--jobs 1): {best_seq:.1f} s   (runs: {', '.join(f'{t:.1f}' for t in seq_t)})")
     print(f"process pool (--jobs {WORKERS}):     {best_pool:.1f} s   (runs: {', '.join(f'{t:.1f}' for t in pool_t)})")
+    workers = len({(r["host"], r["pid"]) for r in pool_doc["logs"]})
+    pool_cpu = sum(r["cpu_s"] for r in pool_doc["logs"]) / best_pool  # the workers' own CPU time
+    print(f"cores obtained (CPU time / wall time): one after another {seq_c[ks]:.2f}, pool (its jobs) {pool_cpu:.2f} "
+          f"({workers} worker processes); load average now {os.getloadavg()[0]:.2f} (other work on the machine "
+          f"takes its share)")
     print(f"speed-up: {speedup:.2f}x (target >= {TARGET}x): {'PASS' if speedup >= TARGET else 'FAIL'}")
     print(f"pipelines: {pipe_seq:.1f} s in total one after another, {pipe_pool:.1f} s on the pool "
           f"({pipe_seq / LOGS:.2f} s a log)")

@@ -10,7 +10,8 @@ step, constraint, entity, measurement, text — the sensor-fault audit), ``stopp
 ``containment`` (kind → fraction, when the log has truth), ``sound``, ``final_width`` (kind →
 median, max [m]), ``scans`` (``scans``, ``scans_used``, ``scans_mapped`` in lidar mode, else
 null), ``stats`` (the pipeline's counters), ``summary`` (the line ``ivslam run`` prints),
-``runtime_s`` (the pipeline), ``wall_s`` (the whole job: read, run, write), ``host``, ``pid``.
+``runtime_s`` (the pipeline), ``wall_s`` (the whole job: read, run, write), ``cpu_s`` (the
+CPU time of the job's thread), ``host``, ``pid`` (the worker).
 
 ``fleet.json``: ``{"format": "ivslam-fleet", "version": 1, "output_dir", "command",
 "executor", "jobs", "wall_s", "totals": {logs, ok, inconsistent, error, resumed,
@@ -51,7 +52,7 @@ def _base(job, wall_s: float) -> dict[str, Any]:
             "robot": job.opts.robot, "status": "error", "message": None, "exit_code": None, "resumed": False,
             "empty_events": 0, "empty_event_list": [], "stopped": None, "containment": {}, "sound": None,
             "final_width": {}, "scans": None, "stats": {}, "summary": None, "runtime_s": None,
-            "wall_s": float(wall_s)}
+            "wall_s": float(wall_s), "cpu_s": None}
 
 
 def error_record(job, message: str, exit_code: int, wall_s: float) -> dict[str, Any]:

@@ -228,7 +228,7 @@ def run_job(job: Job) -> dict[str, Any]:
 
     if not job.debug:  # numpy's RuntimeWarnings (NaN in, overflow) are not messages for the user
         warnings.simplefilter("ignore", RuntimeWarning)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.thread_time()
     where = {"host": socket.gethostname(), "pid": os.getpid()}
     try:
         result, path = run_one(job.log, job.opts, job.output, argv=job.argv)
@@ -241,9 +241,9 @@ def run_job(job: Job) -> dict[str, Any]:
             import traceback
 
             rec["traceback"] = traceback.format_exc()
-        rec.update(where)
+        rec.update(where, cpu_s=time.thread_time() - c0)
         return rec
     rec = result_record(job, result, path, time.perf_counter() - t0)
-    rec.update(where)
+    rec.update(where, cpu_s=time.thread_time() - c0)
     return rec
 
