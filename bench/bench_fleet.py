@@ -42,7 +42,7 @@ def _cpu() -> float:
 def _ivslam(*args: str, cpu: list | None = None) -> float:
     c0, t0 = _cpu(), time.perf_counter()
     r = subprocess.run([sys.executable, "-m", "ivslam_cli", *args], stdout=subprocess.DEVNULL,
-                       stderr=subprocess.PIPE, text=True)
+                       stderr=subprocess.PIPE, text=True, check=False)
     if r.returncode:
         raise SystemExit(f"ivslam {' '.join(args)} failed ({r.returncode}): {r.stderr.strip()}")
     wall = time.perf_counter() - t0

@@ -139,7 +139,7 @@ def test_an_empty_directory_is_a_one_line_error(tmp_path):
     empty = tmp_path / "empty"
     empty.mkdir()
     (empty / "notes.txt").write_text("nothing here\n")
-    code, out, err = ivslam("run", empty, "-o", tmp_path / "out")
+    code, _, err = ivslam("run", empty, "-o", tmp_path / "out")
     assert code == 2
     assert err == f"ivslam: error: {empty}: no log in this directory that a reader recognises\n"
     assert not (tmp_path / "out").exists()

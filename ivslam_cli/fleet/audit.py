@@ -139,13 +139,14 @@ def _fmt(x: float | None, spec: str = ".3g") -> str:
 
 
 def render_text(doc: dict[str, Any]) -> str:
-    """The audit as text: one block per log, then the totals."""
+    """The audit as text: the totals, then one block per log."""
     t = doc["totals"]
     resumed = f", {t['resumed']} resumed" if t["resumed"] else ""
-    lines = [f"{TEXT_HEADER}: {doc['output_dir']}",
-             f"{t['logs']} log(s): {t['ok']} ok, {t['inconsistent']} proven inconsistent, {t['error']} failed"
-             f"{resumed}; {t['empty_events']} empty event(s); pipelines {t['runtime_s']:.2f} s, jobs "
-             f"{t['wall_s']:.2f} s, batch {doc['wall_s']:.2f} s ({doc['executor']}, {doc['jobs']} at once)", ""]
+    at_once = f", {doc['jobs']} at once" if doc.get("jobs") else ""
+    totals_line = (f"{t['logs']} log(s): {t['ok']} ok, {t['inconsistent']} proven inconsistent, {t['error']} "
+                   f"failed{resumed}; {t['empty_events']} empty event(s); pipelines {t['runtime_s']:.2f} s, jobs "
+                   f"{t['wall_s']:.2f} s, batch {doc['wall_s']:.2f} s ({doc['executor']}{at_once})")
+    lines = [f"{TEXT_HEADER}: {doc['output_dir']}", totals_line, ""]
     for r in doc["logs"]:
         robot = f" robot {r['robot']}" if r.get("robot") is not None else ""
         head = f"{r['log']}{robot} [{r['mode']}]: {r['status'].upper() if r['status'] != 'ok' else 'ok'}"

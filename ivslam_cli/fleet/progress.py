@@ -25,7 +25,7 @@ class _RunBar:
         self.label = "run"
 
     def __call__(self, fraction: float, label: str | None = None) -> None:
-        target = int(round(min(1.0, max(0.0, float(fraction))) * STEPS))
+        target = round(min(1.0, max(0.0, float(fraction))) * STEPS)
         if label:
             self.label = label
         if self.bar is None:
