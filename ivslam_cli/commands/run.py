@@ -126,8 +126,7 @@ def command(ctx, logs, mode, output, config_file, force, fmt, robot, scan_topic,
         initial_pose_from_truth=initial_pose_from_truth, q_landmark=q_landmark, q_pose=q_pose,
         max_iterations=max_iterations, tolerance=tolerance, poses_known=poses_known, max_range=max_range, tum=tum)
     argv = sys.argv[1:] if ctx.parent else None
-    batch = (jobs is not None or scheduler is not None or resume or not single_log(logs)
-             or (output is not None and Path(output).is_dir()))
+    batch = jobs is not None or scheduler is not None or resume or not single_log(logs)
     if batch:
         from ivslam_cli.fleet.batch import run_batch
 
