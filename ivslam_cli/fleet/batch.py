@@ -106,7 +106,12 @@ def run_batch(args: tuple[str, ...], opts: RunOptions, output: str | None, *, jo
     if out_dir.is_dir():
         for name in (audit.JSON_NAME, audit.TEXT_NAME):
             check_output(out_dir / name, force=replace_audit, kind="fleet")
-    else:
+    client = None
+    if scheduler is not None and pending:  # an unreachable scheduler: an error before anything is written
+        from ivslam_cli.fleet.execute import connect
+
+        client = connect(scheduler)
+    if not out_dir.is_dir():
         out_dir.mkdir()
 
     workers = jobs if jobs is not None else default_jobs()
@@ -128,7 +133,9 @@ def run_batch(args: tuple[str, ...], opts: RunOptions, output: str | None, *, jo
                 bar.update(1, f"{failed[0]} failed" if failed[0] else "")
 
         if todo:
-            executor = run_jobs(todo, done, workers=workers, scheduler=scheduler)
+            executor = run_jobs(todo, done, workers=workers, scheduler=scheduler, client=client)
+        elif client is not None:
+            client.close()
     ordered = [records[i] for i in range(len(plan))]
     wall = time.perf_counter() - t0
     n_at_once = 1 if executor == "sequential" else (workers if scheduler is None else 0)

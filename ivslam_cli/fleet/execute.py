@@ -113,10 +113,10 @@ def connect(address: str):
                           address) from None
 
 
-def run_dask(jobs: Sequence[Job], done: Done, address: str) -> None:
+def run_dask(jobs: Sequence[Job], done: Done, client) -> None:
+    """Run ``jobs`` on the cluster of ``client`` (see :func:`connect`), then close it."""
     from dask.distributed import as_completed
 
-    client = connect(address)
     try:
         futures = client.map(run_job, list(jobs), pure=False,
                              key=[f"ivslam-run-{i}-{os.getpid()}-{id(jobs)}" for i in range(len(jobs))])
@@ -136,10 +136,11 @@ def run_dask(jobs: Sequence[Job], done: Done, address: str) -> None:
         client.close()
 
 
-def run_jobs(jobs: Sequence[Job], done: Done, *, workers: int, scheduler: str | None) -> str:
-    """Run ``jobs``; returns the executor's description (for the audit)."""
+def run_jobs(jobs: Sequence[Job], done: Done, *, workers: int, scheduler: str | None, client=None) -> str:
+    """Run ``jobs`` (on ``client``'s cluster when ``scheduler`` is given); returns the executor's
+    description (for the audit)."""
     if scheduler is not None:
-        run_dask(jobs, done, scheduler)
+        run_dask(jobs, done, client if client is not None else connect(scheduler))
         return f"dask {scheduler}"
     if workers <= 1 or len(jobs) <= 1:
         run_sequential(jobs, done)
