@@ -202,3 +202,16 @@ def test_report_of_a_batch_directory(logs, tmp_path):
     assert code == 2 and "applies to one result" in err
     code, _, err = ivslam("report", d)
     assert code == 2 and "without fleet.json" in err
+
+
+def test_strict_batch_exits_3_and_records_where_it_stopped(logs, tmp_path):
+    from tests.helpers.paths import REPO
+
+    out = tmp_path / "out"
+    code, _, err = ivslam("run", logs / "lm1.mcap", REPO / "sample_logs" / "landmarks.bag", "--mode", "landmarks",
+                          "--initial-pose-from-truth", "--strict", "-o", out, "--jobs", 1, "--quiet")
+    assert code == 3, err
+    recs = _audit(out)["logs"]
+    assert [r["status"] for r in recs] == ["ok", "inconsistent"]
+    assert recs[1]["stopped"] and recs[1]["message"].startswith("stopped (--strict): ")
+    assert recs[1]["empty_events"] >= 1 and recs[1]["empty_event_list"][0]["constraint"]
