@@ -43,7 +43,8 @@ NOT_OURS = "exists and is not {what} written by ivslam; refusing to replace it, 
 
 #: kinds of output, as :func:`written_by_ivslam` recognises them
 KINDS = {"result": "a result", "log": "a log", "tum": "a TUM trajectory",
-         "pgm": "a map_server PGM map", "map-yaml": "a map_server YAML file", "plot": "a plot"}
+         "pgm": "a map_server PGM map", "map-yaml": "a map_server YAML file", "plot": "a plot",
+         "fleet": "a fleet audit"}
 
 # errors of the device rather than of the path given (exit 1)
 _IO_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EFBIG, errno.ENOMEM, errno.EROFS}
@@ -80,7 +81,7 @@ def written_by_ivslam(path: str | Path) -> str | None:
 
     Recognised: results and logs in HDF5 (their format attributes), MCAP logs (the header's
     library), ROS 1 bags and ROS 2 bag directories with ivslam's ``/ivslam/meta`` topic, TUM
-    trajectories and map_server maps (the header and layout ivslam writes), plots (the
+    trajectories, map_server maps and fleet audits (the header and layout ivslam writes), plots (the
     ``ivslam`` marker in their metadata).
     """
     path = Path(path)
@@ -125,6 +126,8 @@ def written_by_ivslam(path: str | Path) -> str | None:
         return "log" if marker in head or marker in _tail(path, 1 << 20) else None
     if head.startswith(b"# timestamp x y z qx qy qz qw (centres of ivslam pose boxes)\n"):
         return "tum"
+    if head.startswith(b'{\n  "format": "ivslam-fleet"') or head.startswith(b"# ivslam fleet audit: "):
+        return "fleet"
     if head.startswith(b"P5\n# ivslam map\n"):
         return "pgm"
     if head.startswith(b"image: "):

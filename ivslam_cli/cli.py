@@ -56,36 +56,15 @@ class IvslamGroup(click.Group):
         return importlib.import_module(module).command
 
     def invoke(self, ctx: click.Context):
-        from ivslam_cli.errors import IvslamError
-
         try:
             return super().invoke(ctx)
         except (click.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
-        except IvslamError as exc:
+        except Exception as exc:
             if ctx.obj and ctx.obj.get("debug"):
                 raise
-            raise UserError(str(exc), exc.exit_code) from exc
-        except OSError as exc:
-            if ctx.obj and ctx.obj.get("debug"):
-                raise
-            where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
-            code = 1 if exc.errno in IO_ERRNOS else 2
-            if not where and code == 1:  # e.g. numba writing its kernel cache on a full disk
-                where = "cannot write a cache or temporary file: "
-            raise UserError(f"{where}{exc.strerror or exc}", code) from exc
-        except MemoryError as exc:
-            if ctx.obj and ctx.obj.get("debug"):
-                raise
-            raise UserError("out of memory (an input larger than this machine can hold?)", 1) from exc
-        except Exception as exc:  # last resort: still one line, but say it is ours
-            if ctx.obj and ctx.obj.get("debug"):
-                raise
-            raise UserError(
-                f"internal error ({type(exc).__name__}: {exc}); rerun with --debug for a traceback",
-                1,
-            ) from exc
-
+            message, code = error_line(exc)
+            raise UserError(message, code) from exc
 
     def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
         """Run the command; every way it can end is one line on stderr and an exit code."""
@@ -111,6 +90,24 @@ class IvslamGroup(click.Group):
         if standalone_mode:
             sys.exit(code)
         return code
+
+
+def error_line(exc: Exception) -> tuple[str, int]:
+    """The one-line message (without the ``ivslam: error:`` prefix) and exit code for ``exc``."""
+    from ivslam_cli.errors import IvslamError
+
+    if isinstance(exc, IvslamError):
+        return str(exc), exc.exit_code
+    if isinstance(exc, OSError):
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        code = 1 if exc.errno in IO_ERRNOS else 2
+        if not where and code == 1:  # e.g. numba writing its kernel cache on a full disk
+            where = "cannot write a cache or temporary file: "
+        return f"{where}{exc.strerror or exc}", code
+    if isinstance(exc, MemoryError):
+        return "out of memory (an input larger than this machine can hold?)", 1
+    # last resort: still one line, but say it is ours
+    return f"internal error ({type(exc).__name__}: {exc}); rerun with --debug for a traceback", 1
 
 
 #: errors of the device rather than of the path given: exit 1, not 2

@@ -33,6 +33,11 @@ def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, ma
     """Report on a result: bounds used, empty intersections, convergence, containment.
 
     \b
+    RESULT may be the output directory of a batch (`ivslam run LOG... -o DIR`): its fleet
+    audit (per log: mode, status, empty events, containment, widths, runtime; totals), as
+    text or --json, and --plot draws per-log bars.
+
+    \b
     Containment against ground truth below 1.0 is flagged SOUNDNESS FAILURE, unless
     outliers were injected and the run relaxed them (q > 0).
 
@@ -43,6 +48,7 @@ def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, ma
       ivslam report result.h5 --plot map.png --tum traj.txt --map-pgm map
       ivslam report lidar.h5 --plot submap3.png --submap 3
       ivslam report intel.h5 --relations ../shared/datasets/intel_lab/intel.relations.xz
+      ivslam report out/fleet --plot fleet.png
     """
     import math
 
@@ -51,6 +57,15 @@ def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, ma
     from ivslam_cli.report.core import compute_report
     from ivslam_cli.results.hdf5 import read_result
 
+    if result.is_dir() and not (result / "metadata.yaml").exists():
+        for name, value in (("--tum", tum), ("--map-pgm", map_pgm), ("--relations", relations),
+                            ("--submap", submap)):
+            if value is not None:
+                raise IvslamError(f"{name} applies to one result, not to a batch directory", result)
+        from ivslam_cli.fleet.report import report_fleet
+
+        click.echo(report_fleet(result, as_json=as_json, plot=plot, force=force), nl=False)
+        return
     if stamp_tol is not None and relations is None:
         raise IvslamError("--stamp-tol applies to --relations only")
     if stamp_tol is not None and not (math.isfinite(stamp_tol) and stamp_tol >= 0):

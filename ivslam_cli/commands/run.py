@@ -1,4 +1,5 @@
-"""``ivslam run LOG``: read a log, run a pipeline, write the HDF5 result."""
+"""``ivslam run LOG...``: read a log, run a pipeline, write the HDF5 result; over many logs, a
+batch into one directory with its fleet audit (:mod:`ivslam_cli.fleet`)."""
 
 from __future__ import annotations
 
@@ -27,18 +28,16 @@ class _Robot(click.ParamType):
 ROBOT = _Robot()
 
 
-def _default_output(log: str, mode: str) -> Path:
-    p = Path(log.rstrip("/"))
-    return p.with_name(f"{p.name.split('.')[0]}.{mode}.h5")
-
-
 @click.command(name="run")
-@click.argument("log", type=click.Path(exists=False))
-@click.option("--mode", type=click.Choice(MODES), default="pairs", show_default=True,
+@click.argument("logs", metavar="LOG...", nargs=-1, required=True, type=click.Path(exists=False))
+@click.option("--mode", type=click.Choice((*MODES, "auto")), default="pairs", show_default=True,
               help="pairs: landmark displacement subpavings (Mustafa et al.); landmarks: pose/landmark CSP; "
-                   "lidar: feature-less P_EMPTY/P_OBSTACLE map (Guaranteed SLAM slides).")
+                   "lidar: feature-less P_EMPTY/P_OBSTACLE map (Guaranteed SLAM slides); auto: from what each "
+                   "log holds (its simulated scenario; scans: lidar; observations and odometry: landmarks; "
+                   "observations alone: pairs).")
 @click.option("-o", "--output", type=click.Path(), default=None,
-              help="Result file [default: LOG name + .MODE.h5 beside the log].")
+              help="Result file [default: LOG name + .MODE.h5 beside the log]; with several logs, the output "
+                   "directory (one result per log, LOG name + .MODE.h5, and the audit fleet.json, fleet.txt).")
 @click.option("--config", "config_file", type=click.Path(), default=None, help="TOML configuration file.")
 @click.option("--force", is_flag=True, help="Overwrite an existing result.")
 @click.option("--format", "fmt", default=None, help="Force the log reader (see `ivslam inspect --help`).")
@@ -79,12 +78,28 @@ def _default_output(log: str, mode: str) -> Path:
               help="lidar.max_range: returns beyond this prove nothing [m].")
 @click.option("--tum", type=click.Path(dir_okay=False), default=None,
               help="Also write the pose box centres as a TUM trajectory (landmarks and lidar modes).")
+@click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
+              help="Several logs: how many run at once on a local process pool [default: the machine's cores; "
+                   "1: one after another in this process].")
+@click.option("--scheduler", metavar="tcp://HOST:PORT", default=None,
+              help="Several logs: run them on this existing Dask cluster (pip install 'ivslam[fleet]'; the "
+                   "workers need ivslam and write the results to -o DIR, a path they must share).")
+@click.option("--resume", is_flag=True,
+              help="Several logs: skip the logs whose result is already in -o DIR (an interrupted batch "
+                   "continues where it stopped).")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar and no summary line (errors still print).")
 @click.pass_context
-def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, odom_topic, landmark_topic,
+def command(ctx, logs, mode, output, config_file, force, fmt, robot, scan_topic, odom_topic, landmark_topic,
             truth_topic, range_abs, range_rel, bearing, q_pair, strict, eps, heading, heading_source, anchor, reference,
             initial_pose, initial_pose_from_truth, q_landmark, q_pose, max_iterations, tolerance, poses_known,
-            max_range, tum):
+            max_range, tum, jobs, scheduler, resume, quiet):
     """Run a guaranteed SLAM pipeline over LOG and write the result (HDF5).
+
+    \b
+    Several LOGs, a directory (every log in it a reader recognises) or a manifest (one log a
+    line, optionally followed by --robot N, --config FILE, --mode MODE) run as a batch: one
+    result per log in the directory -o DIR, and the fleet audit DIR/fleet.json + fleet.txt
+    (`ivslam report DIR`). A broken log fails alone; exit 4 if any failed.
 
     \b
     Examples:
@@ -95,67 +110,36 @@ def command(ctx, log, mode, output, config_file, force, fmt, robot, scan_topic, 
           --config configs/mrclam.toml --tum robot1.tum -o robot1.h5
       ivslam run sample_logs/lidar_rooms.h5 --mode lidar --initial-pose-from-truth
       ivslam run ../shared/datasets/carmen_corrected/aces-corrected.log.gz --mode lidar --poses-known
+      ivslam run sample_logs --mode auto --initial-pose-from-truth -o out/fleet --jobs 2
+      ivslam run logs.txt --mode landmarks -o out/fleet --scheduler tcp://10.0.0.5:8786 --resume
     """
-    from ivslam_cli.atomic import refuse_existing, transaction
-    from ivslam_cli.config import resolve_config
-    from ivslam_cli.errors import InconsistentData, IvslamError
-    from ivslam_cli.logs import check_reader_options, read_log
-    from ivslam_cli.results.hdf5 import write_result
-    from ivslam_cli.slam import run_pipeline, summary
+    from ivslam_cli.errors import InconsistentData
+    from ivslam_cli.fleet.inputs import single_log
+    from ivslam_cli.fleet.job import RunOptions, default_output, run_one
+    from ivslam_cli.slam import summary
 
-    given = {"--q": q_pair, "--heading": heading, "--heading-source": heading_source, "--anchor": anchor,
-             "--reference": reference, "--q-landmark": q_landmark, "--q-pose": q_pose,
-             "--max-iterations": max_iterations, "--tolerance": tolerance, "--initial-pose": initial_pose,
-             "--initial-pose-from-truth": initial_pose_from_truth, "--tum": tum, "--poses-known": poses_known,
-             "--max-range": max_range, "--eps": eps}
-    for name, value in given.items():
-        if value is not None and mode not in OPTION_MODES[name]:
-            raise IvslamError(f"{name} applies to --mode {' or '.join(OPTION_MODES[name])} only (not {mode})")
-    if robot == "all" and mode != "landmarks":
-        raise IvslamError(f"--robot all needs --mode landmarks (not {mode})")
-    out = Path(output) if output else _default_output(log, mode)
-    with transaction(force=force, inputs=[log, config_file]):
-        refuse_existing(out, force, kind="result")  # fail before the run, not after it
-        data = read_log(log, fmt, scan_topic=scan_topic, odom_topic=odom_topic, landmark_topic=landmark_topic,
-                        truth_topic=truth_topic, robot=robot)
-        if tum is not None:
-            from ivslam_cli.results.export import tum_paths
+    opts = RunOptions(
+        mode=mode, config_file=config_file, force=force, fmt=fmt, robot=robot, scan_topic=scan_topic,
+        odom_topic=odom_topic, landmark_topic=landmark_topic, truth_topic=truth_topic, range_abs=range_abs,
+        range_rel=range_rel, bearing=bearing, q_pair=q_pair, strict=strict, eps=eps, heading=heading,
+        heading_source=heading_source, anchor=anchor, reference=reference, initial_pose=initial_pose,
+        initial_pose_from_truth=initial_pose_from_truth, q_landmark=q_landmark, q_pose=q_pose,
+        max_iterations=max_iterations, tolerance=tolerance, poses_known=poses_known, max_range=max_range, tum=tum)
+    argv = sys.argv[1:] if ctx.parent else None
+    batch = jobs is not None or scheduler is not None or resume or not single_log(logs)
+    if batch:
+        from ivslam_cli.fleet.batch import run_batch
 
-            for path in tum_paths(tum, None if data.robots is None else [r for r, _ in data.robots]):
-                refuse_existing(path, force, kind="tum")
-        check_reader_options(data, robot=robot, scan_topic=scan_topic, odom_topic=odom_topic,
-                             landmark_topic=landmark_topic, truth_topic=truth_topic)
-        overrides = {
-            "bounds.range_abs": range_abs, "bounds.range_rel": range_rel, "bounds.bearing": bearing,
-            "robust.q_pair": q_pair, "robust.strict": strict,
-            "pairs.eps": eps if mode == "pairs" else None, "lidar.eps": eps if mode == "lidar" else None,
-            "lidar.poses_known": poses_known, "lidar.max_range": max_range,
-            "pairs.heading": heading, "pairs.heading_source": heading_source, "pairs.reference_id": reference,
-            "pairs.anchor_id": anchor[0] if anchor else None,
-            "pairs.anchor_xy": (anchor[1], anchor[2]) if anchor else None,
-            "landmarks.initial_pose": initial_pose, "landmarks.initial_pose_from_truth": initial_pose_from_truth,
-            "robust.q_landmark": q_landmark, "robust.q_pose": q_pose, "landmarks.max_iterations": max_iterations,
-            "landmarks.tolerance": tolerance,
-        }
-        cfg = resolve_config(config_file, overrides, log_bounds=data.bounds)
-        result = run_pipeline(data, cfg, mode, argv=sys.argv[1:] if ctx.parent else None)
-        write_result(out, result, force=force)
-        if tum is not None:
-            from ivslam_cli.results.export import write_tum
+        root = ctx.find_root().obj
+        return run_batch(logs, opts, output, jobs=jobs, scheduler=scheduler, resume=resume, quiet=quiet,
+                         argv=argv, debug=bool(root and root.get("debug")))
+    log = logs[0]
+    from ivslam_cli.fleet.progress import run_progress
 
-            write_tum(tum, result.poses, force=force, robots=result.robots)
-    click.echo(f"{summary(result)}, {result.runtime_s:.2f} s -> {out}", err=True)
+    with run_progress(enabled=not quiet and sys.stderr.isatty()) as progress:
+        result, out = run_one(log, opts, Path(output) if output else (lambda m: default_output(log, m)),
+                              argv=argv, progress=progress)
+    if not quiet:
+        click.echo(f"{summary(result)}, {result.runtime_s:.2f} s -> {out}", err=True)
     if result.consistency.stopped:
         raise InconsistentData(f"stopped (--strict): {result.consistency.stopped}; result written to {out}")
-
-
-#: the modes each mode-specific option applies to (given for another mode: an error, not ignored)
-OPTION_MODES: dict[str, tuple[str, ...]] = {
-    "--q": ("pairs",), "--heading": ("pairs",), "--heading-source": ("pairs",), "--anchor": ("pairs",),
-    "--reference": ("pairs",), "--eps": ("pairs", "lidar"),
-    "--q-landmark": ("landmarks",), "--q-pose": ("landmarks",), "--max-iterations": ("landmarks",),
-    "--tolerance": ("landmarks",),
-    "--initial-pose": ("landmarks", "lidar"), "--initial-pose-from-truth": ("landmarks", "lidar"),
-    "--tum": ("landmarks", "lidar"),
-    "--poses-known": ("lidar",), "--max-range": ("lidar",),
-}
