@@ -31,8 +31,9 @@ Robustness (q-relaxed intersections where constraints meet, Jaulin's robust set 
 
 - per landmark: ``L_i ∩= qinter(candidates of its observations, q_i)``, the candidate of
   observation ``j`` being the hull, over the slices of its pose set, of the landmark boxes
-  each slice and the measurement allow; an observation whose candidate misses ``L_i`` is
-  **rejected**;
+  each slice and the measurement allow, then refined on a grid with the candidates kept as
+  unions of those per-slice boxes (the cells at least ``m − q_i`` unions meet); an
+  observation whose candidate misses ``L_i`` is **rejected**;
 - per pose (at nodes with observations): every slice, cut into ``sub`` pieces, is met with
   the q-relaxed intersection (``q_pose``) of the pose boxes the non-rejected observations
   within ``window`` seconds allow (each carried to its own node and stamp and back by the
