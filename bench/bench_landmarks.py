@@ -3,7 +3,9 @@
 For each MRCLAM Dataset 6 robot (``configs/mrclam.toml``, read at run time so the bench follows
 the config): our time, pose containment (truth at its own stamps, in the tube between nodes),
 landmark containment, median pose/landmark box width (largest x-y side), box-centre error,
-observations rejected, empty events; what q-relaxation changed (the same run with plain
+observations rejected, empty events; the floor (the same run with the true landmark map given,
+``landmarks.map_known``: localisation only) beside it — median pose box, heading, containment;
+what q-relaxation changed (the same run with plain
 intersections, q = 0: empty events, containment, pose width); and GTSAM (``bench.gtsam_baseline``, dev extra) on the same
 log with the same bounds: its time, position error (median, RMSE), landmark error, and how often
 its 3σ ellipse holds the truth (poses x-y, landmarks). Then Victoria Park
@@ -52,6 +54,8 @@ VICTORIA_CONFIG = REPO / "configs" / "victoria_park.toml"
 
 TARGET_WARM_S = 2.0
 TARGET_POSE_FRACTION = 0.99
+#: issue #17: median pose box (m), landmark box (m), heading (rad) on every MRCLAM robot
+TARGET_POSE_W, TARGET_LM_W, TARGET_HEADING_W = 1.5, 1.0, 0.5
 
 #: The bound keys the GTSAM baseline models (σ = bound / 3); every other ``[bounds]`` key of
 #: our config is reported as not modelled by it.
@@ -95,6 +99,7 @@ def our_figures(log, out) -> dict[str, Any]:
         "sweeps": int(s["sweeps"]), "converged": bool(s["converged"]),
         "pose_width_median": float(s["median_pose_width"]),
         "landmark_width_median": float(s["median_landmark_width"]),
+        "heading_width_median": float(s["median_heading_width"]),
         "pose_checked": 0, "pose_contained": 0, "pose_fraction": math.nan,
         "pose_centre_err_median": math.nan, "pose_centre_err_rmse": math.nan,
         "lm_checked": 0, "lm_contained": 0, "lm_centre_err_median": math.nan,
@@ -140,8 +145,9 @@ def timed(fn, repeat: int = 1) -> tuple[Any, float, float]:
 
 
 def run_case(log, config: str | Path | None, *, gtsam: bool, repeat: int = 1,
-             overrides: dict[str, Any] | None = None) -> dict[str, Any]:
-    """Our pipeline (and optionally GTSAM, same bounds) on a log: one row of figures."""
+             overrides: dict[str, Any] | None = None, floor: bool = True) -> dict[str, Any]:
+    """Our pipeline (and optionally GTSAM, same bounds) on a log: one row of figures; with
+    ``floor`` and a log with the landmarks' truth, also the localisation-only run (``loc_*``)."""
     from ivslam_cli.config import resolve_config
     from ivslam_cli.slam.landmarks import Params as LandmarksParams
     from ivslam_cli.slam.landmarks.pipeline import solve
@@ -156,6 +162,14 @@ def run_case(log, config: str | Path | None, *, gtsam: bool, repeat: int = 1,
         plain = our_figures(log, solve(log, LandmarksParams.from_config(plain_cfg)))
         row.update({f"plain_{k}": plain[k] for k in ("empty_events", "pose_fraction", "lm_contained",
                                                      "pose_width_median", "landmark_width_median")})
+    # the floor: the same run with the true map given (localisation only, landmarks.map_known)
+    if floor and log.truth is not None and log.truth.landmark_xy is not None and len(log.truth.landmark_xy):
+        loc_cfg = resolve_config(config, {**(overrides or {}), "landmarks.map_known": True}, log_bounds=log.bounds)
+        loc, loc_s, _ = timed(lambda: solve(log, LandmarksParams.from_config(loc_cfg)))
+        f = our_figures(log, loc)
+        row.update({f"loc_{k}": f[k] for k in ("pose_width_median", "heading_width_median", "pose_fraction",
+                                               "pose_contained", "pose_checked", "rejected", "empty_events")})
+        row["loc_s"] = loc_s
     if gtsam:
         from bench.gtsam_baseline import run_gtsam
 
@@ -188,6 +202,10 @@ def mrclam_columns(gtsam: bool) -> list[tuple[str, Any]]:
         ("lm in box", lambda r: _frac(r["lm_contained"], r["lm_checked"])),
         ("pose w m", lambda r: _f(r["pose_width_median"], "{:.2f}")),
         ("lm w m", lambda r: _f(r["landmark_width_median"], "{:.2f}")),
+        ("head w rad", lambda r: _f(r.get("heading_width_median"), "{:.2f}")),
+        ("map given: pose w m", lambda r: _f(r.get("loc_pose_width_median"), "{:.2f}")),
+        ("map given: head w rad", lambda r: _f(r.get("loc_heading_width_median"), "{:.2f}")),
+        ("map given: pose in box", lambda r: _f(r.get("loc_pose_fraction"), "{:.4f}")),
         ("centre err m", lambda r: _f(r["pose_centre_err_median"], "{:.3f}")),
         ("lm centre err m", lambda r: _f(r["lm_centre_err_median"], "{:.3f}")),
         ("rejected", lambda r: str(r["rejected"])),
@@ -250,6 +268,16 @@ def verdicts(mrclam: list[dict[str, Any]], victoria: dict[str, Any] | None) -> l
                     f"({r['pose_contained']}/{r['pose_checked']} truth poses)"))
         out.append((r["lm_checked"] > 0 and r["lm_contained"] == r["lm_checked"],
                     f"{name}: landmarks contained {r['lm_contained']}/{r['lm_checked']} (all)"))
+        for key, target, what in (("pose_width_median", TARGET_POSE_W, "median pose box"),
+                                  ("landmark_width_median", TARGET_LM_W, "median landmark box"),
+                                  ("heading_width_median", TARGET_HEADING_W, "median heading")):
+            v = r.get(key, math.nan)
+            out.append((math.isfinite(v) and v <= target, f"{name}: {what} {_f(v, '{:.2f}')} <= {target:g}"))
+        if "loc_pose_fraction" in r:
+            lf = r["loc_pose_fraction"]
+            out.append((math.isfinite(lf) and lf >= 1.0,
+                        f"{name}: map given, pose containment {_f(lf, '{:.4f}')} = 1 "
+                        f"({r['loc_pose_contained']}/{r['loc_pose_checked']} truth poses)"))
     if victoria is not None:
         out.append((victoria["ours_s"] <= TARGET_WARM_S,
                     f"Victoria Park: warm {victoria['ours_s']:.2f} s <= {TARGET_WARM_S:g} s"))
@@ -409,7 +437,8 @@ def _summarise(args: argparse.Namespace, mrclam: list[dict[str, Any]], victoria:
         md += ["Victoria Park (`configs/victoria_park.toml`, no ground truth):", "",
                format_table([victoria], VICTORIA_COLUMNS, True), ""]
     print("\ncolumns: pose/lm in box = truth inside our pose tube / landmark box; w = median largest x-y side "
-          "of the boxes; centre err = median distance of box centres to the truth; GTSAM in 3σ = truth inside "
+          "of the boxes; head w = median heading width; map given = the same run with the true landmark map "
+          "(landmarks.map_known: localisation only, the floor the bounds allow); centre err = median distance of box centres to the truth; GTSAM in 3σ = truth inside "
           "the 3σ (χ²₂ = 9) ellipse of its marginal; GTSAM err = its estimate's position error")
     checks = verdicts(mrclam, victoria)
     print()

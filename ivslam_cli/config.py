@@ -114,6 +114,8 @@ KEYS: tuple[Key, ...] = (
     Key("landmarks", "pose_slices", 64, "int", "pose sets: the circle of headings is cut into this many fixed slices and each pose is a union of at most one (x, y, θ) box per slice (what falls into a slice is merged into its box); the hull is the pose box", "", 4),
     Key("landmarks", "pose_window_obs", 6, "int", "at most this many observations join a pose's q-relaxed intersection: its own, then the others of its window nearest in time (a subset of the window: the same assumption holds)", "", 1),
     Key("landmarks", "pose_pieces", 8, "int", "a slice of a pose set with at most 8 slices (a heading not lost) is paved by at most this many boxes when its observations contract it (set inversion in pose space: each box bisected across its widest side, x, y or θ times the observed range; 1: the slice as one box)", "", 1),
+    Key("landmarks", "map_known", False, "bool", "localisation only: the landmark map is given, each landmark box fixed to its true position (the log's ground truth) ± map_margin; the floor the bounds allow for the poses, beside the SLAM run (the frame is the truth's)"),
+    Key("landmarks", "map_margin", 0.0, "float", "with map_known: half-width of each given landmark box around its true position (the truth's own error)", "m", 0.0, maximum=BOUND_MAX),
     Key("landmarks", "max_step", 0.5, "float", "twist odometry: steps longer than this are cut (the step model's error grows with dt²); 0: never cut", "s", 0.0),
     Key("landmarks", "max_iterations", 30, "int", "cap on forward-backward sweeps over the trajectory", "", 1),
     Key("landmarks", "tolerance", 1e-3, "float", "stop when a sweep shrinks the summed widths by less than this fraction", "", 0.0),

@@ -95,14 +95,30 @@ def test_gtsam_columns_on_the_simulated_log(row):
     assert math.isfinite(row["gtsam_pos_err_rmse"]) and 0 <= row["gtsam_pos_err_median"] < 1.0
 
 
+TIGHT = {"pose_width_median": 1.2, "landmark_width_median": 0.8, "heading_width_median": 0.4}
+
+
 def test_verdicts_pass_and_fail_on_the_targets(row):
     good = dict(row, ours_s=1.0, pose_fraction=0.995, pose_contained=995, pose_checked=1000,
-                lm_contained=15, lm_checked=15)
+                lm_contained=15, lm_checked=15, loc_pose_fraction=1.0, **TIGHT)
     assert all(ok for ok, _ in verdicts([good], {"ours_s": 1.5, "empty_events": 0}))
     for bad in (dict(good, ours_s=2.5), dict(good, pose_fraction=0.98), dict(good, lm_contained=14),
-                dict(good, pose_fraction=math.nan), dict(good, lm_checked=0, lm_contained=0)):
+                dict(good, pose_fraction=math.nan), dict(good, lm_checked=0, lm_contained=0),
+                dict(good, pose_width_median=1.6), dict(good, landmark_width_median=1.1),
+                dict(good, heading_width_median=math.nan), dict(good, loc_pose_fraction=0.999)):
         checks = verdicts([bad], None)
-        assert len(checks) == 3 and sum(not ok for ok, _ in checks) == 1
+        assert len(checks) == 7 and sum(not ok for ok, _ in checks) == 1
+
+
+def test_the_floor_is_the_same_run_with_the_true_map(sim, row):
+    """run_case's ``loc_*`` figures: the map given (landmarks.map_known), truth kept, no wider
+    than the SLAM run; the table shows them beside the SLAM widths."""
+    assert row["loc_pose_fraction"] == 1.0 and row["loc_pose_checked"] == row["pose_checked"] > 0
+    assert 0 < row["loc_pose_width_median"] <= row["pose_width_median"]
+    assert row["loc_heading_width_median"] <= row["heading_width_median"]
+    heads = [h for h, _ in mrclam_columns(False)]
+    assert heads.index("map given: pose w m") == heads.index("head w rad") + 1
+    assert f"{row['loc_pose_width_median']:.2f}" in format_table([row], mrclam_columns(False))
     v = verdicts([], {"ours_s": 3.0, "empty_events": 2})
     assert [ok for ok, _ in v] == [False, False] and "2 empty events" in v[1][1]
 
@@ -113,7 +129,7 @@ def test_main_writes_markdown_and_json_and_fails_on_a_missed_target(row, tmp_pat
     import bench.bench_landmarks as B
 
     good = dict(row, ours_s=1.0, pose_fraction=1.0, pose_contained=10, pose_checked=10, lm_contained=15,
-                lm_checked=15, cold_s=30.0)
+                lm_checked=15, cold_s=30.0, loc_pose_fraction=1.0, **TIGHT)
 
     def fake(args, robots, use_gtsam, mrclam):  # the cases' processes, replaced by known rows
         second = {k: v for k, v in good.items() if k != "cold_s"}  # cold: measured once, first robot

@@ -31,8 +31,9 @@ Robustness (q-relaxed intersections where constraints meet, Jaulin's robust set 
 
 - per landmark: ``L_i ∩= qinter(candidates of its observations, q_i)``, the candidate of
   observation ``j`` being the hull, over the slices of its pose set, of the landmark boxes
-  each slice and the measurement allow; an observation whose candidate misses ``L_i`` is
-  **rejected**;
+  each slice and the measurement allow, then refined on a grid with the candidates kept as
+  unions of those per-slice boxes (the cells at least ``m − q_i`` unions meet); an
+  observation whose candidate misses ``L_i`` is **rejected**;
 - per pose (at nodes with observations): every slice, cut into ``sub`` pieces, is met with
   the q-relaxed intersection (``q_pose``) of the pose boxes the non-rejected observations
   within ``window`` seconds allow (each carried to its own node and stamp and back by the
@@ -62,6 +63,7 @@ from ivslam_cli.slam.landmarks.pose_sets import (  # noqa: F401
     STEP_NONE, _circular_hull, all_hulls, count_boxes, flatten_sets, make_bins, set_from_box, step_sets)
 from ivslam_cli.slam.motion_kernel import INCREMENT, cap_heading, init_headings, step_contract  # noqa: F401
 
+LANDMARK_GRID = 32  # landmark boxes are refined on a grid of this many cells a side (observations.landmark_update)
 BIG = 1e6  # widths are capped at this in the convergence measure (unbounded boxes)
 
 
@@ -107,6 +109,9 @@ def solve(PS, H, L, BINS, kind, U, node_stamp, chain_of, travel, turn, turn_err,
     stack = np.empty((pieces + 2, 3, 2))
     cmode = np.empty(m_max, dtype=np.int8)
     cand = np.empty((node.shape[0], 2, 2))
+    cimg = np.empty((node.shape[0], S, 2, 2))
+    count = np.zeros((LANDMARK_GRID, LANDMARK_GRID), np.int64)
+    mark = np.zeros((LANDMARK_GRID, LANDMARK_GRID), np.int64)
     cver = np.full(node.shape[0], -1, np.int64)
     lrej = np.full(L.shape[0], -1, np.int64)
     lver = np.zeros(L.shape[0], np.int64)
@@ -133,8 +138,8 @@ def solve(PS, H, L, BINS, kind, U, node_stamp, chain_of, travel, turn, turn_err,
                                    by_target, target_first, rho, alpha, reach, status, buf, lo, hi, idx, src, agree,
                                    timg, carry, cmode, stack, accA, h_lo, h_hi, ver, posedone, lver, clock):
                     pose_events[k1] += 1
-        landmark_update(PS, H, L, q, lm_offsets, lm_order, node, rho, alpha, reach, status, lm_events, cand, cver, lrej,
-                        lver, ver, clock, lo, hi)
+        landmark_update(PS, H, L, q, lm_offsets, lm_order, node, rho, alpha, reach, status, lm_events, cand, cimg, cver,
+                        lrej, lver, ver, clock, lo, hi, count, mark)
         for k in range(n - 2, -1, -1):  # backward
             if not step_sets(PS, H, k, kind, U, BINS, accA, accC, h_lo, h_hi, ver, stepdone, clock):
                 step_events[k] += 1
@@ -145,8 +150,8 @@ def solve(PS, H, L, BINS, kind, U, node_stamp, chain_of, travel, turn, turn_err,
                                    by_target, target_first, rho, alpha, reach, status, buf, lo, hi, idx, src, agree,
                                    timg, carry, cmode, stack, accA, h_lo, h_hi, ver, posedone, lver, clock):
                     pose_events[k] += 1
-        landmark_update(PS, H, L, q, lm_offsets, lm_order, node, rho, alpha, reach, status, lm_events, cand, cver, lrej,
-                        lver, ver, clock, lo, hi)
+        landmark_update(PS, H, L, q, lm_offsets, lm_order, node, rho, alpha, reach, status, lm_events, cand, cimg, cver,
+                        lrej, lver, ver, clock, lo, hi, count, mark)
         w = total_width(H, L)
         width_trace[it] = w
         done = it + 1

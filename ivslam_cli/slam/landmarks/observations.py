@@ -7,6 +7,8 @@ q-relaxed result is rejected (its status). Every bound is rounded outward.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -58,15 +60,26 @@ def image_candidate(PS, H, j, node, rho, alpha, reach, out):
     """``out`` (2, 2) = the hull over the slices of ``PS[node[j]] ⊕ reach[j]`` of the positions
     observation ``j`` allows for what it sees (one pass: the annulus sector moved by the pose
     box). False if none."""
+    return slice_images(PS, H, j, node, rho, alpha, reach, out, np.empty((0, 2, 2)), False)
+
+
+@njit(cache=True)
+def slice_images(PS, H, j, node, rho, alpha, reach, out, imgs, keep):
+    """:func:`image_candidate`; with ``keep``, ``imgs[b]`` (S, 2, 2) is also the image of slice
+    ``b`` alone (empty for an empty slice or one that allows nothing): the candidate is their
+    union, ``out`` its hull."""
     k = node[j]
     rp = reach[j, 0]
     rt = reach[j, 1]
     S = PS.shape[1]
     xl, xh, yl, yh = INF, -INF, INF, -INF
     for b in range(S):
+        if keep:
+            imgs[b, 0, 0], imgs[b, 0, 1] = EMPTY_LO, EMPTY_HI
+            imgs[b, 1, 0], imgs[b, 1, 1] = EMPTY_LO, EMPTY_HI
         if _empty(PS, k, b):
             continue
-        full = b == 0 and _all_live(PS, k)
+        full = (not keep) and b == 0 and _all_live(PS, k)
         # a whole ring of slices: the hull's image is as good as the hull of the slices' images
         B = H[k] if full else PS[k, b]
         sxl, sxh = _widen(B[0, 0], B[0, 1], rp)
@@ -79,6 +92,8 @@ def image_candidate(PS, H, j, node, rho, alpha, reach, out):
             xh = max(xh, r[7])
             yl = min(yl, r[8])
             yh = max(yh, r[9])
+            if keep:
+                imgs[b, 0, 0], imgs[b, 0, 1], imgs[b, 1, 0], imgs[b, 1, 1] = r[6], r[7], r[8], r[9]
         if full:
             break
     out[0, 0], out[0, 1], out[1, 0], out[1, 1] = xl, xh, yl, yh
@@ -86,8 +101,8 @@ def image_candidate(PS, H, j, node, rho, alpha, reach, out):
 
 
 @njit(cache=True)
-def landmark_update(PS, H, L, q, lm_offsets, lm_order, node, rho, alpha, reach, status, events_lm, cand, cver, lrej,
-                    lver, ver, clock, lo, hi):
+def landmark_update(PS, H, L, q, lm_offsets, lm_order, node, rho, alpha, reach, status, events_lm, cand, cimg, cver,
+                    lrej, lver, ver, clock, lo, hi, count, mark):
     """``L_i ∩= qinter(candidates, q_i − r_i)`` for every landmark, ``r_i`` of its observations
     being rejected already (proven outliers count against the q allowed); rejects the
     observations whose candidate misses the result. A landmark the q-relaxed intersection
@@ -95,7 +110,15 @@ def landmark_update(PS, H, L, q, lm_offsets, lm_order, node, rho, alpha, reach, 
 
     ``cand[j]`` caches observation ``j``'s candidate, computed at ``clock`` value ``cver[j]``
     (recomputed when its node's set changed since, ``ver``); a landmark none of whose
-    candidates or rejections changed is skipped. ``lver[i]``: when ``L_i`` last changed."""
+    candidates or rejections changed is skipped. ``lver[i]``: when ``L_i`` last changed.
+
+    Each candidate is the union of its slices' images (``cimg[j]``, (S, 2, 2)): the box the
+    q-relaxed intersection of the hulls gives is refined on a grid of ``G × G`` cells
+    (``count``, ``mark``: (G, G) work arrays): a cell is kept if at least ``m − q`` candidates'
+    unions meet it, and the box becomes the hull of the kept cells (each widened by half a
+    cell: the cell of a point is computed in floating point), repeated on the new box while it
+    shrinks (:func:`_grid_refine`). The true landmark's cell is met by every candidate of an
+    honest observation, so it is kept."""
     n_lm = L.shape[0]
     new = np.empty((2, 2))
     for i in range(n_lm):
@@ -110,7 +133,7 @@ def landmark_update(PS, H, L, q, lm_offsets, lm_order, node, rho, alpha, reach, 
                 rejected += 1
                 continue
             if ver[node[j]] > cver[j]:
-                if not image_candidate(PS, H, j, node, rho, alpha, reach, cand[j]):
+                if not slice_images(PS, H, j, node, rho, alpha, reach, cand[j], cimg[j], True):
                     cand[j, 0, 0] = EMPTY_LO
                     cand[j, 0, 1] = EMPTY_HI
                     cand[j, 1, 0] = EMPTY_LO
@@ -140,6 +163,7 @@ def landmark_update(PS, H, L, q, lm_offsets, lm_order, node, rho, alpha, reach, 
         if not ok:
             events_lm[i] += 1
             continue
+        _grid_refine(new, a, b, lm_order, status, cimg, max(q[i] - rejected, 0), count, mark)
         if new[0, 0] != L[i, 0, 0] or new[0, 1] != L[i, 0, 1] or new[1, 0] != L[i, 1, 0] or new[1, 1] != L[i, 1, 1]:
             L[i] = new
             clock[0] += 1
@@ -152,6 +176,69 @@ def landmark_update(PS, H, L, q, lm_offsets, lm_order, node, rho, alpha, reach, 
             if (not (c[0, 0] <= c[0, 1]) or c[0, 1] < new[0, 0] or c[0, 0] > new[0, 1]
                     or c[1, 1] < new[1, 0] or c[1, 0] > new[1, 1]):
                 status[j] = OBS_REJECTED_LANDMARK
+
+
+GRID_PASSES = 3  # grid refinements of a landmark box per update, at most ...
+GRID_SHRINK = 0.1  # ... while one shrinks a side by more than this fraction
+
+
+@njit(cache=True)
+def _cell_range(a, b, x0, cw, G):
+    """The cells ``[c0, c1]`` of a grid starting at ``x0`` with cells ``cw`` wide that
+    ``[a, b]`` meets (``c(x) = ⌊(x − x0)/cw⌋`` is monotone in ``x`` in floating point)."""
+    c0 = int(math.floor((a - x0) / cw)) if a > x0 else 0
+    c1 = int(math.floor((b - x0) / cw)) if b - x0 < cw * G else G - 1
+    return max(c0, 0), min(c1, G - 1)
+
+
+@njit(cache=True)
+def _grid_refine(box, a, b, lm_order, status, cimg, qi, count, mark):
+    """``box`` (2, 2) ∩= the hull of the cells of a ``G × G`` grid over it met by the unions
+    ``cimg[j]`` of at least ``m − qi`` of the used observations ``j = lm_order[a:b]``."""
+    G = count.shape[0]
+    S = cimg.shape[1]
+    for _ in range(GRID_PASSES):
+        x0, y0 = box[0, 0], box[1, 0]
+        wx, wy = box[0, 1] - x0, box[1, 1] - y0
+        if not (wx > 0.0 and wy > 0.0 and wx < INF and wy < INF):
+            return
+        cx, cy = wx / G, wy / G
+        count[:, :] = 0
+        m = 0
+        for t in range(a, b):
+            j = lm_order[t]
+            if status[j] != OBS_USED:
+                continue
+            m += 1
+            mark[:, :] = 0
+            for s in range(S):
+                im = cimg[j, s]
+                if not (im[0, 0] <= im[0, 1]) or im[0, 1] < x0 or im[0, 0] > box[0, 1] \
+                        or im[1, 1] < y0 or im[1, 0] > box[1, 1]:
+                    continue
+                i0, i1 = _cell_range(im[0, 0], im[0, 1], x0, cx, G)
+                j0, j1 = _cell_range(im[1, 0], im[1, 1], y0, cy, G)
+                mark[i0:i1 + 1, j0:j1 + 1] = 1
+            count += mark
+        need = m - qi
+        if need <= 0:
+            return
+        i0, i1, j0, j1 = G, -1, G, -1
+        for u in range(G):
+            for v in range(G):
+                if count[u, v] >= need:
+                    i0, i1 = min(i0, u), max(i1, u)
+                    j0, j1 = min(j0, v), max(j1, v)
+        if i1 < 0:  # no cell kept: the q-relaxed hulls' box stays (the caller's event logic)
+            return
+        nxl = max(box[0, 0], down(x0 + cx * (i0 - 0.5)))
+        nxh = min(box[0, 1], up(x0 + cx * (i1 + 1.5)))
+        nyl = max(box[1, 0], down(y0 + cy * (j0 - 0.5)))
+        nyh = min(box[1, 1], up(y0 + cy * (j1 + 1.5)))
+        shrunk = (nxh - nxl) < (1.0 - GRID_SHRINK) * wx or (nyh - nyl) < (1.0 - GRID_SHRINK) * wy
+        box[0, 0], box[0, 1], box[1, 0], box[1, 1] = nxl, nxh, nyl, nyh
+        if not shrunk:
+            return
 
 
 CARRY_OWN = 0  # the observation is the node's own

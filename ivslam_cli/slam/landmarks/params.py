@@ -26,6 +26,8 @@ class Params:
     pose_slices: int
     pose_pieces: int
     max_step: float
+    map_known: bool
+    map_margin: float
     max_iterations: int
     tolerance: float
 
@@ -39,5 +41,6 @@ class Params:
             strict=bool(cfg["robust.strict"]), pose_window=float(cfg["landmarks.pose_window"]),
             pose_window_obs=int(cfg["landmarks.pose_window_obs"]),
             pose_slices=int(cfg["landmarks.pose_slices"]), pose_pieces=int(cfg["landmarks.pose_pieces"]), max_step=float(cfg["landmarks.max_step"]),
+            map_known=bool(cfg["landmarks.map_known"]), map_margin=float(cfg["landmarks.map_margin"]),
             max_iterations=int(cfg["landmarks.max_iterations"]), tolerance=float(cfg["landmarks.tolerance"]),
         )

@@ -173,11 +173,13 @@ def build_problem(logs: list[tuple[int, LogData]] | LogData, params: Params) -> 
     for c, (r, log) in enumerate(logs):
         steps = chain_steps(log.odometry, params.odometry, ev[c], params.max_step, log.provenance.path)
         t0 = float(steps.node_stamp[0])
-        if c == 0 or params.initial.from_truth:
+        located = params.map_known and params.initial.pose is None and not params.initial.from_truth
+        if (c == 0 and not located) or params.initial.from_truth:
             box, source = initial_box(log, params.initial, t0)
             box = iv.add(box, sym(steps.lag[0, [0, 0, 1]]))
         else:
-            box, source = None, "unknown (located by the shared landmarks and the other robots)"
+            box, source = None, ("unknown (located by the given map)" if located else
+                                 "unknown (located by the shared landmarks and the other robots)")
         chains.append(Chain(robot=r, log=log, steps=steps, initial=box, initial_source=source))
 
     sizes = np.array([ch.steps.node_stamp.size for ch in chains])
@@ -377,6 +379,8 @@ def solve(log, params: Params, known_landmarks: dict[int, tuple[float, float]] |
     ``known_margin`` (localisation only; landmarks not in it are unknown)."""
     t0 = time.perf_counter()
     pb = build_problem(log.robots if isinstance(log, LogData) and log.robots else log, params)
+    if known_landmarks is None and params.map_known:
+        known_landmarks, known_margin = true_map(log), params.map_margin
     L0 = None
     if known_landmarks is not None:
         L0 = np.empty((pb.ids.size, 2, 2))
@@ -443,6 +447,9 @@ def solve(log, params: Params, known_landmarks: dict[int, tuple[float, float]] |
         f"{params.pose_window} s of each pose; observations proven to break it are rejected "
         f"({rej.size}) and listed"
     )
+    if known_landmarks is not None:
+        assumption += (f"; localisation only: the landmarks given (map_known), each within ±{known_margin:g} m of "
+                       "its position in the log's ground truth")
     if len(events):
         assumption += (f"; {len(events)} contraction(s) would have emptied a box and were skipped (empty events): "
                        "the data contradict the model there")
@@ -467,12 +474,26 @@ def solve(log, params: Params, known_landmarks: dict[int, tuple[float, float]] |
     }
     return LandmarksOutput(
         poses=Poses(stamp=pb.node_stamp.astype(float), box=P,
-                    **({"frame": FRAME_WORLD} if params.initial.pose is not None or params.initial.from_truth else
+                    **({"frame": FRAME_WORLD} if (params.initial.pose is not None or params.initial.from_truth
+                                                   or known_landmarks is not None) else
                        {"frame": FRAME_FIRST_POSE, "origin_stamp": float(pb.node_stamp[0])})),
         landmarks=Landmarks(id=pb.ids, box=L),
         consistency=consistency, stats=stats, dropped=pb.dropped, pose_sets=sets, problem=pb,
         robots=robots, truth=truth,
     )
+
+
+def true_map(log) -> dict[int, tuple[float, float]]:
+    """``{id: (x, y)}`` of the landmarks in the ground truth of ``log`` (a log, or ``[(robot,
+    log), ...]``: the first that has them), for ``landmarks.map_known``."""
+    logs = [log] if isinstance(log, LogData) else [lg for _, lg in log]
+    for lg in logs:
+        tr = lg.truth
+        if tr is not None and tr.landmark_id is not None and tr.landmark_xy is not None and len(tr.landmark_id):
+            xy = np.asarray(tr.landmark_xy, float).reshape(-1, 2)
+            return {int(i): (float(x), float(y)) for i, (x, y) in zip(np.asarray(tr.landmark_id), xy)}
+    raise IvslamError("landmarks.map_known needs the landmark positions in the log's ground truth; this log has none",
+                      logs[0].provenance.path if logs else "")
 
 
 def _robots_and_truth(pb: Problem, log: LogData) -> tuple[Robots, GroundTruth]:

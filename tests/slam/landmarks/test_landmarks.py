@@ -105,6 +105,42 @@ def test_contracts_beyond_dead_reckoning():
     assert out.stats["sweeps"] >= 2
 
 
+@pytest.mark.parametrize("margin", [0.0, 0.05])
+def test_map_known_localises_within_the_slam_boxes(margin):
+    """landmarks.map_known: the landmark boxes are the truth ± map_margin, the truth is kept,
+    and the poses are no wider than SLAM's (the same data, more given); the assumption says so."""
+    log = _sim(3, steps=200)
+    slam = solve(log, LandmarksParams.from_config(_cfg(log)))
+    loc = solve(log, LandmarksParams.from_config(_cfg(log, **{"landmarks.map_known": True,
+                                                             "landmarks.map_margin": margin})))
+    _check_sound(log, loc)
+    L = loc.landmarks.box
+    assert np.all(L[..., 1] - L[..., 0] <= 2 * margin + 1e-9)
+    assert "map_known" in loc.consistency.assumption and "map_known" not in slam.consistency.assumption
+    assert loc.stats["median_pose_width"] <= slam.stats["median_pose_width"]
+    assert len(loc.consistency.empty_events) == 0
+
+
+def test_map_known_without_an_initial_pose_is_global_localisation():
+    """With the map given and no initial pose, the first pose is unknown (not the origin) and
+    the result is in the truth's frame."""
+    log = _sim(3, steps=200)
+    cfg = resolve_config(None, {"landmarks.map_known": True}, log_bounds=log.bounds)
+    out = solve(log, LandmarksParams.from_config(cfg))
+    _check_sound(log, out)
+    assert "given map" in out.consistency.assumption and out.poses.frame == "world"
+
+
+def test_map_known_needs_the_landmark_truth():
+    from ivslam_cli.errors import IvslamError
+
+    log = _sim(3, steps=60)
+    cfg = _cfg(log, **{"landmarks.map_known": True})
+    with pytest.raises(IvslamError, match="map_known"):
+        solve(replace(log, truth=replace(log.truth, landmark_id=None, landmark_xy=None)),
+              LandmarksParams.from_config(cfg))
+
+
 def test_more_sweeps_never_widen():
     log = _sim(5)
     one = solve(log, LandmarksParams.from_config(_cfg(log, **{"landmarks.max_iterations": 1})))
