@@ -23,13 +23,17 @@ from ivslam_cli.contractors._arrays import boxes
 
 
 def polar(dx: np.ndarray, dy: np.ndarray, rho: np.ndarray, theta: np.ndarray) -> np.ndarray:
-    """``dx = rho cos(theta)``, ``dy = rho sin(theta)``, ``rho >= 0`` (theta mod 2 pi)."""
-    from ivslam_cli.contractors.ctc_polar import polar_kernel
+    """``dx = rho cos(theta)``, ``dy = rho sin(theta)``, ``rho >= 0`` (theta mod 2 pi).
+
+    Runs the SIMD kernel (:mod:`~ivslam_cli.contractors.ctc_polar_simd`); the scalar
+    reference is :func:`ivslam_cli.contractors.ctc_polar.polar_kernel`.
+    """
+    from ivslam_cli.contractors.ctc_polar_simd import polar_simd_kernel
 
     n = boxes("dx", dx)
     for name, a in (("dy", dy), ("rho", rho), ("theta", theta)):
         boxes(name, a, n)
-    return polar_kernel(dx, dy, rho, theta)
+    return polar_simd_kernel(dx, dy, rho, theta)
 
 
 def difference(a: np.ndarray, b: np.ndarray, c: np.ndarray, periodic: bool = False) -> np.ndarray:

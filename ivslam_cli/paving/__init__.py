@@ -14,6 +14,14 @@ contracted pieces, so the outer area goes below the one-box-per-cell limit (the 
     >>> q = paving.pave(sector, [[-10, 10], [-10, 10]], eps=0.01, sub=2)
     >>> q.inner_area() <= 0.02 <= q.outer_area() < q.box_area() <= p.outer_area()
     True
+
+``refine=d`` refines the boundary cells as a separator paving does (outer contraction and the
+complementary one, boundary boxes bisected down to ``eps / 2^d``); the boxes proven inside
+within boundary cells are kept as ``inner_parts`` and counted in the inner area:
+
+    >>> r = paving.pave(sector, [[-10, 10], [-10, 10]], eps=0.01, refine=2)
+    >>> p.inner_area() < r.inner_area() <= 0.02 <= r.outer_area() < p.outer_area()
+    True
 """
 
 from ivslam_cli.paving.classifiers import Intersection, KernelClassifier, box_set, polar_set

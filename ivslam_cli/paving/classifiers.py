@@ -7,6 +7,12 @@ A classifier is any callable ``classify(boxes) -> (out, inside)`` over a batch o
   (empty, i.e. ``lo > hi`` on some axis, when the box is proven outside): an outer contraction;
 - ``inside[k]`` True only if the whole box is proven inside the set.
 
+A classifier may also have a ``complement(boxes) -> cin`` method, the complementary
+contraction: ``cin[k]`` a box inside ``boxes[k]`` holding every point of ``boxes[k]`` that is
+*not* in the set (empty when the box is proven inside). What lies in ``boxes[k]`` outside
+``cin[k]`` is then proven inside the set, as a separator's inner part is in Codac;
+:func:`complement` falls back on ``inside`` for classifiers without it.
+
 The families below are numba kernels selected by a code (numba first-class functions do not
 mix well with the on-disk cache); :class:`Intersection` combines any classifiers, so a set given
 by several constraints is paved in one pass. Any Python callable with the contract above works
@@ -24,7 +30,7 @@ from numba import njit
 from ivslam_cli.contractors.ctc_polar import polar_scalar
 from ivslam_cli.interval.angles import arg_box, shift
 from ivslam_cli.interval.arith import add, inter, sqr, sqrt, sub
-from ivslam_cli.interval.rounding import INV_TWO_PI_HI, TWO_PI_HI, down
+from ivslam_cli.interval.rounding import INV_TWO_PI_HI, PI_HI, TWO_PI_HI, down, up
 
 BOX = 0
 POLAR = 1
@@ -91,6 +97,95 @@ def _polar(p, xl, xh, yl, yh):
     return ox[0], ox[1], oy[0], oy[1], False
 
 
+@njit(cache=True, inline="always")
+def _hull2(al, ah, bl, bh, xl, xh, yl, yh):
+    """Hull of the boxes ``[al, ah] x [bl, bh]`` and ``[xl, xh] x [yl, yh]`` (empty is neutral)."""
+    if not (xl <= xh) or not (yl <= yh):
+        return al, ah, bl, bh
+    if not (al <= ah) or not (bl <= bh):
+        return xl, xh, yl, yh
+    return min(al, xl), max(ah, xh), min(bl, yl), max(bh, yh)
+
+
+@njit(cache=True)
+def _box_complement(p, xl, xh, yl, yh):
+    """Hull of the points of ``[x] x [y]`` outside the box ``[p0, p1] x [p2, p3]`` (closed)."""
+    al, ah, bl, bh = np.inf, -np.inf, np.inf, -np.inf
+    if xl < p[0]:  # the part left of the box
+        al, ah, bl, bh = _hull2(al, ah, bl, bh, xl, min(xh, p[0]), yl, yh)
+    if xh > p[1]:
+        al, ah, bl, bh = _hull2(al, ah, bl, bh, max(xl, p[1]), xh, yl, yh)
+    if yl < p[2]:
+        al, ah, bl, bh = _hull2(al, ah, bl, bh, xl, xh, yl, min(yh, p[2]))
+    if yh > p[3]:
+        al, ah, bl, bh = _hull2(al, ah, bl, bh, xl, xh, max(yl, p[3]), yh)
+    return al, ah, bl, bh
+
+
+@njit(cache=True)
+def _polar_complement(p, xl, xh, yl, yh):
+    """Hull of the points of ``[x] x [y]`` outside the polar set of :func:`_polar`.
+
+    The complement is ``rho < rho_lo`` or ``rho > rho_hi`` or ``arg`` in the complementary arc
+    ``(theta_hi, theta_lo + 2 pi)``; each part is enlarged to its closure and contracted with the
+    polar contractor (an outer contractor: every point of the part in the box is kept), and the
+    results are joined. A point of the box outside the set is in one of the parts, hence in
+    the hull.
+    """
+    cx, cy = p[0], p[1]
+    rl, rh, tl, th = p[2], p[3], p[4], p[5]
+    dxl, dxh = sub(xl, xh, cx, cx)
+    dyl, dyh = sub(yl, yh, cy, cy)
+    al, ah, bl, bh = np.inf, -np.inf, np.inf, -np.inf
+    for part in range(3):
+        if part == 0:  # inside the inner circle
+            if not (rl > 0.0):
+                continue
+            r = polar_scalar(dxl, dxh, dyl, dyh, 0.0, rl, -PI_HI, PI_HI)
+        elif part == 1:  # outside the outer circle
+            if rh == np.inf:
+                continue
+            r = polar_scalar(dxl, dxh, dyl, dyh, rh, np.inf, -PI_HI, PI_HI)
+        else:  # the complementary arc
+            if down(th - tl) >= TWO_PI_HI:
+                continue
+            r = polar_scalar(dxl, dxh, dyl, dyh, 0.0, np.inf, th, up(tl + TWO_PI_HI))
+        if not (r[0] <= r[1]) or not (r[2] <= r[3]):
+            continue
+        ox = inter(xl, xh, *add(r[0], r[1], cx, cx))
+        oy = inter(yl, yh, *add(r[2], r[3], cy, cy))
+        al, ah, bl, bh = _hull2(al, ah, bl, bh, ox[0], ox[1], oy[0], oy[1])
+    return al, ah, bl, bh
+
+
+@njit(cache=True)
+def complement_kernel(code, params, boxes, out):
+    """The complementary contraction of family ``code`` on every row of ``boxes``."""
+    for k in range(boxes.shape[0]):
+        xl, xh, yl, yh = boxes[k, 0, 0], boxes[k, 0, 1], boxes[k, 1, 0], boxes[k, 1, 1]
+        if code == BOX:
+            r = _box_complement(params, xl, xh, yl, yh)
+        else:
+            r = _polar_complement(params, xl, xh, yl, yh)
+        if not (r[0] <= r[1]) or not (r[2] <= r[3]):
+            _set_empty(out, k)
+            continue
+        out[k, 0, 0], out[k, 0, 1], out[k, 1, 0], out[k, 1, 1] = r[0], r[1], r[2], r[3]
+
+
+def complement(classify, boxes: np.ndarray) -> np.ndarray:
+    """``classify.complement(boxes)`` if it has one; else each box that is not proven inside
+    (``inside`` false) is its own complementary contraction, the others are empty."""
+    boxes = np.ascontiguousarray(boxes, dtype=np.float64)
+    fn = getattr(classify, "complement", None)
+    if fn is not None:
+        return fn(boxes)
+    _, inside = classify(boxes)
+    cin = boxes.copy()
+    cin[inside] = np.array([[np.inf, -np.inf], [np.inf, -np.inf]])
+    return cin
+
+
 @njit(cache=True)
 def classify_kernel(code, params, boxes, out, inside):
     """Apply family ``code`` with ``params`` to every row of ``boxes`` (writes ``out``, ``inside``)."""
@@ -122,6 +217,13 @@ class KernelClassifier:
         inside = np.empty(boxes.shape[0], dtype=np.bool_)
         classify_kernel(self.code, self.params, boxes, out, inside)
         return out, inside
+
+    def complement(self, boxes: np.ndarray) -> np.ndarray:
+        """The complementary contraction (see the module docstring)."""
+        boxes = np.ascontiguousarray(boxes, dtype=np.float64)
+        out = np.empty_like(boxes)
+        complement_kernel(self.code, self.params, boxes, out)
+        return out
 
     def __repr__(self) -> str:
         return f"KernelClassifier({self.name})"
@@ -193,3 +295,17 @@ class Intersection:
         out[~alive] = np.array([[np.inf, -np.inf], [np.inf, -np.inf]])
         inside &= alive
         return out, inside
+
+    def complement(self, boxes: np.ndarray) -> np.ndarray:
+        """A point outside the intersection is outside some part: the hull of the parts'
+        complementary contractions of the same boxes."""
+        boxes = np.ascontiguousarray(boxes, dtype=np.float64)
+        cin = np.empty_like(boxes)
+        cin[:, :, 0] = np.inf
+        cin[:, :, 1] = -np.inf
+        for part in self.parts:
+            c = complement(part, boxes)
+            ok = (c[:, 0, 0] <= c[:, 0, 1]) & (c[:, 1, 0] <= c[:, 1, 1])
+            cin[ok, :, 0] = np.minimum(cin[ok, :, 0], c[ok, :, 0])
+            cin[ok, :, 1] = np.maximum(cin[ok, :, 1], c[ok, :, 1])
+        return cin

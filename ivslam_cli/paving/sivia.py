@@ -10,8 +10,13 @@ sub-grid of pieces, each piece (∩ the cell's contracted box) is classified onc
 cell keeps as its parts the contracted pieces that may hold points (a piece proven inside is
 kept whole); the cell is INNER if every piece is proven inside, dropped if none is left.
 
+With ``refine > 0`` each boundary cell is instead refined as a separator paving (Codac's
+``pave``) does: contracted by the classifier and by its complementary contraction, what lies
+outside the latter is proven inside (kept as ``inner_parts``), the boundary box between the
+two is bisected down to sides of ``eps / 2^refine``.
+
 Guarantee: every point of ``set ∩ domain`` is in the outer approximation; every INNER cell
-is inside the set (as far as the classifier's guarantees go).
+and every inner part is inside the set (as far as the classifier's guarantees go).
 """
 
 from __future__ import annotations
@@ -235,6 +240,136 @@ def _gather_parts(order, per, count, parts, n_inner, inner_box):
 
 
 @njit(cache=True)
+def _separate(box, out, cin):
+    """One separator step on each row: ``out`` (outer contraction of ``box``) and ``cin``
+    (complementary contraction of ``out``) give the parts of ``out`` outside ``cin`` (proven
+    inside the set: up to four strips, interiors disjoint) and the boundary box ``out ∩ cin``.
+
+    Returns ``(strips (S, 2, 2), strip_row (S,), bnd (n, 2, 2), has_bnd (n,))``; rows whose
+    ``out`` is empty give nothing.
+    """
+    n = box.shape[0]
+    strips = np.empty((4 * n, 2, 2))
+    row = np.empty(4 * n, np.int64)
+    bnd = np.empty((n, 2, 2))
+    has = np.zeros(n, np.bool_)
+    s = 0
+    for k in range(n):
+        a = max(out[k, 0, 0], box[k, 0, 0])
+        b = min(out[k, 0, 1], box[k, 0, 1])
+        c = max(out[k, 1, 0], box[k, 1, 0])
+        d = min(out[k, 1, 1], box[k, 1, 1])
+        if not (a <= b) or not (c <= d):
+            continue
+        a2 = max(cin[k, 0, 0], a)
+        b2 = min(cin[k, 0, 1], b)
+        c2 = max(cin[k, 1, 0], c)
+        d2 = min(cin[k, 1, 1], d)
+        if not (a2 <= b2) or not (c2 <= d2):  # no point outside the set: all of out is inside
+            strips[s, 0, 0], strips[s, 0, 1], strips[s, 1, 0], strips[s, 1, 1] = a, b, c, d
+            row[s] = k
+            s += 1
+            continue
+        if a < a2:
+            strips[s, 0, 0], strips[s, 0, 1], strips[s, 1, 0], strips[s, 1, 1] = a, a2, c, d
+            row[s] = k
+            s += 1
+        if b2 < b:
+            strips[s, 0, 0], strips[s, 0, 1], strips[s, 1, 0], strips[s, 1, 1] = b2, b, c, d
+            row[s] = k
+            s += 1
+        if c < c2:
+            strips[s, 0, 0], strips[s, 0, 1], strips[s, 1, 0], strips[s, 1, 1] = a2, b2, c, c2
+            row[s] = k
+            s += 1
+        if d2 < d:
+            strips[s, 0, 0], strips[s, 0, 1], strips[s, 1, 0], strips[s, 1, 1] = a2, b2, d2, d
+            row[s] = k
+            s += 1
+        bnd[k, 0, 0], bnd[k, 0, 1], bnd[k, 1, 0], bnd[k, 1, 1] = a2, b2, c2, d2
+        has[k] = True
+    return strips[:s], row[:s], bnd, has
+
+
+@njit(cache=True)
+def _bisect(b):
+    """Each box cut in two at the middle of its wider side (the halves share the cut line)."""
+    n = b.shape[0]
+    out = np.empty((2 * n, 2, 2))
+    for k in range(n):
+        d = 0 if b[k, 0, 1] - b[k, 0, 0] >= b[k, 1, 1] - b[k, 1, 0] else 1
+        m = 0.5 * (b[k, d, 0] + b[k, d, 1])
+        out[2 * k] = b[k]
+        out[2 * k + 1] = b[k]
+        out[2 * k, d, 1] = m
+        out[2 * k + 1, d, 0] = m
+    return out
+
+
+@njit(cache=True)
+def _pack(cell, parts, n):
+    """Parts grouped by cell (``cell`` sorted): ``(count (n,), per, padded (n * per, 2, 2),
+    hull (n, 2, 2))`` in the layout of :func:`_reduce_sub`."""
+    count = np.zeros(n, np.int64)
+    for q in range(cell.shape[0]):
+        count[cell[q]] += 1
+    per = 1
+    for k in range(n):
+        per = max(per, count[k])
+    padded = np.empty((n * per, 2, 2))
+    box = np.empty((n, 2, 2))
+    box[:, :, 0] = np.inf
+    box[:, :, 1] = -np.inf
+    fill = np.zeros(n, np.int64)
+    for q in range(cell.shape[0]):
+        k = cell[q]
+        padded[k * per + fill[k]] = parts[q]
+        fill[k] += 1
+        for d in range(2):
+            box[k, d, 0] = min(box[k, d, 0], parts[q, d, 0])
+            box[k, d, 1] = max(box[k, d, 1], parts[q, d, 1])
+    return count, per, padded, box
+
+
+def _refine(classify, leaf_box, depth: int, h: float, max_cells: int):
+    """Separator-style refinement of the boundary cells (as Codac's ``pave`` does with a
+    separator, inside each cell): a box is contracted by the classifier (outer) and by its
+    complement; what lies outside the complementary contraction is kept as inner strips, the
+    boundary box left between the two is bisected until both its sides are at most
+    ``h / 2^depth``. Returns per cell ``(count, per, parts, hull)`` of its outer parts (inner
+    strips and boundary boxes) and the inner strips ``(K, 2, 2)``."""
+    from ivslam_cli.paving.classifiers import complement
+
+    n = leaf_box.shape[0]
+    stop = h / (1 << depth)
+    boxes = leaf_box
+    cell = np.arange(n, dtype=np.int64)
+    outer, outer_cell, inner = [], [], []
+    while boxes.shape[0] > 0:
+        if boxes.shape[0] > max_cells:
+            raise PavingLimitError(f"refinement needs more than max_cells={max_cells} boxes")
+        out, _ = classify(boxes)
+        cin = complement(classify, np.ascontiguousarray(out))
+        strips, srow, bnd, has = _separate(boxes, out, cin)
+        inner.append(strips)
+        outer.append(strips)
+        outer_cell.append(cell[srow])
+        bnd = bnd[has]
+        bcell = cell[has]
+        w = np.maximum(bnd[:, 0, 1] - bnd[:, 0, 0], bnd[:, 1, 1] - bnd[:, 1, 0])
+        done = w <= stop
+        outer.append(bnd[done])
+        outer_cell.append(bcell[done])
+        boxes = _bisect(np.ascontiguousarray(bnd[~done]))
+        cell = np.repeat(bcell[~done], 2)
+    parts = np.concatenate(outer)
+    pc = np.concatenate(outer_cell)
+    order = np.argsort(pc, kind="stable")
+    count, per, padded, hull = _pack(pc[order], parts[order], n)
+    return count, per, padded, hull, np.concatenate(inner)
+
+
+@njit(cache=True)
 def _inner_cells(keys, ox, oy, h):
     n = keys.shape[0]
     b = np.empty((n, 2, 2))
@@ -256,7 +391,7 @@ def _leaf_keys(I, J):
     return keys
 
 
-def pave(classify, domain, eps: float, *, origin=(0.0, 0.0), sub: int = 0,
+def pave(classify, domain, eps: float, *, origin=(0.0, 0.0), sub: int = 0, refine: int = 0,
          max_cells: int = DEFAULT_MAX_CELLS) -> GridPaving:
     """Pave ``set ∩ domain`` on the grid of resolution ``eps`` anchored at ``origin``.
 
@@ -264,7 +399,12 @@ def pave(classify, domain, eps: float, *, origin=(0.0, 0.0), sub: int = 0,
     ``[[xl, xh], [yl, yh]]``, snapped outward to the grid. ``sub > 0`` cuts each boundary cell
     into ``2^sub x 2^sub`` pieces and keeps their contractions as the cell's parts (cost and
     storage ~4^sub per boundary cell; the cell's ``box`` is their hull, never larger than
-    with ``sub = 0``; the inner approximation may gain cells, never loses any). Raises
+    with ``sub = 0``; the inner approximation may gain cells, never loses any).
+    ``refine > 0`` (instead of ``sub``) refines each boundary cell as a separator paving does:
+    the parts outside the classifier's complementary contraction are proven inside and kept
+    as the paving's ``inner_parts`` (and as outer parts), the boundary boxes between the two
+    contractions are bisected down to sides of ``eps / 2^refine`` (cost ~2^refine per
+    boundary cell: the boundary is a curve). Raises
     :class:`PavingLimitError` beyond ``max_cells`` cells (blocks of a level, or stored cells).
 
     Returns a :class:`GridPaving` whose outer approximation holds every point of
@@ -273,6 +413,10 @@ def pave(classify, domain, eps: float, *, origin=(0.0, 0.0), sub: int = 0,
     ensure_round_to_nearest()
     if sub < 0 or sub > 8:
         raise ValueError(f"sub must be in 0..8, got {sub}")
+    if refine < 0 or refine > 16:
+        raise ValueError(f"refine must be in 0..16, got {refine}")
+    if refine and sub:
+        raise ValueError("give sub or refine, not both")
     grid = Grid(float(origin[0]), float(origin[1]), float(eps))
     d = np.asarray(domain, dtype=np.float64).reshape(2, 2)
     i0, i1 = grid.cell_range(d[0, 0], d[0, 1], 0)
@@ -327,6 +471,14 @@ def pave(classify, domain, eps: float, *, origin=(0.0, 0.0), sub: int = 0,
         leaf_I, leaf_J, leaf_box, leaf_label, count = (leaf_I[keep], leaf_J[keep], leaf_box[keep],
                                                        leaf_label[keep], count[keep])
         leaf_parts = leaf_parts.reshape(-1, per, 2, 2)[keep].reshape(-1, 2, 2)
+    inner_parts = None
+    if refine > 0 and leaf_I.shape[0] > 0:
+        count, per, leaf_parts, leaf_box, inner_parts = _refine(classify, leaf_box, refine, h,
+                                                                 max_cells)
+        keep = np.flatnonzero(count > 0)
+        leaf_I, leaf_J, leaf_box, count = leaf_I[keep], leaf_J[keep], leaf_box[keep], count[keep]
+        leaf_label = np.full(leaf_I.shape[0], BOUNDARY, np.uint8)
+        leaf_parts = leaf_parts.reshape(-1, per, 2, 2)[keep].reshape(-1, 2, 2)
     keys = np.concatenate([inner_keys, _leaf_keys(leaf_I, leaf_J)])
     if keys.shape[0] == 0:
         return empty_paving(grid)
@@ -334,4 +486,5 @@ def pave(classify, domain, eps: float, *, origin=(0.0, 0.0), sub: int = 0,
     box = np.concatenate([inner_box, leaf_box])
     order = np.argsort(keys, kind="stable")
     start, parts = _gather_parts(order, per, count, leaf_parts, inner_keys.shape[0], inner_box)
-    return GridPaving(grid, keys[order], label[order], box[order], parts, start)
+    return GridPaving(grid, keys[order], label[order], box[order], parts, start,
+                      inner_parts=inner_parts)
