@@ -45,14 +45,11 @@ from ivslam_cli.contractors.ctc_polar import (
 from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO
 from ivslam_cli.interval.rounding import (
     HALF_PI_HI,
-    INF,
     INV_TWO_PI_LO,
     PI_HI,
     PI_LO,
     down,
-    down2,
     up,
-    up2,
 )
 
 CHUNK = 256
