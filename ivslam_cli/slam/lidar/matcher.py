@@ -502,8 +502,9 @@ class Matcher:
         self.mount = tuple(float(v) for v in scans.mount)
         nb = int(np.max(np.diff(scans.offsets))) if len(scans) else 1
         self.W = np.empty((2 * nb + 4, 6))
-        self.kept = np.empty((params.match_boxes + 64, 6))
+        self.kept = np.empty((params.match_slices + 64, 6))
         self.S = np.zeros(1, np.int32)
+        self.last_beams = 0
 
     def _scan(self, k: int):
         sc = self.scans
@@ -560,12 +561,13 @@ class Matcher:
         build_window(tmap.cells, tmap.coords, tmap.n, x0, y0, nx, ny, self.S)
         return ny + 1, x0, y0, nx, ny, True
 
-    def match(self, k: int, roots: np.ndarray, tmap, refs) -> tuple[np.ndarray, bool, int]:
+    def match(self, k: int, roots: np.ndarray, tmap, refs, budget: int | None = None) -> tuple[np.ndarray, bool, int]:
         """Match scan ``k`` from the prior ``roots`` against the submap ``tmap``'s proven-free
         cells and the ``refs`` scans ((scan, robot box) pairs: their free space for rule A, their
-        beam ends for rule B)."""
+        beam ends for rule B); ``budget``: sub-boxes tested at most (default ``match_boxes``)."""
         p = self.p
         r, v, a0, inc = self._scan(k)
+        self.last_beams = int(np.count_nonzero(v[:: int(p.match_stride)]))
         roots = np.ascontiguousarray(roots, float).reshape(-1, 6)
         if not np.all(np.isfinite(roots)) or not v.any():
             return roots, True, 0
@@ -577,7 +579,8 @@ class Matcher:
         m, wx0, wy0, nx, ny, use_grid = self.window(tmap, roots, reach)
         if not (use_grid or n_w or n_ref):
             return roots, True, 0
-        need = p.match_boxes + roots.shape[0] + 2
+        budget = int(p.match_boxes if budget is None else budget)
+        need = p.match_slices + roots.shape[0] + 66
         if self.kept.shape[0] < need:
             self.kept = np.empty((need, 6))
         mx, my, myaw = self.mount
@@ -585,9 +588,8 @@ class Matcher:
         n_kept, tested = bound_kernel(roots, roots.shape[0], r, v, a0, inc, mx, my, myaw, self.r_abs, self.r_rel,
                                       self.r_alpha, cones, int(p.q_beams), int(p.match_stride), self.W, n_w, self.S,
                                       m, wx0, wy0, nx, ny, float(tmap.eps), use_grid, ref_f, ref_a0, ref_inc, ref_c,
-                                      ref_th, n_ref, float(p.match_resolution), split_reach, int(p.match_boxes),
+                                      ref_th, n_ref, float(p.match_resolution), split_reach, budget,
                                       int(p.match_slices), self.kept)
-        self.last_bnb = 0
         if n_kept == 0:
             return roots, False, int(tested)
         return slices(self.kept[:n_kept].copy(), int(p.match_slices)), True, int(tested)
