@@ -63,10 +63,11 @@ class Params:
     known_poses: str
     pose_margin: tuple[float, float, float]
     loop_closure: bool = True
-    loop_every: int = 5
+    loop_every: int = 10
     loop_window: tuple[float, float] = (3.0, 1.5)
     loop_candidates: int = 2
     loop_boxes: int = 8000
+    loop_stride: int = 1
 
     @property
     def tracking(self) -> bool:
@@ -99,4 +100,5 @@ class Params:
             loop_closure=bool(cfg["lidar.loop_closure"]), loop_every=int(cfg["lidar.loop_every"]),
             loop_window=tuple(float(v) for v in cfg["lidar.loop_window"]),
             loop_candidates=int(cfg["lidar.loop_candidates"]), loop_boxes=int(cfg["lidar.loop_boxes"]),
+            loop_stride=int(cfg["lidar.loop_stride"]),
         )

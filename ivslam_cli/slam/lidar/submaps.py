@@ -151,7 +151,7 @@ def _set_anchor_boxes(submaps, G: np.ndarray) -> None:
 
 def _open_chain(graph: L.AnchorGraph, submaps, predicted: np.ndarray) -> np.ndarray:
     """The anchor boxes the chain alone gives (no loop edge): ``G_{i+1} = (G_i ⊕ E_{i,i+1}) ∩``
-    the dead-reckoned box of its anchor scan (before any contraction reached it)."""
+    the dead-reckoned box of its anchor scan (dead reckoning alone, ``predicted``)."""
     n = len(submaps)
     out = np.empty((n, 6))
     C = graph.chain(n)
@@ -188,13 +188,29 @@ def _search_loops(j: int, scan: int, gb: np.ndarray, submaps, active, graph: L.A
             continue
         if L.width(prior) > wx or L.heading(prior) > wt or not L.near_free(prior, s.extent, 0.0):
             continue
-        cands.append((L.width(prior) + reach * L.heading(prior), s, prior))
-    cands.sort(key=lambda c: c[0])
+        cands.append((-(h - s.index), L.width(prior) + reach * L.heading(prior), s, prior))
+    cands.sort(key=lambda c: (c[0], c[1]))  # the longest chain first: where a loop tells the most
     added = False
-    for _, s, prior in cands[: params.loop_candidates]:
-        union, ok, nt = matcher.match(scan, prior[None, :], s.tmap, [(s.anchor_scan, np.zeros(6))],
-                                      budget=params.loop_boxes)
+    refs_of = lambda s: [(s.anchor_scan, np.zeros(6))]  # noqa: E731
+    for _, _, s, prior in cands[: params.loop_candidates]:
+        union, ok, nt = matcher.match(scan, prior[None, :], s.tmap, refs_of(s), budget=params.loop_boxes,
+                                      stride=params.loop_stride)
         nb = matcher.last_beams
+        # the kept set is a sound prior for the same search: repeat while it shrinks
+        for _ in range(3):
+            if not ok:
+                break
+            w0 = L.width(hull(union)) + reach * L.heading(hull(union))
+            u2, ok2, nt2 = matcher.match(scan, union, s.tmap, refs_of(s), budget=params.loop_boxes,
+                                      stride=params.loop_stride)
+            nt += nt2
+            if not ok2:
+                ok = False
+                break
+            w1 = L.width(hull(u2)) + reach * L.heading(hull(u2))
+            union = u2
+            if not w1 < 0.8 * w0:
+                break
         if not ok:
             graph.loops.append(L.LoopConstraint(j, s.index, h, prior, np.full(6, np.nan), nb, nt, True))
             continue
@@ -245,6 +261,7 @@ def track_submaps(log: LogData, params: Params, scans: Scans) -> SubmapTracking:
     travel = 0.0
     last = None  # (x, y) of the previous relative centre in the newest submap, for the travel
     graph = L.AnchorGraph()
+    Pdr = Pg.copy()  # the dead reckoning alone (no contraction reaches it): the open-loop reference
     loops_on = bool(params.loop_closure and params.contract)
     for j in range(S):
         k = int(m.node[j])
@@ -426,13 +443,16 @@ def track_submaps(log: LogData, params: Params, scans: Scans) -> SubmapTracking:
             for b in range(a + 1, len(lst)):
                 graph.add_member_pair(lst[a][0], lst[a][1], lst[b][0], lst[b][1])
     G = _anchor_boxes(submaps)
-    anchor_before = _open_chain(graph, submaps, predicted)
+    propagate(Pdr, m.kind, m.U, np.zeros_like(events), 0, kg_prev)
+    dr = np.empty((S, 6))
+    widen_boxes(Pdr, m.node, m.reach, dr)
+    anchor_before = _open_chain(graph, submaps, dr)
     open_loop = np.full((S, 6), np.nan)
     if graph.loops:
         graph.contract(G)
         _set_anchor_boxes(submaps, G)
     for row, lst in members.items():
-        ob = predicted[row].copy()
+        ob = dr[row].copy()
         for si, rb in lst:
             for Gs, target in ((submaps[si].G, glob), (anchor_before[si], None)):
                 compose(Gs.reshape(3, 2), np.ascontiguousarray(rb).reshape(3, 2), 1, g.reshape(3, 2))
