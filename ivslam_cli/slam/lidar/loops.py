@@ -238,5 +238,21 @@ def heading(b: np.ndarray) -> float:
     return b[5] - b[4]
 
 
+def loops_record(graph: AnchorGraph, anchor_open: np.ndarray, n: int):
+    """The result's :class:`~ivslam_cli.results.model.Loops` from the graph."""
+    from ivslam_cli.results.model import Loops
+
+    lc = graph.loops
+    ea, eb, E, kind = graph.arrays(n)
+    return Loops(
+        row=np.array([x.row for x in lc], np.int64), submap=np.array([x.submap for x in lc], np.int64),
+        home=np.array([x.home for x in lc], np.int64),
+        prior=np.array([x.prior for x in lc], float).reshape(-1, 3, 2),
+        box=np.array([x.box for x in lc], float).reshape(-1, 3, 2),
+        beams=np.array([x.beams for x in lc], np.int64), empty=np.array([x.empty for x in lc], bool),
+        edge_a=ea, edge_b=eb, edge_box=np.asarray(E, float).reshape(-1, 3, 2), edge_kind=kind,
+        anchor_box_open=np.asarray(anchor_open, float).reshape(-1, 3, 2), sweeps=int(graph.sweeps))
+
+
 __all__ = ["AnchorGraph", "LoopConstraint", "contract_graph", "chain_prior", "free_extent", "loop_prior",
-           "near_free", "width", "heading", "KIND_CHAIN", "KIND_LOOP", "math"]
+           "near_free", "width", "heading", "loops_record", "KIND_CHAIN", "KIND_LOOP", "math"]
