@@ -44,7 +44,7 @@ NOT_OURS = "exists and is not {what} written by ivslam; refusing to replace it, 
 #: kinds of output, as :func:`written_by_ivslam` recognises them
 KINDS = {"result": "a result", "log": "a log", "tum": "a TUM trajectory",
          "pgm": "a map_server PGM map", "map-yaml": "a map_server YAML file", "plot": "a plot",
-         "fleet": "a fleet audit"}
+         "fleet": "a fleet audit", "graph": "an interval pose graph", "g2o": "a g2o pose graph"}
 
 # errors of the device rather than of the path given (exit 1)
 _IO_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EIO, errno.EFBIG, errno.ENOMEM, errno.EROFS}
@@ -128,6 +128,10 @@ def written_by_ivslam(path: str | Path) -> str | None:
         return "tum"
     if head.startswith(b'{\n  "format": "ivslam-fleet"') or head.startswith(b"# ivslam fleet audit: "):
         return "fleet"
+    if head.startswith(b'{\n "format": "ivslam-interval-pose-graph"'):
+        return "graph"
+    if head.startswith(b"# ivslam pose graph centres (g2o)\n"):
+        return "g2o"
     if head.startswith(b"P5\n# ivslam map\n"):
         return "pgm"
     if head.startswith(b"image: "):

@@ -15,6 +15,9 @@ import click
               help="Export pose box centres as a TUM trajectory (for evo).")
 @click.option("--map-pgm", "map_pgm", type=click.Path(path_type=Path),
               help="Export the map grid as ROS map_server PREFIX.pgm + PREFIX.yaml.")
+@click.option("--graph", "graph", type=click.Path(path_type=Path),
+              help="Export the interval pose graph of a LiDAR loop-closure run as PREFIX.graph.json (anchor boxes, "
+                   "edge boxes) + PREFIX.g2o (their centres, no guarantee).")
 @click.option("--relations", type=click.Path(path_type=Path, dir_okay=False),
               help="Benchmark relations file (t1 t2 dx dy dz droll dpitch dyaw; plain, .gz or .xz): check "
                    "each true relative pose against what the result's two pose boxes allow.")
@@ -28,7 +31,7 @@ import click
               help="--plot: draw submap K in its anchor's frame beside the mosaic (LiDAR results).")
 @click.option("--force", is_flag=True, help="Overwrite existing output files.")
 def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, map_pgm: Path | None,
-            relations: Path | None, stamp_tol: float | None, max_hops: int | None, submap: int | None,
+            graph: Path | None, relations: Path | None, stamp_tol: float | None, max_hops: int | None, submap: int | None,
             force: bool) -> None:
     """Report on a result: bounds used, empty intersections, convergence, containment.
 
@@ -47,6 +50,7 @@ def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, ma
       ivslam report result.h5 --json > report.json
       ivslam report result.h5 --plot map.png --tum traj.txt --map-pgm map
       ivslam report lidar.h5 --plot submap3.png --submap 3
+      ivslam report lidar.h5 --graph graph   # graph.graph.json + graph.g2o
       ivslam report intel.h5 --relations ../shared/datasets/intel_lab/intel.relations.xz
       ivslam report out/fleet --plot fleet.png
     """
@@ -81,7 +85,13 @@ def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, ma
             refuse_existing(map_pgm.with_name(map_pgm.name + ".yaml"), force, kind="map-yaml")
         if plot is not None:
             refuse_existing(plot, force, kind="plot")
+        if graph is not None:
+            refuse_existing(graph.with_name(graph.name + ".graph.json"), force, kind="graph")
+            refuse_existing(graph.with_name(graph.name + ".g2o"), force, kind="g2o")
         res = read_result(result)
+        if graph is not None and (res.loops is None or res.submaps is None):
+            raise IvslamError("has no anchor graph (LiDAR runs with submaps and lidar.loop_closure have): nothing "
+                              "to export to --graph", result)
         if tum is not None:
             from ivslam_cli.results.export import tum_paths
 
@@ -112,6 +122,10 @@ def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, ma
             from ivslam_cli.results.export import write_map_server
 
             write_map_server(map_pgm, res.grid, force=force)
+        if graph is not None:
+            from ivslam_cli.results.export import write_graph
+
+            write_graph(graph, res.submaps.anchor_box, res.loops, force=force)
         if plot is not None:
             from ivslam_cli.report.plot import plot_report, plot_submap
 

@@ -118,6 +118,20 @@ def report_dict(rep: Report) -> dict[str, Any]:
             "logodds_free_cells_total": int(st.get("logodds_free_cells", 0)),
             "mapped_fraction": float(st.get("mapped_fraction", float("nan"))),
         }
+    if r.loops is not None:
+        lp = r.loops
+        ok = ~lp.empty
+        out["loops"] = {
+            "found": int(ok.sum()), "empty": int(lp.empty.sum()),
+            "constraints": [{"row": int(lp.row[i]), "submap": int(lp.submap[i]), "home": int(lp.home[i]),
+                             "box": None if lp.empty[i] else lp.box[i].tolist(), "prior": lp.prior[i].tolist(),
+                             "beams": int(lp.beams[i]), "empty": bool(lp.empty[i])} for i in range(len(lp))],
+            "median_global_width_after": float(r.stats.get("median_pose_width", float("nan"))),
+            "median_global_width_open_loop": float(r.stats.get("median_open_loop_width", float("nan"))),
+            "anchor_boxes": r.submaps.anchor_box.tolist() if r.submaps is not None else [],
+            "anchor_boxes_open_loop": lp.anchor_box_open.tolist(),
+            "edges": int(len(lp.edge_a)), "sweeps": int(lp.sweeps),
+        }
     if r.grid is not None:
         out["map"] = {
             "frame": r.grid.frame,

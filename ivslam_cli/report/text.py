@@ -143,6 +143,25 @@ def render_text(rep: Report, source: str = "") -> str:
         if "mapped_fraction" in st:
             add(f"            scans mapped: {st.get('scans_mapped', 0)}/{st.get('scans_used', 0)} "
                 f"({100.0 * float(st['mapped_fraction']):.4g} %)")
+    if r.loops is not None:
+        lp, st = r.loops, r.stats
+        ok = ~lp.empty
+        add("")
+        if not ok.any():
+            add(f"loops:      no loop found ({len(lp)} searches with no pose agreeing: {int(lp.empty.sum())}); "
+                "the global boxes are the chain of anchors met with dead reckoning, local guarantees unchanged")
+        else:
+            from ivslam_cli.interval.pose import position_width
+
+            wb = position_width(lp.box[ok])
+            add(f"loops:      {int(ok.sum())} loop constraints (scans matched against older submaps: "
+                f"{len(set(lp.submap[ok].tolist()))} submaps), {int(lp.empty.sum())} empty (contradictions, not used); "
+                f"loop box median {_g(float(np.median(wb)))} m / "
+                f"{_g(float(np.median(lp.box[ok, 2, 1] - lp.box[ok, 2, 0])))} rad")
+        if "median_open_loop_width" in st:
+            add(f"            global box median {_g(float(st['median_pose_width']))} m after closure, "
+                f"{_g(float(st['median_open_loop_width']))} m from the chain of anchors alone; anchor graph: "
+                f"{len(lp.edge_a)} edges, {int(lp.sweeps)} sweeps")
     if r.grid is not None:
         g = r.grid
         add("")

@@ -99,3 +99,43 @@ def write_map_server(prefix: str | Path, grid: MapGrid, *, force: bool = False) 
         write_bytes_atomic(pgm, pgm_bytes(grid), force=force, kind="pgm")
         write_text_atomic(yml, map_yaml(grid, pgm.name), force=force, kind="map-yaml")
     return pgm, yml
+
+
+def graph_texts(anchor_box: np.ndarray, loops) -> tuple[str, str]:
+    """The interval pose graph as JSON (``{"format": "ivslam-interval-pose-graph", "version": 1,
+    "nodes": [{"id", "box": [[x_lo, x_hi], [y_lo, y_hi], [θ_lo, θ_hi]]}], "edges": [{"from", "to",
+    "kind", "box"}]}``: node boxes in the result's frame, edge boxes the pose of ``to`` in the robot
+    frame of ``from``) and as g2o text of the box centres (``VERTEX_SE2 id x y θ``, ``EDGE_SE2 a b
+    dx dy dθ`` + the upper triangle of an information matrix ``1/w²`` per axis from the box
+    half-widths ``w``; centres only: no guarantee)."""
+    import json
+
+    def c(b):
+        return [0.5 * (float(b[d, 0]) + float(b[d, 1])) for d in range(3)]
+
+    nodes = [{"id": i, "box": np.asarray(b, float).tolist()} for i, b in enumerate(anchor_box)]
+    edges = [{"from": int(a), "to": int(b), "kind": "loop" if int(k) == 1 else "chain",
+              "box": np.asarray(e, float).tolist()}
+             for a, b, e, k in zip(loops.edge_a, loops.edge_b, loops.edge_box, loops.edge_kind)]
+    doc = json.dumps({"format": "ivslam-interval-pose-graph", "version": 1, "frame": "result (see /poses frame)",
+                      "nodes": nodes, "edges": edges}, indent=1, allow_nan=False)
+    lines = ["# ivslam pose graph centres (g2o)"] + [f"VERTEX_SE2 {i} {x:.9g} {y:.9g} {t:.9g}" for i, (x, y, t) in ((n["id"], c(np.asarray(n["box"])))
+                                                                         for n in nodes)]
+    lines.append("FIX 0")
+    for a, b, e in zip(loops.edge_a, loops.edge_b, loops.edge_box):
+        x, y, t = c(e)
+        w = [max(0.5 * float(e[d, 1] - e[d, 0]), 1e-6) for d in range(3)]
+        inf = [1.0 / (w[0] ** 2), 0.0, 0.0, 1.0 / (w[1] ** 2), 0.0, 1.0 / (w[2] ** 2)]
+        lines.append(f"EDGE_SE2 {int(a)} {int(b)} {x:.9g} {y:.9g} {t:.9g} " + " ".join(f"{v:.6g}" for v in inf))
+    return doc + "\n", "\n".join(lines) + "\n"
+
+
+def write_graph(prefix: str | Path, anchor_box: np.ndarray, loops, *, force: bool = False) -> tuple[Path, Path]:
+    """Write ``PREFIX.graph.json`` (the interval pose graph) and ``PREFIX.g2o`` (its centres)."""
+    prefix = Path(prefix)
+    js, g2o = graph_texts(anchor_box, loops)
+    pj = prefix.with_name(prefix.name + ".graph.json")
+    pg = prefix.with_name(prefix.name + ".g2o")
+    write_text_atomic(pj, js, force=force, kind="graph")
+    write_text_atomic(pg, g2o, force=force, kind="g2o")
+    return pj, pg

@@ -35,6 +35,7 @@ from ivslam_cli.results.model import (
     Rejections,
     RelativePoses,
     Result,
+    Loops,
     Submaps,
     ResultProvenance,
     Robots,
@@ -106,6 +107,15 @@ def _write(f: h5py.File, r: Result) -> None:
                              compression_opts=4, shuffle=True)
         else:
             g.create_dataset("state", data=st)
+    if r.loops is not None:
+        lp = r.loops
+        g = f.create_group("loops")
+        g.attrs["sweeps"] = np.int64(lp.sweeps)
+        for name, dt in (("row", np.int64), ("submap", np.int64), ("home", np.int64), ("prior", np.float64),
+                         ("box", np.float64), ("beams", np.int64), ("edge_a", np.int64), ("edge_b", np.int64),
+                         ("edge_box", np.float64), ("edge_kind", np.int64), ("anchor_box_open", np.float64)):
+            _put(g, name, getattr(lp, name), dt)
+        _put(g, "empty", np.asarray(lp.empty, bool).astype(np.uint8), np.uint8)
 
     if r.pose_sets is not None:
         g = f.create_group("pose_sets")
@@ -331,6 +341,15 @@ def _read(f: h5py.File) -> Result:
             member_offsets=_get(g, "member_offsets", np.int64), member_row=_get(g, "member_row", np.int64),
             member_box=_get(g, "member_box", np.float64).reshape(-1, 3, 2),
             member_mapped=_get(g, "member_mapped", np.uint8).astype(bool))
+    if "loops" in f:  # optional (lidar with loop closure)
+        g = f["loops"]
+        r.loops = Loops(
+            row=_get(g, "row", np.int64), submap=_get(g, "submap", np.int64), home=_get(g, "home", np.int64),
+            prior=_get(g, "prior", np.float64).reshape(-1, 3, 2), box=_get(g, "box", np.float64).reshape(-1, 3, 2),
+            beams=_get(g, "beams", np.int64), empty=_get(g, "empty", np.uint8).astype(bool),
+            edge_a=_get(g, "edge_a", np.int64), edge_b=_get(g, "edge_b", np.int64),
+            edge_box=_get(g, "edge_box", np.float64).reshape(-1, 3, 2), edge_kind=_get(g, "edge_kind", np.int64),
+            anchor_box_open=_get(g, "anchor_box_open", np.float64).reshape(-1, 3, 2), sweeps=int(_attr(g, "sweeps")))
 
     if "pose_sets" in f:  # optional (landmarks)
         g = f["pose_sets"]

@@ -223,6 +223,40 @@ GRID_MOSAIC = "mosaic"
 
 
 @dataclass
+class Loops:
+    """LiDAR loop closure: the anchor graph (nodes: the submaps' anchors, ``/submaps/anchor_box``
+    after contraction) and the loop constraints found.
+
+    - loop ``l``: pose row ``row[l]`` matched against the older submap ``submap[l]`` (its home
+      submap then: ``home[l]``) over the search region ``prior[l]`` (the scan's pose in the old
+      anchor's frame as the global boxes and the chain of anchors allow); ``box[l]`` holds the
+      poses kept (outer; NaN when ``empty[l]``: no pose of the prior agreed, a contradiction of
+      the data with the model, not used); ``beams[l]`` beams of the scan tested;
+    - edge ``e``: ``edge_box[e]`` holds anchor ``edge_b[e]``'s robot pose in anchor ``edge_a[e]``'s
+      frame (``edge_kind`` 0: chain / overlap, a scan tracked in both; 1: a loop took part);
+    - ``anchor_box_open``: the anchor boxes from the chain alone met with dead reckoning (no loop
+      edge), the reference the closure is measured against.
+    """
+
+    row: np.ndarray  # (L,) int64
+    submap: np.ndarray  # (L,) int64
+    home: np.ndarray  # (L,) int64
+    prior: np.ndarray  # (L, 3, 2) float64
+    box: np.ndarray  # (L, 3, 2) float64, NaN rows when empty
+    beams: np.ndarray  # (L,) int64
+    empty: np.ndarray  # (L,) bool
+    edge_a: np.ndarray  # (E,) int64
+    edge_b: np.ndarray  # (E,) int64
+    edge_box: np.ndarray  # (E, 3, 2) float64
+    edge_kind: np.ndarray  # (E,) int64
+    anchor_box_open: np.ndarray  # (M, 3, 2) float64
+    sweeps: int = 0
+
+    def __len__(self) -> int:
+        return int(self.row.shape[0])
+
+
+@dataclass
 class Submaps:
     """LiDAR submaps: local frames, each the robot pose at its anchor scan (pose row
     ``anchor[m]``), where the scans tracked in it have tight relative boxes and its map is proven.
@@ -371,6 +405,7 @@ class Result:
     logodds: LogOddsGrid | None = None  # lidar: the probabilistic baseline (not guaranteed)
     relative: RelativePoses | None = None  # lidar: pose of one row in another's frame
     submaps: Submaps | None = None  # lidar: local frames, their maps and members
+    loops: Loops | None = None  # lidar: loop constraints and the anchor graph
     pose_sets: PoseSets | None = None  # landmarks: the union of boxes each pose box is the hull of
     robots: Robots | None = None  # several robots in one result: which pose (and truth) rows are whose
     consistency: Consistency = field(default_factory=Consistency)

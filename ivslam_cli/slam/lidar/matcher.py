@@ -502,15 +502,16 @@ class Matcher:
         self.mount = tuple(float(v) for v in scans.mount)
         nb = int(np.max(np.diff(scans.offsets))) if len(scans) else 1
         self.W = np.empty((2 * nb + 4, 6))
-        self.kept = np.empty((params.match_boxes + 64, 6))
+        self.kept = np.empty((params.match_slices + 64, 6))
         self.S = np.zeros(1, np.int32)
+        self.last_beams = 0
 
     def _scan(self, k: int):
         sc = self.scans
         b0, b1 = int(sc.offsets[k]), int(sc.offsets[k + 1])
         return sc.ranges[b0:b1], sc.valid[b0:b1], float(sc.angle_min[k]), float(sc.angle_increment[k])
 
-    def references(self, refs):
+    def references(self, refs, stride: int | None = None):
         """Witness disks (rule B) and the reference scans' free spaces (rule A) of ``refs``:
         (scan index, robot box (6,)) pairs."""
         n = 0
@@ -528,7 +529,7 @@ class Matcher:
                 self.W = np.concatenate([self.W, np.empty((r.shape[0] + n, 6))])
             box = np.ascontiguousarray(box, float)
             n += witness_segments(r, v, a0, inc, box, mx, my, myaw, self.r_abs, self.r_rel, self.r_alpha,
-                               int(self.p.match_stride), self.W[n:])
+                               int(self.p.match_stride if stride is None else stride), self.W[n:])
             ref_f[t, : r.shape[0]] = free_of(r, v, self.r_abs, self.r_rel)
             ref_a0[t], ref_inc[t] = a0, inc
             sb = sensor_box(*(float(x) for x in box), mx, my, myaw)
@@ -560,12 +561,16 @@ class Matcher:
         build_window(tmap.cells, tmap.coords, tmap.n, x0, y0, nx, ny, self.S)
         return ny + 1, x0, y0, nx, ny, True
 
-    def match(self, k: int, roots: np.ndarray, tmap, refs) -> tuple[np.ndarray, bool, int]:
+    def match(self, k: int, roots: np.ndarray, tmap, refs, budget: int | None = None,
+              stride: int | None = None) -> tuple[np.ndarray, bool, int]:
         """Match scan ``k`` from the prior ``roots`` against the submap ``tmap``'s proven-free
         cells and the ``refs`` scans ((scan, robot box) pairs: their free space for rule A, their
-        beam ends for rule B)."""
+        beam ends for rule B); ``budget``: sub-boxes tested at most (default ``match_boxes``),
+        ``stride``: every n-th beam (default ``match_stride``)."""
         p = self.p
         r, v, a0, inc = self._scan(k)
+        stride = int(p.match_stride if stride is None else stride)
+        self.last_beams = int(np.count_nonzero(v[::stride]))
         roots = np.ascontiguousarray(roots, float).reshape(-1, 6)
         if not np.all(np.isfinite(roots)) or not v.any():
             return roots, True, 0
@@ -573,21 +578,21 @@ class Matcher:
         reach = float(np.max(z)) + self.r_abs + self.r_rel * float(np.max(z)) + 1e-6
         cones = self.fill or self.r_alpha >= 0.5 * inc  # as the map kernels decide (their _cos_gap)
         refs = refs if cones else []
-        n_w, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref = self.references(refs)
+        n_w, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref = self.references(refs, stride)
         m, wx0, wy0, nx, ny, use_grid = self.window(tmap, roots, reach)
         if not (use_grid or n_w or n_ref):
             return roots, True, 0
-        need = p.match_boxes + roots.shape[0] + 2
+        budget = int(p.match_boxes if budget is None else budget)
+        need = p.match_slices + roots.shape[0] + 66
         if self.kept.shape[0] < need:
             self.kept = np.empty((need, 6))
         mx, my, myaw = self.mount
         split_reach = float(np.median(z)) if z.size else 1.0
         n_kept, tested = bound_kernel(roots, roots.shape[0], r, v, a0, inc, mx, my, myaw, self.r_abs, self.r_rel,
-                                      self.r_alpha, cones, int(p.q_beams), int(p.match_stride), self.W, n_w, self.S,
+                                      self.r_alpha, cones, int(p.q_beams), stride, self.W, n_w, self.S,
                                       m, wx0, wy0, nx, ny, float(tmap.eps), use_grid, ref_f, ref_a0, ref_inc, ref_c,
-                                      ref_th, n_ref, float(p.match_resolution), split_reach, int(p.match_boxes),
+                                      ref_th, n_ref, float(p.match_resolution), split_reach, budget,
                                       int(p.match_slices), self.kept)
-        self.last_bnb = 0
         if n_kept == 0:
             return roots, False, int(tested)
         return slices(self.kept[:n_kept].copy(), int(p.match_slices)), True, int(tested)

@@ -62,6 +62,12 @@ class Params:
     poses_known: bool
     known_poses: str
     pose_margin: tuple[float, float, float]
+    loop_closure: bool = True
+    loop_every: int = 10
+    loop_window: tuple[float, float] = (3.0, 1.5)
+    loop_candidates: int = 2
+    loop_boxes: int = 8000
+    loop_stride: int = 1
 
     @property
     def tracking(self) -> bool:
@@ -91,4 +97,8 @@ class Params:
             match_slices=int(cfg["lidar.match_slices"]),
             poses_known=bool(cfg["lidar.poses_known"]), known_poses=known,
             pose_margin=tuple(float(v) for v in cfg["lidar.pose_margin"]),
+            loop_closure=bool(cfg["lidar.loop_closure"]), loop_every=int(cfg["lidar.loop_every"]),
+            loop_window=tuple(float(v) for v in cfg["lidar.loop_window"]),
+            loop_candidates=int(cfg["lidar.loop_candidates"]), loop_boxes=int(cfg["lidar.loop_boxes"]),
+            loop_stride=int(cfg["lidar.loop_stride"]),
         )

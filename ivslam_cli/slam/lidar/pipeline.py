@@ -71,6 +71,7 @@ class LidarOutput:
     relative: RelativePoses | None = None  # (anchor row, member row) for every submap membership
     tracking: object | None = None  # the submap pass (its submaps' maps and trajectories), dead reckoning
     tmap: object | None = None  # the one map, given poses
+    loops: object | None = None  # Loops record (loop closure)
 
 
 def _median(w: np.ndarray) -> float:
@@ -227,6 +228,13 @@ def solve(log: LogData, params: Params) -> LidarOutput:
             rows.append((float(stamp[j]), int(used[j]), "submap_compose", (int(used[j]), int(sidx)), -1,
                          f"scan {int(used[j])} (t={float(stamp[j]):.3f} s): submap {sidx}'s anchor box composed with "
                          "its relative box misses its global box; not met"))
+        for lc in (tracking.graph.loops if tracking.graph is not None else []):
+            if lc.empty:
+                j = lc.row
+                rows.append((float(stamp[j]), int(used[j]), "loop_match", (int(used[j]), int(lc.submap)), -1,
+                             f"scan {int(used[j])} (t={float(stamp[j]):.3f} s) against older submap {lc.submap}: no "
+                             "pose its global box and the chain of anchors allow agrees with that submap beyond q "
+                             "beams; no loop constraint (nothing contracted)"))
         for j, sidx in tracking.relocalised:
             rows.append((float(stamp[j]), int(used[j]), "motion_outlier", (int(used[j]), int(sidx)), -1,
                          f"scan {int(used[j])} (t={float(stamp[j]):.3f} s) in submap {sidx}: no pose of its predicted "
@@ -274,6 +282,23 @@ def solve(log: LogData, params: Params) -> LidarOutput:
             "median_forward_width": _median(position_width(tracking.forward)),
             "nodes_smoothed": int(tracking.smoothed),
         })
+    loops_rec = None
+    if tracking is not None and tracking.graph is not None and params.loop_closure and params.contract:
+        from ivslam_cli.slam.lidar.loops import loops_record
+
+        loops_rec = loops_record(tracking.graph, tracking.anchor_before, len(tracking.submaps))
+        found = int(np.count_nonzero(~loops_rec.empty))
+        w_open = position_width(tracking.open_loop)
+        stats.update({
+            "loops_found": found, "loops_empty": int(np.count_nonzero(loops_rec.empty)),
+            "loop_submaps": int(len({int(v) for v in loops_rec.submap[~loops_rec.empty]})),
+            "median_open_loop_width": _median(w_open),
+            "max_open_loop_width": float(np.nanmax(w_open)) if np.isfinite(w_open).any() else float("nan"),
+            "median_loop_width": _median(position_width(loops_rec.box[~loops_rec.empty])) if found else float("nan"),
+            "median_loop_heading": _median(loops_rec.box[~loops_rec.empty, 2, 1] - loops_rec.box[~loops_rec.empty, 2, 0])
+            if found else float("nan"),
+            "graph_sweeps": int(tracking.graph.sweeps), "graph_empty_meets": int(tracking.graph.empty_meets),
+        })
     poses = Poses(stamp=stamp, box=np.ascontiguousarray(box3))
     if tracking is not None:
         poses.submap = tracking.home.astype(np.int64)
@@ -281,7 +306,7 @@ def solve(log: LogData, params: Params) -> LidarOutput:
     poses.frame, poses.origin_stamp = pose_frame(params, pred)
     return LidarOutput(poses=poses, grid=grid, consistency=consistency, stats=stats, dropped=dropped, is_old=is_old,
                        mapped=mapped, used=used, scans=scans, logodds=logodds, submaps=submaps, relative=relative,
-                       tracking=tracking, tmap=tmap)
+                       tracking=tracking, tmap=tmap, loops=loops_rec)
 
 
 def pose_frame(params: Params, pred) -> tuple[str, float]:
@@ -298,7 +323,8 @@ def run(log: LogData, params: Params, progress=None) -> Result:
     log-odds baseline from the same scans."""
     out = solve(log, params)
     return make_result("lidar", log, dropped=out.dropped, poses=out.poses, grid=out.grid, logodds=out.logodds,
-                       relative=out.relative, submaps=out.submaps, consistency=out.consistency, stats=out.stats)
+                       relative=out.relative, submaps=out.submaps, loops=out.loops, consistency=out.consistency,
+                       stats=out.stats)
 
 
 def summary(result: Result) -> str:
@@ -306,6 +332,9 @@ def summary(result: Result) -> str:
     s = result.stats
     sub = (f"{s['submaps']} submaps, relative box median {s['median_relative_width']:.3g} m / "
            f"{s['median_relative_heading']:.3g} rad, " if "submaps" in s else "")
+    if "loops_found" in s:
+        sub += (f"{s['loops_found']} loop constraints ({s['loops_empty']} empty; " if s["loops_found"] else
+                "no loop found (") + f"open-loop global box median {s['median_open_loop_width']:.3g} m), "
     return (f"lidar: {s['scans_used']}/{s['scans']} scans ({s['scans_mapped']} mapped), {sub}global box median "
             f"{s['median_pose_width']:.3g} m, {s['motion']}; map {s['area_empty_m2']:.4g} m² proven free "
             f"({s['empty_cells']} cells; log-odds free {s['logodds_free_cells']}), {s['area_obstacle_m2']:.4g} m² "

@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ivslam_cli.interval.pose import compose, meet
+from ivslam_cli.slam.lidar import loops as L
 from ivslam_cli.logs.model import LogData, Scans
 from ivslam_cli.paving.tiles import TileMap
 from ivslam_cli.slam.lidar.map_update import check_extent, extent_limits, update_map
@@ -76,6 +77,8 @@ class Submap:
     last_box: np.ndarray | None = None  # its relative box
     union: np.ndarray | None = None  # (m, 6) the last tracked scan's pose set (one box per heading slice)
     union_row: int = -1  # ... of which row
+    extent: np.ndarray | None = None  # (4,) its proven-free cells' extent once closed (loop candidates)
+    closed: bool = False  # no longer tracking
 
 
 @dataclass
@@ -97,6 +100,9 @@ class SubmapTracking:
     smoothed: int  # global trajectory nodes the backward pass narrowed
     stats: np.ndarray  # (S, 6) map update stats per scan (its home submap's update)
     is_old: np.ndarray  # (B,) per beam: old in its home submap
+    graph: L.AnchorGraph | None = None  # the anchor graph (edges, loop constraints)
+    open_loop: np.ndarray | None = None  # (S', 6) global boxes from the chain of anchors only (no loop edges)
+    anchor_before: np.ndarray | None = None  # (n_submaps, 6) anchor boxes from the chain only
 
 
 def _width(b: np.ndarray) -> float:
@@ -134,6 +140,95 @@ def _relative_box(s: Submap, m, j: int, k: int) -> np.ndarray:
     return out[0]
 
 
+def _anchor_boxes(submaps) -> np.ndarray:
+    return np.array([s.G for s in submaps], float).reshape(-1, 6)
+
+
+def _set_anchor_boxes(submaps, G: np.ndarray) -> None:
+    for s, g in zip(submaps, G):
+        s.G = g.copy()
+
+
+def _open_chain(graph: L.AnchorGraph, submaps, predicted: np.ndarray) -> np.ndarray:
+    """The anchor boxes the chain alone gives (no loop edge): ``G_{i+1} = (G_i ⊕ E_{i,i+1}) ∩``
+    the dead-reckoned box of its anchor scan (dead reckoning alone, ``predicted``)."""
+    n = len(submaps)
+    out = np.empty((n, 6))
+    C = graph.chain(n)
+    tmp = np.empty((3, 2))
+    met = np.empty((3, 2))
+    for i, s in enumerate(submaps):
+        b = predicted[s.anchor_row].copy()
+        if i == 0:
+            b = s.G.copy() if not np.all(np.isfinite(b)) else b
+        else:
+            compose(out[i - 1].reshape(3, 2), C[i - 1], 1, tmp)
+            if meet(b.reshape(3, 2), tmp, met):
+                b = met.reshape(6).copy()
+        out[i] = b
+    return out
+
+
+def _search_loops(j: int, scan: int, gb: np.ndarray, submaps, active, graph: L.AnchorGraph, matcher, params,
+                  reach: float) -> bool:
+    """Match scan row ``j`` (global box ``gb``) against the older submaps it may be in; add the
+    loop edges found. Returns True when an edge was added."""
+    newest = active[-1]
+    h = newest.index
+    r_h = newest.rel[-1]
+    chain = graph.chain(h + 1)
+    wx, wt = params.loop_window
+    act = {s.index for s in active}
+    cands = []
+    for s in submaps[: max(h - 1, 0)]:
+        if s.index in act or s.extent is None:
+            continue
+        prior = L.loop_prior(s.G, gb, chain, s.index, h, r_h, max(wt, 1e-9) * 4)
+        if prior is None:
+            continue
+        if L.width(prior) > wx or L.heading(prior) > wt or not L.near_free(prior, s.extent, 0.0):
+            continue
+        cands.append((-(h - s.index), L.width(prior) + reach * L.heading(prior), s, prior))
+    cands.sort(key=lambda c: (c[0], c[1]))  # the longest chain first: where a loop tells the most
+    added = False
+    refs_of = lambda s: [(s.anchor_scan, np.zeros(6))]  # noqa: E731
+    for _, _, s, prior in cands[: params.loop_candidates]:
+        union, ok, nt = matcher.match(scan, prior[None, :], s.tmap, refs_of(s), budget=params.loop_boxes,
+                                      stride=params.loop_stride)
+        nb = matcher.last_beams
+        # the kept set is a sound prior for the same search: repeat while it shrinks
+        for _ in range(3):
+            if not ok:
+                break
+            w0 = L.width(hull(union)) + reach * L.heading(hull(union))
+            u2, ok2, nt2 = matcher.match(scan, union, s.tmap, refs_of(s), budget=params.loop_boxes,
+                                      stride=params.loop_stride)
+            nt += nt2
+            if not ok2:
+                ok = False
+                break
+            w1 = L.width(hull(u2)) + reach * L.heading(hull(u2))
+            union = u2
+            if not w1 < 0.8 * w0:
+                break
+        if not ok:
+            graph.loops.append(L.LoopConstraint(j, s.index, h, prior, np.full(6, np.nan), nb, nt, True))
+            continue
+        hl = hull(union)
+        lo = np.maximum(hl[0::2], prior[0::2])
+        hi = np.minimum(hl[1::2], prior[1::2])
+        if not np.all(lo <= hi):
+            graph.loops.append(L.LoopConstraint(j, s.index, h, prior, np.full(6, np.nan), nb, nt, True))
+            continue
+        box = np.column_stack([lo, hi]).reshape(6)
+        graph.loops.append(L.LoopConstraint(j, s.index, h, prior, box, nb, nt, False))
+        for t in active:
+            if t.rows and t.rows[-1] == j:
+                graph.add_member_pair(s.index, box, t.index, t.rel[-1], L.KIND_LOOP)
+        added = True
+    return added
+
+
 def track_submaps(log: LogData, params: Params, scans: Scans) -> SubmapTracking:
     """Track and map every scan in submaps (see the module docstring)."""
     bounds = params.beams
@@ -165,6 +260,9 @@ def track_submaps(log: LogData, params: Params, scans: Scans) -> SubmapTracking:
     kg_prev = 0
     travel = 0.0
     last = None  # (x, y) of the previous relative centre in the newest submap, for the travel
+    graph = L.AnchorGraph()
+    Pdr = Pg.copy()  # the dead reckoning alone (no contraction reaches it): the open-loop reference
+    loops_on = bool(params.loop_closure and params.contract)
     for j in range(S):
         k = int(m.node[j])
         scan = int(used[j])
@@ -262,6 +360,23 @@ def track_submaps(log: LogData, params: Params, scans: Scans) -> SubmapTracking:
         newest = active[-1]
         home[j] = newest.index
         relative[j] = newest.rel[-1]
+        # the scan in two submaps: an edge between their anchors
+        both = [t for t in active if t.rows and t.rows[-1] == j]
+        for a in range(len(both) - 1):
+            for b in range(a + 1, len(both)):
+                graph.add_member_pair(both[a].index, both[a].rel[-1], both[b].index, both[b].rel[-1])
+        if loops_on and j % params.loop_every == 0 and len(submaps) > 2 and np.all(np.isfinite(gb)):
+            reach_j = float(np.median(scans.ranges[scans.offsets[scan]:scans.offsets[scan + 1]]))
+            if _search_loops(j, scan, gb, submaps, active, graph, matcher, params, reach_j):
+                G = _anchor_boxes(submaps)
+                graph.contract(G)
+                _set_anchor_boxes(submaps, G)
+                for t in both:
+                    compose(t.G.reshape(3, 2), t.rel[-1].reshape(3, 2), 1, g.reshape(3, 2))
+                    if meet(gb.reshape(3, 2), g.reshape(3, 2), met.reshape(3, 2)):
+                        gb = met.copy()
+                    else:
+                        compose_empty.append((j, t.index))
         if broken_global:
             _reset_node(Pg, k, gb, rp, rt)
             broken_global = False
@@ -277,6 +392,9 @@ def track_submaps(log: LogData, params: Params, scans: Scans) -> SubmapTracking:
         for s in list(active[:-1]):
             if travel >= s.closes_at:
                 active.remove(s)
+                s.closed = True
+                if loops_on:
+                    s.extent = L.free_extent(s.tmap)
         # a new submap?
         r = relative[j]
         if j + 1 < S and newest.anchor_row != j and np.all(np.isfinite(r)) and np.all(np.isfinite(gb)) and (
@@ -293,6 +411,9 @@ def track_submaps(log: LogData, params: Params, scans: Scans) -> SubmapTracking:
             s_new.mapped.append(j)
             s_new.last_row = j
             s_new.last_box = np.zeros(6)
+            for t in active:
+                if t.rows and t.rows[-1] == j:
+                    graph.add_member_pair(t.index, t.rel[-1], s_new.index, np.zeros(6))
             submaps.append(s_new)
             active.append(s_new)
             last = (0.0, 0.0, 0.0)
@@ -311,6 +432,39 @@ def track_submaps(log: LogData, params: Params, scans: Scans) -> SubmapTracking:
         for i, row in enumerate(s.rows):
             if s.index == home[row]:
                 relative[row] = s.rel[i]
+    # the anchor graph with the smoothed relative boxes, contracted; every scan's global box
+    # is then its anchors' boxes ⊕ its relative boxes, met with what it was
+    members: dict = {}
+    for s in submaps:
+        for i, row in enumerate(s.rows):
+            members.setdefault(row, []).append((s.index, s.rel[i]))
+    for row, lst in members.items():
+        for a in range(len(lst) - 1):
+            for b in range(a + 1, len(lst)):
+                graph.add_member_pair(lst[a][0], lst[a][1], lst[b][0], lst[b][1])
+    G = _anchor_boxes(submaps)
+    propagate(Pdr, m.kind, m.U, np.zeros_like(events), 0, kg_prev)
+    dr = np.empty((S, 6))
+    widen_boxes(Pdr, m.node, m.reach, dr)
+    anchor_before = _open_chain(graph, submaps, dr)
+    open_loop = np.full((S, 6), np.nan)
+    if graph.loops:
+        graph.contract(G)
+        _set_anchor_boxes(submaps, G)
+    for row, lst in members.items():
+        ob = dr[row].copy()
+        for si, rb in lst:
+            for Gs, target in ((submaps[si].G, glob), (anchor_before[si], None)):
+                compose(Gs.reshape(3, 2), np.ascontiguousarray(rb).reshape(3, 2), 1, g.reshape(3, 2))
+                dst = glob[row] if target is not None else ob
+                if meet(dst.reshape(3, 2), g.reshape(3, 2), met.reshape(3, 2)):
+                    dst[:] = met
+        open_loop[row] = ob
+    if graph.loops:
+        scratch = np.zeros_like(events)
+        for j in range(S):
+            meet_node(Pg, int(m.node[j]), glob[j], float(m.reach[j, 0]), float(m.reach[j, 1]))
+        propagate(Pg, m.kind, m.U, scratch, 0, kg_prev)
     smoothed = int(smooth_backward(Pg, m.kind, m.U, events, kg_prev))
     back = np.empty((S, 6))
     widen_boxes(Pg, m.node, m.reach, back)
@@ -320,4 +474,5 @@ def track_submaps(log: LogData, params: Params, scans: Scans) -> SubmapTracking:
     pred = PosePrediction(used=used, boxes=glob, source=source, motion=m.motion, step_events=events,
                           node_stamp=m.node_stamp, dropped=dropped)
     return SubmapTracking(pred, submaps, home, relative, mapped, contracted, contradicted, compose_empty,
-                          relocalised, forward, predicted, tested, smoothed, stats, is_old)
+                          relocalised, forward, predicted, tested, smoothed, stats, is_old, graph, open_loop,
+                          anchor_before)

@@ -1,0 +1,88 @@
+"""Loop closure over the submaps (`lidar.loop_closure`): loop constraints against older
+submaps, the anchor graph contracted to a fixpoint, global boxes that stay bounded.
+
+Every global box after closure must hold the truth in the result's frame (the report's ``pose``
+check), every relative box and every submap's P_EMPTY too; a log with no loop runs, says so
+and keeps its local guarantees. Short simulated rooms logs in the default lane, more seeds
+under ``slow``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ivslam_cli.config import resolve_config
+from ivslam_cli.interval.pose import position_width
+from ivslam_cli.simulate import SimConfig, simulate
+from ivslam_cli.slam.lidar import Params as LidarParams
+from ivslam_cli.slam.lidar.pipeline import run, solve, summary
+from tests.helpers.lidar_truth import assert_contained
+
+
+def _run(seed, world="rooms", duration=30.0, steps=None, overrides=None):
+    log = simulate(SimConfig(scenario="lidar", world=world, sensor="urg-04lx", seed=seed,
+                             duration=None if steps else duration, steps=steps))
+    params = LidarParams.from_config(resolve_config(None, dict(overrides or {}), log_bounds=log.bounds))
+    return log, params, solve(log, params)
+
+
+def _check_closed(seed, duration):
+    log, params, out = _run(seed, duration=duration)
+    res = run(log, params)
+    assert_contained(res, ("pose", "pose_relative", "map_free"))
+    st = out.stats
+    assert st["loops_found"] > 0
+    assert st["graph_empty_meets"] == 0
+    w = position_width(out.poses.box)
+    assert np.nanmedian(w) < st["median_open_loop_width"]
+    assert res.loops is not None and len(res.loops) == st["loops_found"] + st["loops_empty"]
+    return st
+
+
+@pytest.mark.parametrize("seed", [3])
+def test_loops_keep_the_truth_and_bound_the_global_boxes(seed):
+    st = _check_closed(seed, 30.0)
+    assert st["median_pose_width"] <= 1.0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(20))
+def test_loops_keep_the_truth_on_more_seeds(seed):
+    _check_closed(seed, 60.0)
+
+
+def test_a_log_with_no_loop_says_so_and_keeps_local_guarantees():
+    log, params, out = _run(1, world="corridor", steps=40)
+    res = run(log, params)
+    assert_contained(res, ("pose", "pose_relative", "map_free"))
+    assert out.stats["loops_found"] == 0
+    assert "no loop found" in summary(res)
+    # the open-loop boxes are the closed ones when no loop edge exists
+    assert out.stats["median_open_loop_width"] >= out.stats["median_pose_width"] - 1e-9
+
+
+def test_loop_closure_off_writes_no_loops():
+    log, params, out = _run(1, world="corridor", steps=30, overrides={"lidar.loop_closure": False})
+    assert out.loops is None and "loops_found" not in out.stats
+
+
+def test_graph_contraction_is_sound_on_a_triangle():
+    """Three anchors, exact edges around a loop: the contracted boxes keep the true poses and
+    the loop narrows the last anchor's box below what the chain gives."""
+    from ivslam_cli.slam.lidar.loops import AnchorGraph
+
+    g = AnchorGraph()
+    e = 0.05
+    def box(x, y, t, w=e):
+        return np.array([x - w, x + w, y - w, y + w, t - w, t + w])
+    g.add_edge(0, 1, box(1.0, 0.0, np.pi / 2), 0)
+    g.add_edge(1, 2, box(1.0, 0.0, np.pi / 2), 0)
+    G = np.array([box(0.0, 0.0, 0.0, 1e-9), box(1.0, 0.0, np.pi / 2, 5.0), box(1.0, 1.0, np.pi, 5.0)])
+    chain_only = G.copy()
+    g.contract(chain_only)
+    g.add_edge(0, 2, box(1.0, 1.0, np.pi, 0.02), 1)
+    g.contract(G)
+    for b, true in zip(G, [(0, 0, 0), (1, 0, np.pi / 2), (1, 1, np.pi)]):
+        assert b[0] <= true[0] <= b[1] and b[2] <= true[1] <= b[3] and b[4] <= true[2] <= b[5]
+    assert position_width(G[2]) < position_width(chain_only[2])
