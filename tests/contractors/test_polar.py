@@ -11,19 +11,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli.contractors import polar
+from tests.helpers.exact import around
 from tests.helpers.hyp import examples
 
 mpmath.mp.prec = 120
 SETTINGS = settings(max_examples=examples(ci=1500))
-
-
-def around(value: mpmath.mpf, below: float, above: float) -> list[float]:
-    """A float interval that surely holds the real ``value`` (outward by an ulp past the margins)."""
-    v = float(value)
-    lo = float(np.nextafter(v - below, -np.inf))
-    hi = float(np.nextafter(v + above, np.inf))
-    assert mpmath.mpf(lo) <= value <= mpmath.mpf(hi)
-    return [lo, hi]
 
 
 spread = st.one_of(st.just(0.0), st.floats(0.0, 1e-6), st.floats(0.0, 0.5), st.floats(0.0, 50.0))

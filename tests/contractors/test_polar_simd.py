@@ -20,7 +20,7 @@ from ivslam_cli.contractors import polar
 from ivslam_cli.contractors.ctc_polar import polar_kernel
 from ivslam_cli.contractors.ctc_polar_simd import CHUNK, _setup, polar_simd_kernel
 from tests.helpers.hyp import examples
-from tests.test_polar import around
+from tests.helpers.exact import around
 
 mpmath.mp.prec = 120
 spread = st.one_of(st.just(0.0), st.floats(0.0, 1e-12), st.floats(0.0, 1e-6), st.floats(0.0, 0.5),

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from ivslam_cli import paving as P
 from ivslam_cli.paving.classifiers import complement
-from tests.test_paving import (
+from tests.helpers.paving_sets import (
     DOMAIN,
     SETTINGS,
     box_params,
