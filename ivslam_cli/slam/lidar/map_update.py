@@ -132,7 +132,16 @@ def update_map(tmap: TileMap, scans: Scans, robot_boxes, bounds: LidarBounds, or
                           boxes, order, float(bounds.range_abs), float(bounds.range_rel),
                           float(bounds.bearing), tmap.eps, exact, write, is_old, stats, bool(bounds.fill_gaps))
     tmap.set_arrays(*arrays)
+    _check_cells(tmap)
     return UpdateResult(is_old, stats)
+
+
+def _check_cells(tmap: TileMap) -> None:
+    """Refuse a map grown past the ``MAP_CELLS`` limit (an ``eps`` far finer than the area mapped)."""
+    from ivslam_cli import limits
+    from ivslam_cli.paving.tiles import TILE
+
+    limits.check("MAP_CELLS", tmap.n_tiles * TILE * TILE, f"cells of the map at lidar.eps = {tmap.eps:g} m (coarsen lidar.eps)")
 
 
 def _scan(scans: Scans, k: int):
