@@ -271,8 +271,15 @@ def map_scans(tmap, scans: Scans, used: np.ndarray, boxes: np.ndarray, bounds, p
 
 def grid_of(tmap) -> MapGrid:
     """The map as a :class:`MapGrid` (row = y index) over the bounding box of its tiles."""
+    from ivslam_cli import limits
     from ivslam_cli.paving import tiles as T
 
+    if tmap.n_tiles:
+        co = tmap.coords[: tmap.n_tiles]
+        nx, ny = (co.max(axis=0) - co.min(axis=0) + 1) * T.TILE
+        limits.check("MAP_CELLS", float(nx) * float(ny),
+                     f"the map spans {nx * tmap.eps:.4g} m x {ny * tmap.eps:.4g} m (a pose far from the others: "
+                     f"an odometry jump, a unit error?); cells of its dense grid at lidar.eps = {tmap.eps:g} m")
     d = tmap.dense()
     state = np.zeros(d.data.shape[::-1], np.uint8)
     data = d.data.T
