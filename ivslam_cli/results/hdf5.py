@@ -491,8 +491,12 @@ def _check_values(r: Result) -> None:
                            "[+inf, -inf])")
     if r.poses is not None and len(r.poses):
         st = r.poses.stamp
-        if not np.isfinite(st).all() or np.any(np.diff(st) < 0):
-            raise _Corrupt("poses/stamp is not finite and sorted")
+        back = np.diff(st) < 0
+        if r.robots is not None:  # each robot's poses are sorted; the next robot's start again
+            starts = np.asarray(r.robots.pose_offsets[1:-1], np.int64)
+            back[starts[(starts > 0) & (starts < st.size)] - 1] = False
+        if not np.isfinite(st).all() or back.any():
+            raise _Corrupt("poses/stamp is not finite and sorted" + (" per robot" if r.robots is not None else ""))
     if r.grid is not None and not (np.isfinite(r.grid.origin).all() and np.isfinite(r.grid.resolution)):
         raise _Corrupt("map origin or resolution is not finite")
 
