@@ -25,6 +25,9 @@ name                          default     what it bounds
                                           truth, tf, relations)
 ``CHUNK_BYTES``               256 MiB     one decompressed chunk of an MCAP file or ROS 1 bag
 ``CELLS``                     2^28        cells of a map grid read back from a result
+``MAP_CELLS``                 2^24        cells of one map a LiDAR run builds: its tiles (a
+                                          lidar.eps far finer than the area mapped) and the
+                                          dense grid over them (a pose far from the others)
 ``ROWS``                      2^26        rows of any other dataset read back from a result
 ============================  ==========  =====================================================
 
@@ -51,6 +54,7 @@ DEFAULTS: dict[str, int] = {
     "RECORDS": 1 << 23,
     "CHUNK_BYTES": 256 * MiB,
     "CELLS": 1 << 28,
+    "MAP_CELLS": 1 << 24,
     "ROWS": 1 << 26,
 }
 

@@ -53,7 +53,10 @@ def run_pipeline(log: LogData, cfg: Config, mode: str, argv: Sequence[str] | Non
                           log.provenance.path)
     params = pipe.Params.from_config(cfg)
     t0 = time.perf_counter()
-    result = pipe.run(log, params, progress)
+    try:
+        result = pipe.run(log, params, progress)
+    except IvslamError as exc:  # a limit or a contradiction met in the data: name the log
+        raise exc.about(log.provenance.path) from exc
     result.provenance.config = cfg.as_dict()
     result.provenance.command = command_line(argv)
     ev = result.consistency.empty_events

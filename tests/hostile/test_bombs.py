@@ -5,7 +5,8 @@ to hundreds of MiB. Each stops with one line naming the limit (exit 2); the chil
 resident memory is measured (``wait4``) and must stay under 1.5 GB.
 
 The default-limit runs parse up to 256 MiB of text each (14-63 s): marked ``slow``. The
-fast variants lower the limit (``IVSLAM_LIMIT_TEXT_BYTES``) to show the same path."""
+fast variants lower the limit (``IVSLAM_LIMIT_TEXT_BYTES``) to show the same path, on copies
+that inflate to 24 MiB only."""
 
 from __future__ import annotations
 
@@ -23,9 +24,9 @@ from tests.hostile.harness import RSS_LIMIT, cli, expect_error
 GiB = 1 << 30
 
 
-def _bomb(path, unit: bytes, total: int = 5 * GiB, comp: str = "xz"):
+def _bomb(path, unit: bytes, total: int = 5 * GiB, comp: str = "xz", block_bytes: int = 32 << 20):
     """``unit`` repeated to ``total`` bytes, as concatenated compressed members (valid .gz/.xz)."""
-    block = unit * max(1, (32 << 20) // len(unit))
+    block = unit * max(1, block_bytes // len(unit))
     member = gzip.compress(block, 6) if comp == "gz" else lzma.compress(block, preset=6)
     with open(path, "wb") as f:
         for _ in range(total // len(block)):
@@ -42,19 +43,30 @@ UNITS = {
 }
 
 
-@pytest.fixture(scope="module")
-def bombs(tmp_path_factory):
-    d = tmp_path_factory.mktemp("bombs")
-    out = {name: _bomb(d / f"{name}.xz", make().encode()) for name, make in UNITS.items()}
-    out["zeros.log.gz"] = _bomb(d / "zeros.log.gz", b"\0" * 4096, comp="gz")
+def _make_bombs(d, **size):
+    out = {name: _bomb(d / f"{name}.xz", make().encode(), **size) for name, make in UNITS.items()}
+    out["zeros.log.gz"] = _bomb(d / "zeros.log.gz", b"\0" * 4096, comp="gz", **size)
     out["mrclam"] = B.mrclam_dir(d / "mrclam")
     (out["mrclam"] / "Robot1_Odometry.dat").unlink()
-    _bomb(out["mrclam"] / "Robot1_Odometry.dat.xz", "".join(f"{0.1 * k:.3f} 0.2 0.01\n" for k in range(1000)).encode())
-    out["rel.txt.xz"] = _bomb(d / "rel.txt.xz", ("\n".join(B.relations_lines(30)) + "\n").encode())
+    _bomb(out["mrclam"] / "Robot1_Odometry.dat.xz", "".join(f"{0.1 * k:.3f} 0.2 0.01\n" for k in range(1000)).encode(),
+          **size)
+    out["rel.txt.xz"] = _bomb(d / "rel.txt.xz", ("\n".join(B.relations_lines(30)) + "\n").encode(), **size)
     out["result"] = B.write_result(d / "r.h5")
     js = B.keyframe_json(40)
-    out["keyframes.json.xz"] = _bomb(d / "keyframes.json.xz", js[:-2].encode() + b", " + b'"9": 1, ' * 8)
+    out["keyframes.json.xz"] = _bomb(d / "keyframes.json.xz", js[:-2].encode() + b", " + b'"9": 1, ' * 8, **size)
     return out
+
+
+@pytest.fixture(scope="module")
+def bombs(tmp_path_factory):
+    """The 5 GiB bombs (about 20 s to make: only the slow tests use them)."""
+    return _make_bombs(tmp_path_factory.mktemp("bombs"))
+
+
+@pytest.fixture(scope="module")
+def small_bombs(tmp_path_factory):
+    """The same inputs inflating to 24 MiB: past the lowered 8 MiB limits, quick to make."""
+    return _make_bombs(tmp_path_factory.mktemp("small_bombs"), total=24 << 20, block_bytes=4 << 20)
 
 
 def _args(bombs, name):
@@ -68,13 +80,14 @@ def _args(bombs, name):
 NAMES = [*UNITS, "zeros.log.gz", "mrclam", "rel.txt.xz", "keyframes.json.xz"]
 
 
+@pytest.mark.slow
 def test_bombs_are_small_on_disk(bombs):
     assert all(bombs[n].stat().st_size < 6 << 20 for n in NAMES if n != "mrclam")
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_bomb_stops_at_a_lowered_limit(bombs, name):
-    args, about = _args(bombs, name)
+def test_bomb_stops_at_a_lowered_limit(small_bombs, name):
+    args, about = _args(small_bombs, name)
     r = cli(*args, timeout=60, env={"IVSLAM_LIMIT_TEXT_BYTES": str(8 << 20), "IVSLAM_LIMIT_JSON_BYTES": str(8 << 20)})
     contains = None if name in ("zeros.log.gz", "keyframes.json.xz") else "TEXT_BYTES"
     expect_error(r, about, contains=contains)

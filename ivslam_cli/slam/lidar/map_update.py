@@ -132,7 +132,16 @@ def update_map(tmap: TileMap, scans: Scans, robot_boxes, bounds: LidarBounds, or
                           boxes, order, float(bounds.range_abs), float(bounds.range_rel),
                           float(bounds.bearing), tmap.eps, exact, write, is_old, stats, bool(bounds.fill_gaps))
     tmap.set_arrays(*arrays)
+    _check_cells(tmap)
     return UpdateResult(is_old, stats)
+
+
+def _check_cells(tmap: TileMap) -> None:
+    """Refuse a map grown past the ``MAP_CELLS`` limit (an ``eps`` far finer than the area mapped)."""
+    from ivslam_cli import limits
+    from ivslam_cli.paving.tiles import TILE
+
+    limits.check("MAP_CELLS", tmap.n_tiles * TILE * TILE, f"cells of the map at lidar.eps = {tmap.eps:g} m (coarsen lidar.eps)")
 
 
 def _scan(scans: Scans, k: int):
@@ -262,8 +271,15 @@ def map_scans(tmap, scans: Scans, used: np.ndarray, boxes: np.ndarray, bounds, p
 
 def grid_of(tmap) -> MapGrid:
     """The map as a :class:`MapGrid` (row = y index) over the bounding box of its tiles."""
+    from ivslam_cli import limits
     from ivslam_cli.paving import tiles as T
 
+    if tmap.n_tiles:
+        co = tmap.coords[: tmap.n_tiles]
+        nx, ny = (co.max(axis=0) - co.min(axis=0) + 1) * T.TILE
+        limits.check("MAP_CELLS", float(nx) * float(ny),
+                     f"the map spans {nx * tmap.eps:.4g} m x {ny * tmap.eps:.4g} m (a pose far from the others: "
+                     f"an odometry jump, a unit error?); cells of its dense grid at lidar.eps = {tmap.eps:g} m")
     d = tmap.dense()
     state = np.zeros(d.data.shape[::-1], np.uint8)
     data = d.data.T
