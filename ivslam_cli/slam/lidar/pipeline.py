@@ -336,6 +336,7 @@ def summary(result: Result) -> str:
         sub += (f"{s['loops_found']} loop constraints ({s['loops_empty']} empty; " if s["loops_found"] else
                 "no loop found (") + f"open-loop global box median {s['median_open_loop_width']:.3g} m), "
     return (f"lidar: {s['scans_used']}/{s['scans']} scans ({s['scans_mapped']} mapped), {sub}global box median "
-            f"{s['median_pose_width']:.3g} m, {s['motion']}; map {s['area_empty_m2']:.4g} m² proven free "
+            f"{s['median_pose_width']:.3g} m, {s['motion']}; map {s['area_empty_m2']:.4g} m² proven free"
+            f"{' (sum over the submaps, each in its frame)' if 'submaps' in s else ''} "
             f"({s['empty_cells']} cells; log-odds free {s['logodds_free_cells']}), {s['area_obstacle_m2']:.4g} m² "
             f"obstacle; {len(result.consistency.empty_events)} empty event(s)")
