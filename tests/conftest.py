@@ -28,8 +28,12 @@ def pytest_report_header(config):
 
 
 def pytest_collection_modifyitems(config, items):
-    """A test that uses the ``datasets`` fixture must be marked ``datasets`` (so that
+    """Tests under ``tests/hostile`` get the ``hostile`` marker. A test that uses the ``datasets`` fixture must be marked ``datasets`` (so that
     ``-m "not datasets"`` is exact): refuse to run otherwise."""
+    hostile = Path(__file__).parent / "hostile"
+    for item in items:  # the hostile-input corpus (processes under limits): make test, not test-fast
+        if Path(str(item.fspath)).is_relative_to(hostile):
+            item.add_marker(pytest.mark.hostile)
     unmarked = [i.nodeid for i in items if "datasets" in getattr(i, "fixturenames", ())
                 and i.get_closest_marker("datasets") is None]
     if unmarked:
