@@ -60,10 +60,39 @@ def _env(extra: dict | None) -> dict:
     return env
 
 
+# A forked child's peak RSS (ru_maxrss) starts at its parent's: Linux keeps the pre-exec image's
+# high-water mark across exec, and a child forked from a pytest process of 1 GB would report
+# 1 GB. The command therefore runs as a grandchild forked from this small launcher (a fresh
+# signal struct, a small pre-exec image); the launcher forwards signals, reports the
+# grandchild's ru_maxrss through a file and ends as it ended.
+_LAUNCH = r"""
+import os, signal, sys
+out, argv = sys.argv[1], sys.argv[2:]
+pid = os.fork()
+if pid == 0:
+    os.execv(argv[0], argv)
+for s in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+    signal.signal(s, lambda n, f: os.kill(pid, n))
+while True:
+    try:
+        _, status, usage = os.wait4(pid, 0)
+        break
+    except InterruptedError:
+        continue
+with open(out, "w") as f:
+    f.write(str(usage.ru_maxrss))
+if os.WIFSIGNALED(status):
+    signal.signal(os.WTERMSIG(status), signal.SIG_DFL)
+    os.kill(os.getpid(), os.WTERMSIG(status))
+sys.exit(os.waitstatus_to_exitcode(status))
+"""
+
+
 def spawn(argv: list[str], *, timeout: float = 60, env: dict | None = None, cwd: Path | None = None,
           as_limit: int = AS_LIMIT, fsize: int | None = None, stdin=subprocess.DEVNULL,
           on_start=None) -> Run:
-    """Run ``argv`` (a full command line) with the limits; ``on_start(proc)`` may signal it."""
+    """Run ``argv`` (a full command line) with the limits; ``on_start(proc)`` may signal it.
+    ``peak_rss`` is the command's own peak resident memory."""
 
     def limits():
         os.setsid()
@@ -72,10 +101,12 @@ def spawn(argv: list[str], *, timeout: float = 60, env: dict | None = None, cwd:
             signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails: EFBIG
             resource.setrlimit(resource.RLIMIT_FSIZE, (fsize, fsize))
 
-    with tempfile.TemporaryFile() as fo, tempfile.TemporaryFile() as fe:
+    argv = [str(a) for a in argv]
+    with tempfile.TemporaryFile() as fo, tempfile.TemporaryFile() as fe, \
+            tempfile.NamedTemporaryFile("r", suffix=".rss") as fr:
         t0 = time.perf_counter()
-        p = subprocess.Popen(argv, stdout=fo, stderr=fe, stdin=stdin, env=_env(env), cwd=cwd or REPO,
-                             preexec_fn=limits)
+        p = subprocess.Popen([PY, "-S", "-c", _LAUNCH, fr.name, *argv], stdout=fo, stderr=fe, stdin=stdin,
+                             env=_env(env), cwd=cwd or REPO, preexec_fn=limits)
         timed_out = threading.Event()
 
         def kill():
@@ -90,16 +121,18 @@ def spawn(argv: list[str], *, timeout: float = 60, env: dict | None = None, cwd:
         try:
             if on_start is not None:
                 on_start(p)
-            _, status, usage = os.wait4(p.pid, 0)
+            p.wait()
         finally:
             timer.cancel()
-        p.returncode = os.waitstatus_to_exitcode(status)
         seconds = time.perf_counter() - t0
         fo.seek(0)
         fe.seek(0)
         out, err = fo.read().decode("utf-8", "replace"), fe.read().decode("utf-8", "replace")
+        fr.seek(0)
+        text = fr.read().strip()
+        peak = int(text) * 1024 if text else 0
     sig = -p.returncode if p.returncode < 0 else 0
-    return Run(argv, p.returncode, out, err, seconds, usage.ru_maxrss * 1024, timed_out.is_set(), sig)
+    return Run(argv, p.returncode, out, err, seconds, peak, timed_out.is_set(), sig)
 
 
 def cli(*args, timeout: float = 60, **kw) -> Run:
