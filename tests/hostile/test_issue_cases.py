@@ -184,7 +184,7 @@ def test_a_1e9_m_scan_pose_stops_at_the_map_limit(tmp_path):
 
 # ------------------------------------------------------------------ item 8: messages
 @pytest.mark.parametrize("args,contains", [
-    (["run", "--mode", "nope", "x"], "--mode"), (["run"], "Missing argument 'LOG'"),
+    (["run", "--mode", "nope", "x"], "--mode"), (["run"], "Missing argument 'LOG...'"),
     (["inspect", "--bogus"], "--bogus"), (["frob"], "frob"), (["run", "x", "--heading", "1"], "--heading"),
 ])
 def test_usage_errors_are_one_line(args, contains):
