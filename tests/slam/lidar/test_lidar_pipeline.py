@@ -295,9 +295,9 @@ def _dataset(datasets: Path, rel: str) -> Path:
 @pytest.mark.datasets
 @pytest.mark.parametrize("rel,config,mapped_min", [
     ("carmen_corrected/aces-corrected.log.gz", "carmen_corrected.toml", 440),
-    ("breezyslam_mines/exp1.dat.xz", "exp1.toml", 20),
+    pytest.param("breezyslam_mines/exp1.dat.xz", "exp1.toml", 20, marks=pytest.mark.slow),  # ~2 min
     pytest.param("ros2_turtlebot4_comprobo22/macfirst_floor_take_2", "ros_laserscan.toml", 50,
-                 marks=pytest.mark.slow),  # ~5-7 s warm each, the two TurtleBot logs
+                 marks=pytest.mark.slow),  # ~35-80 s each, the two TurtleBot logs
     pytest.param("mcap_turtlebot4_comprobo22/macfirst_floor_take_2.mcap", "ros_laserscan.toml", 50,
                  marks=pytest.mark.slow),
     ("ros1_neato_ksoltan/left_side.bag", "ros_laserscan.toml", 50),
