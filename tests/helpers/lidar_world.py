@@ -132,23 +132,8 @@ def random_box(rng, pose, wxy, wth, full=False) -> np.ndarray:
 
 # ---------------------------------------------------------------- truth checks
 def segments_meet_cells(segs: np.ndarray, cells: np.ndarray, eps: float, margin: float = 1e-9) -> np.ndarray:
-    """Whether each cell (closed square, grown by ``margin``: the safe side) meets any segment."""
-    if cells.shape[0] == 0:
-        return np.zeros(0, bool)
-    lo = cells[:, None, :] * eps - margin  # (N, 1, 2)
-    hi = (cells[:, None, :] + 1) * eps + margin
-    a, d = segs[None, :, :2], segs[None, :, 2:] - segs[None, :, :2]  # (1, K, 2)
-    t0 = np.zeros(lo.shape[:1] + (segs.shape[0],))
-    t1 = np.ones_like(t0)
-    ok = np.ones_like(t0, dtype=bool)
-    for ax in range(2):  # Liang-Barsky clipping of a + t d, t in [0, 1]
-        dd = np.broadcast_to(d[..., ax], t0.shape)
-        aa = np.broadcast_to(a[..., ax], t0.shape)
-        par = dd == 0
-        ok &= ~par | ((aa >= lo[..., ax]) & (aa <= hi[..., ax]))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ta = (lo[..., ax] - aa) / dd
-            tb = (hi[..., ax] - aa) / dd
-        t0 = np.where(par, t0, np.maximum(t0, np.minimum(ta, tb)))
-        t1 = np.where(par, t1, np.minimum(t1, np.maximum(ta, tb)))
-    return np.any(ok & (t0 <= t1), axis=1)
+    """Whether each cell (closed square at the grid origin 0, grown by ``margin``: the safe side)
+    meets any segment: the report's check (:func:`ivslam_cli.report.core.segments_meet_cells`)."""
+    from ivslam_cli.report.core import segments_meet_cells as meet
+
+    return meet(np.asarray(segs, float), np.asarray(cells), eps, (0.0, 0.0), margin)
