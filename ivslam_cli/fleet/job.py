@@ -186,8 +186,8 @@ def run_one(log: str | Path, opts: RunOptions, out: Path | Callable[[str], Path]
         if progress is not None:
             progress(0.1, f"{opts.mode}: running")
 
-            def inner(fraction: float, *_):
-                progress(0.1 + 0.8 * fraction, f"{opts.mode}: running")
+            def inner(fraction: float, label: str | None = None):
+                progress(0.1 + 0.8 * fraction, f"{opts.mode}: {label or 'running'}")
         result = run_pipeline(data, cfg, opts.mode, argv=argv, progress=inner)
         if progress is not None:
             progress(0.9, "writing the result")

@@ -55,13 +55,14 @@ lies in its node's set and every landmark in its box (every contractor rounds ou
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, objmode
 
 from ivslam_cli.slam.landmarks.observations import (  # noqa: F401
     OBS_REJECTED_LANDMARK, OBS_REJECTED_POSE, OBS_USED, landmark_update, pose_update)
 from ivslam_cli.slam.landmarks.pose_sets import (  # noqa: F401
     STEP_NONE, _circular_hull, all_hulls, count_boxes, flatten_sets, make_bins, set_from_box, step_sets)
 from ivslam_cli.slam.motion_kernel import INCREMENT, cap_heading, init_headings, step_contract  # noqa: F401
+from ivslam_cli.slam.progress import tell
 
 LANDMARK_GRID = 32  # landmark boxes are refined on a grid of this many cells a side (observations.landmark_update)
 BIG = 1e6  # widths are capped at this in the convergence measure (unbounded boxes)
@@ -155,6 +156,8 @@ def solve(PS, H, L, BINS, kind, U, node_stamp, chain_of, travel, turn, turn_err,
         w = total_width(H, L)
         width_trace[it] = w
         done = it + 1
+        with objmode():
+            tell(done, max_iterations)
         if prev > 0.0 and (prev - w) <= tolerance * prev:
             break
         prev = w

@@ -40,6 +40,7 @@ from ivslam_cli.slam.landmarks.params import Params
 from ivslam_cli.slam.landmarks.steps import Steps, chain_steps
 from ivslam_cli.slam.motion import cumulative_up, initial_box
 from ivslam_cli.slam.pipeline import empty_events, make_result
+from ivslam_cli.slam.progress import listening
 
 REASONS = {
     K.OBS_REJECTED_LANDMARK: "misses the q-relaxed intersection of its landmark's observations",
@@ -373,7 +374,7 @@ def true_pose_sets(pb: Problem, sol: Solution) -> tuple[np.ndarray, PoseSets]:
 
 
 def solve(log, params: Params, known_landmarks: dict[int, tuple[float, float]] | None = None,
-          known_margin: float = 0.0) -> LandmarksOutput:
+          known_margin: float = 0.0, progress=None) -> LandmarksOutput:
     """The landmark CSP over a log, or over ``[(robot, log), ...]`` (see the module
     docstring). ``known_landmarks`` ``{id: (x, y)}``: the map given, each landmark within
     ``known_margin`` (localisation only; landmarks not in it are unknown)."""
@@ -389,7 +390,8 @@ def solve(log, params: Params, known_landmarks: dict[int, tuple[float, float]] |
             if int(lid) in known_landmarks:
                 xy = iv.add(point(np.asarray(known_landmarks[int(lid)], float)), sym(np.full(2, bound_up(known_margin))))
                 L0[i] = xy
-    sol = solve_problem(pb, params, L0)
+    with listening(progress, "sweep"):
+        sol = solve_problem(pb, params, L0)
     L, status, step_ev, pose_ev, lm_ev, trace, sweeps = (sol.L, sol.status, sol.step_events, sol.pose_events,
                                                          sol.lm_events, sol.trace, sol.sweeps)
     n = pb.node_stamp.shape[0]
@@ -521,7 +523,7 @@ def _median_finite(a: np.ndarray) -> float:
 
 def run(log: LogData, params: Params, progress=None) -> Result:
     """The landmark CSP over ``log`` as a :class:`Result` (pose tube and landmark boxes)."""
-    out = solve(log, params)
+    out = solve(log, params, progress=progress)
     res = make_result("landmarks", log, dropped=out.dropped, poses=out.poses, landmarks=out.landmarks,
                       consistency=out.consistency, stats=out.stats, pose_sets=out.pose_sets, robots=out.robots)
     if out.truth is not None:

@@ -121,7 +121,7 @@ def _assumption(params: Params, scans: Scans, pred, submaps: bool, not_mapped: i
     return text
 
 
-def solve(log: LogData, params: Params) -> LidarOutput:
+def solve(log: LogData, params: Params, progress=None) -> LidarOutput:
     """The LiDAR pipeline over a log (see the module docstring)."""
     path = log.provenance.path
     scans = log.scans
@@ -139,7 +139,7 @@ def solve(log: LogData, params: Params) -> LidarOutput:
     if params.tracking:
         from ivslam_cli.slam.lidar.submaps import track_submaps
 
-        tracking = track_submaps(log, params, scans)
+        tracking = track_submaps(log, params, scans, progress)
         pred = tracking.pred
         t1 = time.perf_counter()
         narrow = tracking.mapped
@@ -321,7 +321,7 @@ def run(log: LogData, params: Params, progress=None) -> Result:
     """The LiDAR pipeline over ``log`` as a :class:`Result`: pose boxes (global and, per submap,
     relative), the submaps and their mosaic (or, with given poses, one proven map), and the
     log-odds baseline from the same scans."""
-    out = solve(log, params)
+    out = solve(log, params, progress)
     return make_result("lidar", log, dropped=out.dropped, poses=out.poses, grid=out.grid, logodds=out.logodds,
                        relative=out.relative, submaps=out.submaps, loops=out.loops, consistency=out.consistency,
                        stats=out.stats)

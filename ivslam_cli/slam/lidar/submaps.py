@@ -229,8 +229,9 @@ def _search_loops(j: int, scan: int, gb: np.ndarray, submaps, active, graph: L.A
     return added
 
 
-def track_submaps(log: LogData, params: Params, scans: Scans) -> SubmapTracking:
-    """Track and map every scan in submaps (see the module docstring)."""
+def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> SubmapTracking:
+    """Track and map every scan in submaps (see the module docstring); ``progress(fraction,
+    label)``, if given, hears of every scan."""
     bounds = params.beams
     path = log.provenance.path
     used, dropped, m, Pg, source, events = trajectory(log, params, scans)
@@ -264,6 +265,8 @@ def track_submaps(log: LogData, params: Params, scans: Scans) -> SubmapTracking:
     Pdr = Pg.copy()  # the dead reckoning alone (no contraction reaches it): the open-loop reference
     loops_on = bool(params.loop_closure and params.contract)
     for j in range(S):
+        if progress is not None:
+            progress(j / S, f"scan {j}/{S}")
         k = int(m.node[j])
         scan = int(used[j])
         rp, rt = float(m.reach[j, 0]), float(m.reach[j, 1])
