@@ -96,6 +96,7 @@ def codac_contract(boxes: list[np.ndarray], tmp_path) -> np.ndarray:
     return np.load(dst)
 
 
+@pytest.mark.slow  # ~25 s
 def test_polar_is_never_looser_than_codac(capsys, tmp_path):
     boxes = random_boxes(N, seed=2024)
     cod = codac_contract(boxes, tmp_path)

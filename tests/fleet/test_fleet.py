@@ -60,6 +60,7 @@ def _audit(out: Path) -> dict:
     return json.loads((out / "fleet.json").read_text())
 
 
+@pytest.mark.slow  # a LocalCluster and three batches: ~5 s
 def test_sequential_pool_and_dask_cluster_give_the_same_results(logs, tmp_path):
     distributed = pytest.importorskip("dask.distributed")
     seq, pool, dask_out = tmp_path / "seq", tmp_path / "pool", tmp_path / "dask"
@@ -111,6 +112,7 @@ def test_a_broken_log_fails_alone(logs, tmp_path):
     assert not list(out.glob(".*"))  # no temporary left
 
 
+@pytest.mark.slow
 def test_resume_and_existing_results(logs, tmp_path):
     out = tmp_path / "out"
     code, _, err = ivslam("run", logs / "lm1.mcap", logs / "lm2.mcap", "--mode", "landmarks", "-o", out, "--jobs", 1)
@@ -150,6 +152,7 @@ def test_several_logs_need_an_output_directory(logs):
     assert code == 2 and err.startswith("ivslam: error: several logs need -o DIR"), err
 
 
+@pytest.mark.slow
 def test_manifest_with_per_log_overrides(logs, tmp_path):
     cfg = tmp_path / "wide.toml"
     cfg.write_text("[bounds]\nrange_abs = 0.5\n")
@@ -171,6 +174,7 @@ def test_manifest_with_per_log_overrides(logs, tmp_path):
     assert code == 2 and err.startswith(f"ivslam: error: {bad}:1: unknown per-log option '--q'"), err
 
 
+@pytest.mark.slow
 def test_mode_auto_over_the_sample_logs(tmp_path):
     from tests.helpers.paths import REPO
 
@@ -181,6 +185,7 @@ def test_mode_auto_over_the_sample_logs(tmp_path):
     assert sorted(p.name for p in out.glob("*.h5")) == ["landmarks.landmarks.h5", "pairs.pairs.h5"]
 
 
+@pytest.mark.slow
 def test_report_of_a_batch_directory(logs, tmp_path):
     d = tmp_path / "mixed"
     d.mkdir()
@@ -204,6 +209,7 @@ def test_report_of_a_batch_directory(logs, tmp_path):
     assert code == 2 and "without fleet.json" in err
 
 
+@pytest.mark.slow
 def test_strict_batch_exits_3_and_records_where_it_stopped(logs, tmp_path):
     from tests.helpers.paths import REPO
 

@@ -51,14 +51,25 @@ def scale() -> float:
     return settings.default.max_examples / CI_EXAMPLES
 
 
-def examples(*, ci: int) -> int:
+def examples(*, ci: int, dev: int | None = None) -> int:
     """How many examples a test that runs ``ci`` of them under ``ci`` runs under the loaded
-    profile (at least one). Evaluated when the test module is imported, after conftest has
-    loaded the profile."""
+    profile (at least one); ``dev``, if given, is the count under ``dev`` (for tests whose
+    every example is a whole run). Evaluated when the test module is imported, after conftest
+    has loaded the profile."""
+    if dev is not None and settings.get_current_profile_name() == "dev":
+        return max(1, dev)
     return max(1, round(ci * scale()))
 
 
-def seeds(*, ci: int) -> list:
-    """Seeds ``0 .. examples(ci=ci) - 1`` as parametrize values with ids ``seed<k>``: the ``dev``
-    seeds are the first of ``ci``'s, which are the first of ``soak``'s."""
-    return [pytest.param(k, id=f"seed{k}") for k in range(examples(ci=ci))]
+def seeds(*, ci: int, dev: int | None = None) -> list:
+    """Seeds ``0 .. examples(ci=ci, dev=dev) - 1`` as parametrize values with ids ``seed<k>``:
+    the ``dev`` seeds are the first of ``ci``'s, which are the first of ``soak``'s."""
+    return [pytest.param(k, id=f"seed{k}") for k in range(examples(ci=ci, dev=dev))]
+
+
+def lanes(values, *, fast) -> list:
+    """``values`` as parametrize values, those not in ``fast`` marked ``slow``: every value runs
+    in ``make test``, the ``fast`` ones in ``make test-fast`` too."""
+    fast = list(fast)
+    return [v if v in fast else pytest.param(*(v if isinstance(v, tuple) else (v,)), marks=pytest.mark.slow)
+            for v in values]

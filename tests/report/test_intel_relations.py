@@ -25,6 +25,7 @@ def _keyframe_stamps(path) -> np.ndarray:
     return np.array(sorted(float(k) for k in json.loads(lzma.open(path).read())["map"]))
 
 
+@pytest.mark.slow  # ~30 s: the keyframe run over the whole Intel log
 def test_intel_relations_end_to_end(datasets, cli_run, tmp_path):
     log = datasets / "intel_lab" / "intel_gfs.json.xz"
     relations = datasets / "intel_lab" / "intel.relations.xz"

@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli.config import resolve_config
@@ -29,6 +29,7 @@ from ivslam_cli.simulate.conecast import cone_cast
 from ivslam_cli.simulate.raycast import cast
 from ivslam_cli.simulate.sensors import PROFILES, get_profile
 from ivslam_cli.simulate.worlds import BUILTIN, load_world
+from tests.helpers.hyp import examples, lanes
 
 REL = 1e-12  # rounding allowance of the kernel and of the oracle (relative)
 
@@ -100,7 +101,7 @@ def random_world(rng, k: int) -> np.ndarray:
 
 # ---------------------------------------------------------------- the kernel against the oracle
 @given(st.integers(0, 2**32 - 1), st.sampled_from([0.0, 1e-7, 0.0030679615757712823, 0.0087266, 0.05, 0.4, 1.2]))
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(ci=60))
 def test_cone_kernel_equals_the_clipped_nearest_distance(seed, h):
     rng = np.random.default_rng(seed)
     segs = random_world(rng, int(rng.integers(1, 25)))
@@ -116,7 +117,7 @@ def test_cone_kernel_equals_the_clipped_nearest_distance(seed, h):
     assert np.all(d[f] >= lo), np.max(lo / d[f] - 1)  # d_hi <= d_exact / cos(delta / 2)
 
 
-@pytest.mark.parametrize("world", BUILTIN)
+@pytest.mark.parametrize("world", lanes(BUILTIN, fast=["rooms"]))
 def test_cone_kernel_in_the_worlds_and_its_ray_limit(world):
     """Built-in worlds (walls meeting at corners), random sensor poses and URG/SICK cones; a
     cone is never farther than its own bisector ray, and at h = 0 it is that ray."""
@@ -191,7 +192,7 @@ def check_stated_cone(log):
 
 @given(st.integers(0, 2**31 - 1), st.sampled_from(BUILTIN), st.sampled_from(sorted(PROFILES)),
        st.sampled_from(["uniform", "triangular", "edges"]), st.sampled_from([0.0, 0.02]))
-@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=examples(ci=20))
 def test_every_simulated_cone_beam_satisfies_its_stated_bounds(seed, world, sensor, noise, outliers):
     log = simulate(SimConfig(scenario="lidar", world=world, sensor=sensor, seed=seed, steps=12, noise=noise,
                              outlier_rate=outliers))
@@ -267,9 +268,9 @@ def test_cli_known_poses_prove_free_space_from_cone_logs_only(cli_run, tmp_path,
     assert area["cone"] > 0 and area["ray"] == 0, area
 
 
-@pytest.mark.parametrize("world,sensor,seed,known", [
+@pytest.mark.parametrize("world,sensor,seed,known", lanes([
     ("rooms", "urg-04lx", 3, False), ("corridor", "urg-04lx", 4, True), ("pillars", "sick", 6, False),
-    ("open", "sick", 8, True), ("pillars", "urg-04lx", 9, True)])
+    ("open", "sick", 8, True), ("pillars", "urg-04lx", 9, True)], fast=[("corridor", "urg-04lx", 4, True)]))
 def test_the_pipeline_keeps_the_truth_on_cone_logs(world, sensor, seed, known):
     """Dead reckoning from the true start, or known poses, without lidar.fill_gaps: every true
     pose in its box, no P_EMPTY cell on a wall, and every wall point the oracle finds at the

@@ -18,6 +18,7 @@ from ivslam_cli.simulate import SimConfig, simulate
 from ivslam_cli.simulate.observe import observe
 from ivslam_cli.slam.landmarks import Params as LandmarksParams
 from ivslam_cli.slam.landmarks import pipeline as PL
+from tests.helpers.hyp import seeds
 
 
 def _wrap(a):
@@ -88,7 +89,7 @@ def _sound(res):
     return per
 
 
-@pytest.mark.parametrize("seed", range(12))
+@pytest.mark.parametrize("seed", seeds(ci=12))
 def test_fleets_keep_the_truth(seed):
     log = fleet(seed)
     res = PL.run(log, LandmarksParams.from_config(_cfg(log)))

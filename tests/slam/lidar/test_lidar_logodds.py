@@ -38,7 +38,7 @@ from ivslam_cli.slam.lidar.logodds import (
     compare,
     laser_centres,
 )
-from tests.helpers.hyp import examples
+from tests.helpers.hyp import examples, lanes
 from tests.helpers.paths import CONFIGS, SAMPLE_LOGS as SAMPLES
 from tests.helpers.results import assert_same
 
@@ -256,7 +256,7 @@ def test_report_text_and_json_carry_the_comparison():
     assert sum(lc.values()) == r.grid.state.size
 
 
-@pytest.mark.parametrize("suffix", [".png", ".svg"])
+@pytest.mark.parametrize("suffix", lanes([".png", ".svg"], fast=[".png"]))
 def test_plot_draws_both_maps_and_the_disagreement(tmp_path, suffix):
     r = lidar_example()
     rep = compute_report(r)

@@ -45,6 +45,7 @@ def _check_closed(seed, duration):
     return st
 
 
+@pytest.mark.slow  # ~25 s
 @pytest.mark.parametrize("seed", [3])
 def test_loops_keep_the_truth_and_bound_the_global_boxes(seed):
     st = _check_closed(seed, 30.0)

@@ -30,6 +30,7 @@ from ivslam_cli.results.model import CELL_EMPTY, CELL_OBSTACLE, FRAME_FIRST_POSE
 from ivslam_cli.simulate import SimConfig, simulate
 from ivslam_cli.slam.lidar import Params as LidarParams
 from ivslam_cli.slam.lidar.pipeline import run, solve
+from tests.helpers.hyp import lanes, seeds
 from tests.helpers.lidar_truth import assert_contained, hits_outside_obstacle, nearest_in_cones
 from tests.helpers.paths import CONFIGS, SAMPLE_LOGS as SAMPLES
 
@@ -59,7 +60,7 @@ def assert_truth_kept(log, params, out):
 
 
 # ---------------------------------------------------------------- simulated logs
-@pytest.mark.parametrize("seed", range(24))
+@pytest.mark.parametrize("seed", seeds(ci=24, dev=2))
 def test_simulated_urg_runs_keep_the_truth(seed):
     """The URG-04LX profile (682 beams 0.35° apart) in every built-in world, 24 seeds, with and
     without the initial pose from the truth: every scan mapped, every enclosure holds the truth
@@ -94,7 +95,7 @@ def test_the_first_pose_frame_and_the_world_frame_both_hold_the_truth(tmp_path):
             assert "= 1.0000  ok" in line, line
 
 
-@pytest.mark.parametrize("seed,world", [(3, "rooms"), (5, "corridor"), (6, "pillars")])
+@pytest.mark.parametrize("seed,world", lanes([(3, "rooms"), (5, "corridor"), (6, "pillars")], fast=[(5, "corridor")]))
 def test_simulated_sick_keeps_the_truth(seed, world):
     log, params, out = run_sim(seed, world, sensor="sick", steps=40)
     assert_truth_kept(log, params, out)
@@ -139,6 +140,7 @@ def test_wide_boxes_are_not_mapped_and_said_so():
     assert_truth_kept(log, params, out)
 
 
+@pytest.mark.slow  # ~15 s
 def test_submaps_start_at_distance_and_overlap():
     """A new submap starts when the robot is lidar.submap_distance from the anchor; the previous
     one keeps tracking the next lidar.submap_overlap metres, so some scans are in two submaps."""
@@ -243,7 +245,7 @@ def _pgm(path: Path) -> np.ndarray:
     return np.frombuffer(rest, np.uint8).reshape(h, w)
 
 
-@pytest.mark.parametrize("sample", ["lidar_corridor.mcap", "lidar_rooms.h5"])
+@pytest.mark.parametrize("sample", lanes(["lidar_corridor.mcap", "lidar_rooms.h5"], fast=["lidar_rooms.h5"]))
 def test_cli_run_report_exports_on_the_samples(tmp_path, sample):
     out = tmp_path / "r.h5"
     tum = tmp_path / "r.tum"

@@ -15,6 +15,7 @@ from ivslam_cli.logs.writers import write_log
 from ivslam_cli.simulate import simulate
 from ivslam_cli.simulate.config import SimConfig
 from ivslam_cli.slam import run_pipeline
+from tests.helpers.hyp import lanes
 
 
 def small_log(seed: int, **kw):
@@ -59,7 +60,7 @@ def widths_never_grow(result) -> bool:
     return True
 
 
-@pytest.mark.parametrize("block", range(8))
+@pytest.mark.parametrize("block", lanes(range(8), fast=[0, 5]))
 def test_honest_bounds_contain_the_truth_over_200_logs(block):
     """25 logs per block, 200 in all, three noise distributions (edges = errors at the bound)."""
     noises = ("uniform", "edges", "triangular")
