@@ -1,0 +1,112 @@
+"""Benchmark: the fixed cost of an ``ivslam`` process, beside the floor of what it is built on.
+
+Each row is a whole process (a fresh interpreter, the kernel cache warm), timed from outside:
+the median and the range of ``--runs`` runs after one warm-up, wall and CPU seconds (user +
+system, from the kernel's accounting of the finished child). The rows:
+
+- ``python -c pass``, ``import numpy``, ``import numba``: the interpreter and the libraries;
+- *one cached kernel*: ``import numba`` and one call of a trivial ``@njit(cache=True)`` kernel
+  loaded from its cache — the floor of any process that calls a jitted kernel (numba sets up
+  its CPU target on the first kernel it loads);
+- ``ivslam --help``, and ``ivslam run`` on a 5-step pairs log (the tiny log of the issue),
+  with the pipeline's own runtime (the result's ``runtime_s``) so the fixed cost is the rest.
+
+Targets (issue #21; exit code 1 otherwise): ``ivslam run`` on the tiny log ≤ 0.5 s wall and
+its fixed cost ≤ 0.3 s. When the one-kernel floor is already above a target, the benchmark
+says so: no change inside ivslam can bring a run below the floor.
+
+    python -m bench startup
+    python -m bench.bench_startup --runs 9
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+RUN_TARGET = 0.5  # s, the whole process on the tiny log
+FIXED_TARGET = 0.3  # s, the process minus its pipeline
+
+KERNEL = """
+from numba import njit
+
+@njit(cache=True)
+def one(x):
+    return x + 1.0
+
+one(1.0)
+"""
+
+
+def _time(cmd: list[str], runs: int, cwd: Path) -> tuple[list[float], list[float]]:
+    walls, cpus = [], []
+    for k in range(runs + 1):
+        before = os.times()
+        t0 = time.perf_counter()
+        r = subprocess.run(cmd, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, check=False)
+        wall = time.perf_counter() - t0
+        after = os.times()
+        if r.returncode:
+            raise SystemExit(f"{' '.join(cmd)} failed ({r.returncode}): {r.stderr.strip()}")
+        if k:  # the first run warms caches
+            walls.append(wall)
+            cpus.append((after.children_user - before.children_user) + (after.children_system - before.children_system))
+    return walls, cpus
+
+
+def _row(name: str, walls: list[float], cpus: list[float]) -> float:
+    w = statistics.median(walls)
+    print(f"  {name:<34} wall {w:6.3f} s (min {min(walls):.3f}, max {max(walls):.3f})   "
+          f"cpu {statistics.median(cpus):6.3f} s")
+    return w
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--runs", type=int, default=7, help="timed runs per row (median quoted)")
+    a = ap.parse_args(argv)
+    py = sys.executable
+    ivslam = [py, "-m", "ivslam_cli"]
+    load = os.getloadavg()
+    print(f"machine: {os.cpu_count()} cores, load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}; "
+          f"median of {a.runs} runs after one warm-up")
+    with tempfile.TemporaryDirectory() as tmp:
+        d = Path(tmp)
+        (d / "one_kernel.py").write_text(KERNEL)
+        subprocess.run([*ivslam, "simulate", "--scenario", "pairs", "--steps", "5", "-o", "tiny.mcap"], cwd=d,
+                       check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        rows = {}
+        rows["pass"] = _row("python -c pass", *_time([py, "-c", "pass"], a.runs, d))
+        rows["numpy"] = _row("python -c 'import numpy'", *_time([py, "-c", "import numpy"], a.runs, d))
+        rows["numba"] = _row("python -c 'import numba'", *_time([py, "-c", "import numba"], a.runs, d))
+        rows["kernel"] = _row("one cached kernel (the floor)", *_time([py, "one_kernel.py"], a.runs, d))
+        rows["help"] = _row("ivslam --help", *_time([*ivslam, "--help"], a.runs, d))
+        run = [*ivslam, "run", "tiny.mcap", "-o", "r.h5", "--force", "-q"]
+        rows["run"] = _row("ivslam run (5-step pairs log)", *_time(run, a.runs, d))
+        import h5py
+
+        with h5py.File(d / "r.h5", "r") as f:
+            pipeline = float(f.attrs["runtime_s"])
+    fixed = rows["run"] - pipeline
+    print(f"ivslam run: {rows['run']:.3f} s, of which the pipeline {pipeline:.3f} s: fixed cost {fixed:.3f} s")
+    print(f"floor: one cached kernel {rows['kernel']:.3f} s (numba import {rows['numba'] - rows['pass']:.3f} s, "
+          f"its CPU target and the kernel's load {rows['kernel'] - rows['numba']:.3f} s)")
+    ok = True
+    for what, value, target in (("run", rows["run"], RUN_TARGET), ("fixed cost", fixed, FIXED_TARGET)):
+        verdict = "PASS" if value <= target else "FAIL"
+        ok &= value <= target
+        floor = rows["kernel"]
+        note = (f" — the target is below the floor ({floor:.3f} s for any process that calls one jitted kernel)"
+                if verdict == "FAIL" and floor > target else "")
+        print(f"{what}: {value:.3f} s (target <= {target} s): {verdict}{note}")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
