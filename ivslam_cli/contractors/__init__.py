@@ -87,14 +87,17 @@ def range_bearing(sx: np.ndarray, sy: np.ndarray, sth: np.ndarray, mx: np.ndarra
 
     The measurement noise is folded into ``rho`` and ``alpha`` (``[z] + [r]``); ``rho >= 0``.
     Pose, landmark, ``rho`` and ``alpha`` are all contracted (angles keep their branch).
+
+    Runs the SIMD kernel (:mod:`~ivslam_cli.contractors.ctc_range_bearing_simd`); the scalar
+    reference is :func:`ivslam_cli.contractors.ctc_range_bearing.range_bearing_kernel`.
     """
-    from ivslam_cli.contractors.ctc_range_bearing import range_bearing_kernel
+    from ivslam_cli.contractors.ctc_range_bearing_simd import range_bearing_simd_kernel
 
     n = boxes("sx", sx)
     for name, arr in (("sy", sy), ("sth", sth), ("mx", mx), ("my", my), ("rho", rho),
                       ("alpha", alpha)):
         boxes(name, arr, n)
-    return range_bearing_kernel(sx, sy, sth, mx, my, rho, alpha)
+    return range_bearing_simd_kernel(sx, sy, sth, mx, my, rho, alpha)
 
 
 def range_bearing_pass(sx: np.ndarray, sy: np.ndarray, sth: np.ndarray, mx: np.ndarray,
