@@ -28,6 +28,9 @@ depends on ``phi``, so this one backward step is all the angle part can give.
 
 Passes repeat per piece while one shrinks some width by at least ``RELATIVE_STOP`` (at least
 two, at most ``MAX_PASSES``); a piece that stops is written out and the chunk is packed.
+tests/contractors/test_range_bearing_simd.py checks against the scalar kernel: the same rows
+emptied, no bound outside the scalar result by more than ``1e-9`` of its width plus
+``1e-12 (1 + |bound|)``, and widths on average no larger.
 """
 
 from __future__ import annotations
