@@ -267,6 +267,7 @@ def _block(b, nb):
     kk, sg, pl, ph = np.empty(C), np.empty(C), np.empty(C), np.empty(C)
     t0l, t0h = np.empty(C), np.empty(C)
     acc = np.empty((nb, 24))
+    last = np.empty((nb, 4))  # th0, dt after each box's last position part
     active = np.ones(nb, np.bool_)
     for j in range(nb):
         for k in range(12):
@@ -282,8 +283,15 @@ def _block(b, nb):
                 continue
             for k in range(24):
                 acc[j, k] = E if k % 2 == 0 else F
-            if _heading(b, j):
-                m = _pieces(b, j, L, m, box, q, kk, sg, pl, ph)
+            if not _heading(b, j):
+                continue
+            if (rnd > 0 and b[j, T0] == last[j, 0] and b[j, T0 + 1] == last[j, 1]
+                    and b[j, DT] == last[j, 2] and b[j, DT + 1] == last[j, 3]):
+                # the position part would get its own last output again: nothing to redo
+                for k in range(24):
+                    acc[j, k] = b[j, k]
+                continue
+            m = _pieces(b, j, L, m, box, q, kk, sg, pl, ph)
             if m + PIECES > C:
                 _flush(m, L, D, orig, b, acc, box, q, kk, sg, pl, ph, t0l, t0h)
                 m = 0
@@ -303,6 +311,7 @@ def _block(b, nb):
                 progress = max(progress, shrink(b[j, k], b[j, k + 1], acc[j, k], acc[j, k + 1]))
             for k in range(24):
                 b[j, k] = acc[j, k]
+            last[j, 0], last[j, 1], last[j, 2], last[j, 3] = b[j, T0], b[j, T0 + 1], b[j, DT], b[j, DT + 1]
             active[j] = progress >= RELATIVE_STOP
             more |= active[j]
         if not more:
