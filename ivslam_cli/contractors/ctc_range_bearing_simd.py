@@ -50,6 +50,7 @@ from ivslam_cli.interval.rounding import (
     INV_TWO_PI_LO,
     PI_HI,
     PI_LO,
+    TWO_PI_HI,
     TWO_PI_LO,
     down,
     up,
@@ -233,8 +234,53 @@ def _meet(tl, th, al, ah):
     return lo, hi
 
 
+GAL, GAH, GSL, GSH, GOK = 0, 1, 2, 3, 4  # rows of the angle buffer G (alpha, sth, in range)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _meet3(tl, th, al, ah):
+    """:func:`_meet` as selects, for ``w(t) + w(a) < 6`` with moderate bounds (else ``ok`` is
+    False and the result is to be ignored): the pieces of the copies ``k0 - 1, k0, k0 + 1``,
+    shifted as ``angle_meet`` shifts them, hulled."""
+    ok = ((th - tl) + (ah - al) < 6.0) & (-1e15 < tl) & (th < 1e15) & (-1e15 < al) & (ah < 1e15)
+    k0 = np.floor((0.5 * (tl + th) - 0.5 * (al + ah)) * INV_TWO_PI_LO + 0.5)
+    lo, hi = E, F
+    for dk in range(-1, 2):
+        k = k0 + dk
+        ol = down(k * TWO_PI_LO) if k >= 0.0 else down(k * TWO_PI_HI)
+        oh = up(k * TWO_PI_HI) if k >= 0.0 else up(k * TWO_PI_LO)
+        sl = al if k == 0.0 else down(al + ol)
+        sh = ah if k == 0.0 else up(ah + oh)
+        pl = sl if sl > tl else tl
+        ph = sh if sh < th else th
+        meets = pl <= ph
+        lo = pl if meets & (pl < lo) else lo
+        hi = ph if meets & (ph > hi) else hi
+    return lo, hi, ok
+
+
 @njit(cache=True, error_model="numpy")
-def _finish(n, D, box, q, pl, ph, t0l, t0h, ang, acc):
+def _differences(n, q, pl, ph, G):
+    """``alpha ∩= phi - sth``, ``sth ∩= phi - alpha`` (mod 2 pi) for lanes ``0..n-1`` in ``G``,
+    ``phi`` the world bearing of ``psi``; ``G[GOK]`` is 0 where ``_meet3`` does not apply."""
+    C = CHUNK
+    for i in range(n):
+        lo, hi, qi = pl[i], ph[i], q[i]
+        wl = lo if qi == 0 else (-hi if qi == 1 else (down(lo - PI_HI) if qi == 2 else down(PI_LO - hi)))
+        wh = hi if qi == 0 else (-lo if qi == 1 else (up(hi - PI_LO) if qi == 2 else up(PI_HI - lo)))
+        al, ah, stl, sth = G[GAL * C + i], G[GAH * C + i], G[GSL * C + i], G[GSH * C + i]
+        nal, nah, ok1 = _meet3(al, ah, down(wl - sth), up(wh - stl))
+        nsl, nsh, ok2 = _meet3(stl, sth, down(wl - nah), up(wh - nal))
+        ok = ok1 & ok2 & (lo <= hi)
+        G[GAL * C + i] = nal if ok else al
+        G[GAH * C + i] = nah if ok else ah
+        G[GSL * C + i] = nsl if ok else stl
+        G[GSH * C + i] = nsh if ok else sth
+        G[GOK * C + i] = 1.0 if ok else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _finish(n, D, box, q, pl, ph, t0l, t0h, ang, acc, G):
     """Lanes ``0..n-1`` done (final state in ``D``): ``psi ∩= atan(t)``, the periodic difference,
     hull into their boxes' rows of ``acc``."""
     C = CHUNK
@@ -246,16 +292,22 @@ def _finish(n, D, box, q, pl, ph, t0l, t0h, ang, acc):
         th = D[TH * C + i]
         if th != t0h[i]:
             ph[i] = _mn(ph[i], _atan_hi(th))
+    for i in range(n):  # the lanes' alpha and sth, then the periodic difference as a SIMD loop
+        j = box[i]
+        G[GAL * C + i], G[GAH * C + i] = ang[j, 0], ang[j, 1]
+        G[GSL * C + i], G[GSH * C + i] = ang[j, 2], ang[j, 3]
+    _differences(n, q, pl, ph, G)
     for i in range(n):
-        lo, hi = pl[i], ph[i]
-        if D[OK * C + i] < 0.5 or not (lo <= hi):
+        if D[OK * C + i] < 0.5 or not (pl[i] <= ph[i]):
             continue
         j = box[i]
-        wl, wh = _from_psi(q[i], lo, hi)
-        dl, dh = sub(wl, wh, ang[j, 2], ang[j, 3])
-        al, ah = _meet(ang[j, 0], ang[j, 1], dl, dh)
-        dl, dh = sub(wl, wh, al, ah)
-        stl, sth = _meet(ang[j, 2], ang[j, 3], dl, dh)
+        al, ah, stl, sth = G[GAL * C + i], G[GAH * C + i], G[GSL * C + i], G[GSH * C + i]
+        if G[GOK * C + i] < 0.5:  # outside _meet3's range: the scalar steps
+            wl, wh = _from_psi(q[i], pl[i], ph[i])
+            dl, dh = sub(wl, wh, stl, sth)
+            al, ah = _meet(al, ah, dl, dh)
+            dl, dh = sub(wl, wh, al, ah)
+            stl, sth = _meet(stl, sth, dl, dh)
         if not (al <= ah) or not (stl <= sth):
             continue
         sx = 1.0 if (q[i] == 0 or q[i] == 1) else -1.0
@@ -273,7 +325,7 @@ def _finish(n, D, box, q, pl, ph, t0l, t0h, ang, acc):
 
 
 @njit(cache=True, error_model="numpy")
-def _flush(n, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, D, orig, out):
+def _flush(n, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, D, orig, out, G):
     """Contract the ``n`` lanes (pieces of ``nb`` boxes, output rows ``rows``) and write out.
 
     After each pass from the second on, a lane that shrank no width by ``RELATIVE_STOP`` (or was
@@ -307,7 +359,7 @@ def _flush(n, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, D, orig, out):
         n = m
         if n == 0:
             break
-    _finish(nl, D, box, q, pl, ph, t0l, t0h, ang, acc)
+    _finish(nl, D, box, q, pl, ph, t0l, t0h, ang, acc, G)
     sx, sy, st, mx, my, rho, alpha = out
     for j in range(nb):
         k = rows[j]
@@ -342,6 +394,7 @@ def _kernel(sx, sy, st, mx, my, rho, alpha):
     acc = np.empty((C, 14))
     L = np.empty(ROWS * C)
     D = np.empty(ROWS * C)
+    G = np.empty(5 * C)
     orig = np.empty(C, np.int64)
     out = (sx, sy, st, mx, my, rho, alpha)
     m = 0  # lanes in the chunk
@@ -392,11 +445,11 @@ def _kernel(sx, sy, st, mx, my, rho, alpha):
             acc[nb, k] = E if k % 2 == 0 else F
         nb += 1
         if m + 12 > C:
-            _flush(m, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, D, orig, out)
+            _flush(m, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, D, orig, out, G)
             m = 0
             nb = 0
     if m > 0:
-        _flush(m, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, D, orig, out)
+        _flush(m, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, D, orig, out, G)
     for i in range(n):
         okm[i] = sx[i, 0] <= sx[i, 1]
     return okm

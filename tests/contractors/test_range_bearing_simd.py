@@ -21,7 +21,12 @@ from hypothesis import strategies as st
 from bench.bench_kernels import _angles, _box, _branch, _lost, _margin
 from ivslam_cli.contractors import range_bearing
 from ivslam_cli.contractors.ctc_range_bearing import range_bearing_kernel
-from ivslam_cli.contractors.ctc_range_bearing_simd import CHUNK, _meet, range_bearing_simd_kernel
+from ivslam_cli.contractors.ctc_range_bearing_simd import (
+    CHUNK,
+    _meet,
+    _meet3,
+    range_bearing_simd_kernel,
+)
 from ivslam_cli.interval.angles import angle_meet
 from tests.helpers.exact import around
 from tests.helpers.hyp import examples
@@ -112,7 +117,12 @@ def test_simd_against_the_scalar_reference():
 @settings(max_examples=examples(ci=300))
 @given(st.floats(-20, 20), st.floats(0, 8), st.floats(-20, 20), st.floats(0, 8))
 def test_meet_is_angle_meet_bit_for_bit(tl, tw, al, aw):
-    assert _meet(tl, tl + tw, al, al + aw) == angle_meet(tl, tl + tw, al, al + aw)
+    ref = angle_meet(tl, tl + tw, al, al + aw)
+    assert _meet(tl, tl + tw, al, al + aw) == ref
+    lo, hi, ok = _meet3(tl, tl + tw, al, al + aw)
+    assert ok == (((tl + tw) - tl) + ((al + aw) - al) < 6.0)
+    if ok:
+        assert (lo, hi) == ref or (not lo <= hi and not ref[0] <= ref[1])
 
 
 def _rows(*rows):
