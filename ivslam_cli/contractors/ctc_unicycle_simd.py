@@ -65,6 +65,9 @@ from ivslam_cli.contractors.ctc_range_bearing_simd import (
     _from_psi,
     _lane,
     _meet,
+    _meet3,
+    _mn,
+    _mx,
     _passes,
     _shift,
     _to_psi,
@@ -81,7 +84,7 @@ from ivslam_cli.interval.arith import (
     mul,
     sub,
 )
-from ivslam_cli.interval.rounding import INV_TWO_PI_HI, INV_TWO_PI_LO, PI_HI, PI_LO, TWO_PI_LO
+from ivslam_cli.interval.rounding import INV_TWO_PI_HI, INV_TWO_PI_LO, PI_HI, PI_LO, TWO_PI_LO, down, up
 
 E = EMPTY_LO
 F = EMPTY_HI
@@ -129,6 +132,71 @@ def _heading(b, j):
         return False
     b[j, QT], b[j, QT + 1], b[j, W], b[j, W + 1], b[j, DT], b[j, DT + 1] = ql, qh, wl, wh, dl, dh
     return True
+
+
+# rows of the heading buffer H (boxes of a block as structure of arrays)
+HWL, HWH, HDL, HDH, HQL, HQH, H1L, H1H, H0L, H0H, HPL, HPH, HUL, HUH, HOK = range(15)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _prod(a, c):
+    return 0.0 if (a == 0.0) | (c == 0.0) else a * c
+
+
+@njit(cache=True, error_model="numpy")
+def _headings_simd(nb, H):
+    """The heading block of ``unicycle_pass`` up to ``bwd_add``, for boxes ``0..nb-1`` of ``H``,
+    as selects (a SIMD loop): the same float operations as ``mul``, ``add``, ``_angle_difference``
+    (with ``_meet3``) and ``bwd_add`` on non-empty inputs. ``H[HOK]``: 1 if the results hold, 0
+    if the box is emptied, -1 if ``_meet3`` does not apply (the scalar steps are then needed)."""
+    B = BLOCK
+    for j in range(nb):
+        wl, wh, dl, dh = H[HWL * B + j], H[HWH * B + j], H[HDL * B + j], H[HDH * B + j]
+        ql, qh = H[HQL * B + j], H[HQH * B + j]
+        t1l, t1h, t0l, t0h = H[H1L * B + j], H[H1H * B + j], H[H0L * B + j], H[H0H * B + j]
+        p1, p2, p3, p4 = _prod(wl, dl), _prod(wl, dh), _prod(wh, dl), _prod(wh, dh)
+        pl = down(min(min(p1, p2), min(p3, p4)))
+        ph = up(max(max(p1, p2), max(p3, p4)))
+        ul, uh = down(pl + ql), up(ph + qh)
+        ul, uh, ok1 = _meet3(ul, uh, down(t1l - t0h), up(t1h - t0l))
+        t1l, t1h, ok2 = _meet3(t1l, t1h, down(ul + t0l), up(uh + t0h))
+        t0l, t0h, ok3 = _meet3(t0l, t0h, down(t1l - uh), up(t1h - ul))
+        # bwd_add(u, p, qth): p ∩= u - qth, qth ∩= u - p
+        pl, ph = _mx(pl, down(ul - qh)), _mn(ph, up(uh - ql))
+        ql, qh = _mx(ql, down(ul - ph)), _mn(qh, up(uh - pl))
+        good = (ul <= uh) & (t1l <= t1h) & (t0l <= t0h) & (pl <= ph) & (ql <= qh)
+        H[H1L * B + j], H[H1H * B + j], H[H0L * B + j], H[H0H * B + j] = t1l, t1h, t0l, t0h
+        H[HPL * B + j], H[HPH * B + j], H[HQL * B + j], H[HQH * B + j] = pl, ph, ql, qh
+        H[HOK * B + j] = (1.0 if good else 0.0) if (ok1 & ok2 & ok3) else -1.0
+
+
+@njit(cache=True)
+def _headings(nb, b, active, H, res):
+    """``res[j] = _heading(b, j)`` for the active boxes, the same bounds, mostly as a SIMD loop."""
+    B = BLOCK
+    for j in range(nb):
+        H[HWL * B + j], H[HWH * B + j], H[HDL * B + j], H[HDH * B + j] = b[j, W], b[j, W + 1], b[j, DT], b[j, DT + 1]
+        H[HQL * B + j], H[HQH * B + j] = b[j, QT], b[j, QT + 1]
+        H[H1L * B + j], H[H1H * B + j], H[H0L * B + j], H[H0H * B + j] = b[j, T1], b[j, T1 + 1], b[j, T0], b[j, T0 + 1]
+    _headings_simd(nb, H)
+    for j in range(nb):
+        if not active[j]:
+            continue
+        ok = H[HOK * B + j]
+        if ok < -0.5:
+            res[j] = _heading(b, j)
+            continue
+        if ok < 0.5:
+            res[j] = False
+            continue
+        wl, wh, dl, dh = bwd_mul(H[HPL * B + j], H[HPH * B + j], b[j, W], b[j, W + 1], b[j, DT], b[j, DT + 1])
+        if not (wl <= wh) or not (dl <= dh):
+            res[j] = False
+            continue
+        b[j, T1], b[j, T1 + 1], b[j, T0], b[j, T0 + 1] = H[H1L * B + j], H[H1H * B + j], H[H0L * B + j], H[H0H * B + j]
+        b[j, QT], b[j, QT + 1] = H[HQL * B + j], H[HQH * B + j]
+        b[j, W], b[j, W + 1], b[j, DT], b[j, DT + 1] = wl, wh, dl, dh
+        res[j] = True
 
 
 @njit(cache=True)
@@ -269,6 +337,8 @@ def _block(b, nb):
     acc = np.empty((nb, 24))
     last = np.empty((nb, 4))  # th0, dt after each box's last position part
     active = np.ones(nb, np.bool_)
+    H = np.empty(15 * BLOCK)
+    hres = np.zeros(nb, np.bool_)
     for j in range(nb):
         for k in range(12):
             if not (b[j, 2 * k] <= b[j, 2 * k + 1]):
@@ -278,12 +348,13 @@ def _block(b, nb):
                 b[j, k] = E if k % 2 == 0 else F
     for rnd in range(MAX_ROUNDS):
         m = 0
+        _headings(nb, b, active, H, hres)
         for j in range(nb):
             if not active[j]:
                 continue
             for k in range(24):
                 acc[j, k] = E if k % 2 == 0 else F
-            if not _heading(b, j):
+            if not hres[j]:
                 continue
             if (rnd > 0 and b[j, T0] == last[j, 0] and b[j, T0 + 1] == last[j, 1]
                     and b[j, DT] == last[j, 2] and b[j, DT + 1] == last[j, 3]):

@@ -23,7 +23,7 @@ from hypothesis import strategies as st
 from bench.bench_kernels import _angles, _box, _branch, _lost, _margin
 from ivslam_cli.contractors import unicycle
 from ivslam_cli.contractors.ctc_unicycle import RELATIVE_STOP, unicycle_kernel
-from ivslam_cli.contractors.ctc_unicycle_simd import BLOCK, unicycle_simd_kernel
+from ivslam_cli.contractors.ctc_unicycle_simd import BLOCK, _heading, _headings, unicycle_simd_kernel
 from tests.helpers.exact import around
 from tests.helpers.hyp import examples
 
@@ -167,3 +167,18 @@ def test_blocks_and_public_function_is_the_simd_kernel():
         unicycle_simd_kernel(*r)
         for x, y in zip(r, a):
             assert np.array_equal(x[0], y[i])
+
+
+def test_vectorised_heading_step_is_the_scalar_one_bit_for_bit():
+    boxes, _ = uni_truths(BLOCK * 20, seed=13)
+    rows = np.stack(boxes, axis=1).reshape(-1, 24)  # (n, 24) in unicycle_scalar's order
+    for s in range(0, rows.shape[0], BLOCK):
+        a = rows[s:s + BLOCK].copy()
+        c = a.copy()
+        active = np.ones(BLOCK, np.bool_)
+        res = np.zeros(BLOCK, np.bool_)
+        _headings(BLOCK, a, active, np.empty(15 * BLOCK), res)
+        for j in range(BLOCK):
+            assert res[j] == _heading(c, j)
+            if res[j]:
+                assert np.array_equal(a[j], c[j])
