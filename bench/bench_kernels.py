@@ -2,7 +2,9 @@
 
 (a) Soundness: for each contractor, ``N_TRUTH`` random true points (vectorised numpy), boxes of
 random widths (1e-9..10, some degenerate, some infinite, angles in random branches and on the
-±pi cut) around them, one in-place call, then count the truths lost (must be 0).
+±pi cut) around them, one in-place call, then count the truths lost (must be 0). The public
+functions run the SIMD kernels for polar, unicycle and range_bearing; their scalar reference
+kernels are then called once on copies of the same boxes, and both rates are printed.
 The dependent values (e.g. ``x1`` of a motion step) are computed in float; each gets a margin
 ``e = 1e-12 * (1 + sum of |terms|)`` (``/ rho`` for a bearing), far above the few-ulp error of
 numpy's arithmetic and libm, so the box built as ``[est - e - w1, est + e + w2]`` surely holds
@@ -98,24 +100,36 @@ def polar_truths(n: int, seed: int = 1):
     return boxes, truth
 
 
-def _soundness(name: str, fn, boxes, truth) -> tuple[str, int, int, float]:
+def _soundness(name: str, fn, boxes, truth, ref=None) -> tuple[str, int, int, float, float]:
+    """One call of ``fn`` on all boxes, timed; with ``ref`` (the scalar reference kernel) one call
+    of it on copies of the same boxes, right after, timed the same way (``nan`` without)."""
     fn(*[b[:1000].copy() for b in boxes])  # compile
+    copies = [b.copy() for b in boxes] if ref is not None else None
     t0 = time.perf_counter()
     ok = fn(*boxes)
     dt = time.perf_counter() - t0
+    dt_ref = math.nan
+    if ref is not None:
+        ref(*[b[:1000].copy() for b in copies])
+        t0 = time.perf_counter()
+        ref(*copies)
+        dt_ref = time.perf_counter() - t0
     lost = np.zeros(boxes[0].shape[0], dtype=bool)
     for b, (v, e) in zip(boxes, truth):
         lost |= _lost(b, v, e)
     lost |= ~ok
-    return name, boxes[0].shape[0], int(lost.sum()), dt
+    return name, boxes[0].shape[0], int(lost.sum()), dt, dt_ref
 
 
-def soundness(n: int = N_TRUTH) -> list[tuple[str, int, int, float]]:
+def soundness(n: int = N_TRUTH) -> list[tuple[str, int, int, float, float]]:
     from ivslam_cli import contractors as ctc
+    from ivslam_cli.contractors.ctc_polar import polar_kernel
+    from ivslam_cli.contractors.ctc_range_bearing import range_bearing_kernel
+    from ivslam_cli.contractors.ctc_unicycle import unicycle_kernel
 
     rows = []
     boxes, truth = polar_truths(n)
-    rows.append(_soundness("polar", ctc.polar, boxes, truth))
+    rows.append(_soundness("polar", ctc.polar, boxes, truth, polar_kernel))
 
     rng = np.random.default_rng(2)
     b, c = rng.normal(0, 100, (2, n))
@@ -140,7 +154,8 @@ def soundness(n: int = N_TRUTH) -> list[tuple[str, int, int, float]]:
     truth = [(x0, 0.0), (y0, 0.0), (th0b, _margin(th0b)), (x1, e_p), (y1, e_p),
              (th1, _margin(th1, th0, w * dt)), (v, 0.0), (w, 0.0), (dt, 0.0),
              (qx, 0.0), (qy, 0.0), (qth, 0.0)]
-    rows.append(_soundness("unicycle", ctc.unicycle, [_box(rng, v_, e) for v_, e in truth], truth))
+    rows.append(_soundness("unicycle", ctc.unicycle, [_box(rng, v_, e) for v_, e in truth], truth,
+                           unicycle_kernel))
 
     rng = np.random.default_rng(4)
     sx, sy, mx, my = rng.uniform(-50, 50, (4, n))
@@ -156,7 +171,7 @@ def soundness(n: int = N_TRUTH) -> list[tuple[str, int, int, float]]:
              (alpha, e_r / rho + _margin(alpha, sth))]
     boxes = [_box(rng, v_, e) for v_, e in truth]
     boxes[5][:, 0] = np.maximum(boxes[5][:, 0], 0.0)
-    rows.append(_soundness("range_bearing", ctc.range_bearing, boxes, truth))
+    rows.append(_soundness("range_bearing", ctc.range_bearing, boxes, truth, range_bearing_kernel))
     return rows
 
 
@@ -321,17 +336,25 @@ def _mean_width(b: np.ndarray, rows: np.ndarray) -> list[float]:
 
 
 def main() -> int:
-    print(f"bench_kernels: (a) soundness, {N_TRUTH:,} random true points per contractor")
-    print(f"  {'contractor':14s} {'boxes':>10s} {'boxes/s':>12s} {'truths lost':>12s}  rate target")
+    load0 = os.getloadavg()[0]
+    rows = soundness()
+    load1 = os.getloadavg()[0]
+    print(f"bench_kernels: (a) soundness, {N_TRUTH:,} random true points per contractor; one "
+          f"call each, single thread (SIMD kernel, then the scalar reference on copies of the "
+          f"same boxes); load average {load0:.2f} before, {load1:.2f} after, on "
+          f"{os.cpu_count()} cores")
+    print(f"  {'contractor':14s} {'boxes':>10s} {'boxes/s':>12s} {'scalar ref':>12s} "
+          f"{'truths lost':>12s}  rate target")
     bad = False
-    for name, n, lost, dt in soundness():
+    for name, n, lost, dt, dt_ref in rows:
         bad |= lost != 0
         target = RATE_TARGETS.get(name)
         verdict = ""
         if target is not None:
             verdict = f"  >= {target / 1e6:.0f} M/s: {'PASS' if n / dt >= target else 'FAIL'}"
             bad |= n / dt < target
-        print(f"  {name:14s} {n:>10,d} {n / dt:>12,.0f} {lost:>12d}"
+        ref = "" if math.isnan(dt_ref) else f"{n / dt_ref:,.0f}"
+        print(f"  {name:14s} {n:>10,d} {n / dt:>12,.0f} {ref:>12s} {lost:>12d}"
               f"{'' if lost == 0 else '  <-- FAIL'}{verdict}")
     names = "dx dy rho theta".split()
     for kind in ("regular", "mixed"):

@@ -66,15 +66,18 @@ def unicycle(x0: np.ndarray, y0: np.ndarray, th0: np.ndarray,
     inputs, ``dt`` the (possibly interval) time step, ``qx, qy, qth`` the bounded noise.
     ``v dt`` may have any sign (reversing: the displacement points along ``th0 + pi``);
     headings are angles (any branch; each keeps its own).
+
+    Runs the SIMD kernel (:mod:`~ivslam_cli.contractors.ctc_unicycle_simd`); the scalar
+    reference is :func:`ivslam_cli.contractors.ctc_unicycle.unicycle_kernel`.
     """
-    from ivslam_cli.contractors.ctc_unicycle import unicycle_kernel
+    from ivslam_cli.contractors.ctc_unicycle_simd import unicycle_simd_kernel
 
     arrays = (("x0", x0), ("y0", y0), ("th0", th0), ("x1", x1), ("y1", y1), ("th1", th1),
               ("v", v), ("w", w), ("dt", dt), ("qx", qx), ("qy", qy), ("qth", qth))
     n = boxes("x0", x0)
     for name, arr in arrays[1:]:
         boxes(name, arr, n)
-    return unicycle_kernel(x0, y0, th0, x1, y1, th1, v, w, dt, qx, qy, qth)
+    return unicycle_simd_kernel(x0, y0, th0, x1, y1, th1, v, w, dt, qx, qy, qth)
 
 
 def range_bearing(sx: np.ndarray, sy: np.ndarray, sth: np.ndarray, mx: np.ndarray,
@@ -87,14 +90,17 @@ def range_bearing(sx: np.ndarray, sy: np.ndarray, sth: np.ndarray, mx: np.ndarra
 
     The measurement noise is folded into ``rho`` and ``alpha`` (``[z] + [r]``); ``rho >= 0``.
     Pose, landmark, ``rho`` and ``alpha`` are all contracted (angles keep their branch).
+
+    Runs the SIMD kernel (:mod:`~ivslam_cli.contractors.ctc_range_bearing_simd`); the scalar
+    reference is :func:`ivslam_cli.contractors.ctc_range_bearing.range_bearing_kernel`.
     """
-    from ivslam_cli.contractors.ctc_range_bearing import range_bearing_kernel
+    from ivslam_cli.contractors.ctc_range_bearing_simd import range_bearing_simd_kernel
 
     n = boxes("sx", sx)
     for name, arr in (("sy", sy), ("sth", sth), ("mx", mx), ("my", my), ("rho", rho),
                       ("alpha", alpha)):
         boxes(name, arr, n)
-    return range_bearing_kernel(sx, sy, sth, mx, my, rho, alpha)
+    return range_bearing_simd_kernel(sx, sy, sth, mx, my, rho, alpha)
 
 
 def range_bearing_pass(sx: np.ndarray, sy: np.ndarray, sth: np.ndarray, mx: np.ndarray,
