@@ -28,7 +28,7 @@ from ivslam_cli.errors import LogError
 from ivslam_cli.logs.compression import decompress
 from ivslam_cli.logs.model import LogData
 from ivslam_cli.logs.ros_streams import KNOWN, StreamCollector, choose_topics, normalize_type
-from ivslam_cli.logs.typestore import typestore
+from ivslam_cli.logs.typestore import typestore, typestore_from_schemas
 
 OP_MESSAGE = 0x05
 BATCH = 4096
@@ -143,7 +143,10 @@ def _read(path: Path, **opts) -> LogData:
                               topics, scan_capacity=topics[scan_topic][1] if scan_topic else 0)
         want = {cid: role_of[ch.topic] for cid, ch in channels.items() if ch.topic in role_of
                 and topics[ch.topic][0] in KNOWN}
-        store = typestore(ros)
+        used = {channels[cid].schema_id for cid in want}
+        store = typestore_from_schemas(ros, [(normalize_type(sch.name), sch.encoding, sch.data)
+                                             for sid, sch in schemas.items() if sid in used],
+                                       {topics[channels[cid].topic][0] for cid in want})
         deser = store.deserialize_ros1 if ros == 1 else store.deserialize_cdr
         ctype = {cid: topics[ch.topic][0] for cid, ch in channels.items()}
         head = struct.Struct("<BQ").unpack_from
