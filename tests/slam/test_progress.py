@@ -1,5 +1,5 @@
-"""Progress inside a run: every pipeline tells its listener how far it got (scans, sweeps,
-pairs), and listening changes no result."""
+"""Progress inside a run: the LiDAR and landmark pipelines tell their listener how far they got
+(scans, sweeps), and listening changes no result."""
 
 from __future__ import annotations
 
@@ -53,8 +53,6 @@ CASES = {
     "lidar": (dict(scenario="lidar", world="rooms", sensor="urg-04lx", seed=2, steps=30), {}, "scan"),
     "landmarks": (dict(scenario="landmarks", seed=3, steps=80, landmarks=12, world_size=10.0),
                   {"landmarks.initial_pose_from_truth": True}, "sweep"),
-    "pairs": (dict(scenario="pairs", seed=3, steps=60, landmarks=8, world_size=10.0, max_range=8.0), {},
-              "landmark pair"),
 }
 
 

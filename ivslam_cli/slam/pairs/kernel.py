@@ -22,13 +22,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, objmode
+from numba import njit
 
 from ivslam_cli.contractors.ctc_polar import polar_scalar
 from ivslam_cli.interval.angles import arg_box
 from ivslam_cli.interval.arith import add, cos, inter, mul, sin, sqr, sqrt, sub
 from ivslam_cli.interval.rounding import INF, TWO_PI_HI, TWO_PI_LO, down, up
-from ivslam_cli.slam.progress import tell
 
 OUT = 0
 BOUNDARY = 1
@@ -410,8 +409,6 @@ def process_pairs(rows, row_stamp, pair_offsets, q, eps, max_boxes, checkpoints,
     work = 0
     none = np.empty((0, 4))
     for p in range(n_pairs):
-        with objmode():
-            tell(p, n_pairs)
         r0 = pair_offsets[p]
         r1 = pair_offsets[p + 1]
         c = 0

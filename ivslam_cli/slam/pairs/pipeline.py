@@ -37,7 +37,6 @@ from ivslam_cli.results.model import (
 from ivslam_cli.slam.pairs import kernel as K
 from ivslam_cli.slam.pairs.params import Params
 from ivslam_cli.slam.pipeline import make_result
-from ivslam_cli.slam.progress import listening
 
 MAX_NETWORK_SWEEPS = 200
 NETWORK_STOP = 1e-4
@@ -242,9 +241,8 @@ def solve(log: LogData, params: Params, progress=None) -> PairsOutput:
     cp_index = np.unique(np.linspace(0, step_stamps.shape[0] - 1, CHECKPOINTS).round().astype(np.int64))
     checkpoints = np.ascontiguousarray(step_stamps[cp_index], dtype=np.float64)
     _check_grid(rows, eps, log)
-    with listening(progress, "landmark pair"):
-        (boxes, inner, box_offsets, width, rejected, truncated, snap_boxes, snap_offsets, work,
-         over) = K.process_pairs(rows, row_stamp, pair_offsets, q, eps, params.max_boxes, checkpoints, params.max_work)
+    (boxes, inner, box_offsets, width, rejected, truncated, snap_boxes, snap_offsets, work,
+     over) = K.process_pairs(rows, row_stamp, pair_offsets, q, eps, params.max_boxes, checkpoints, params.max_work)
     if over >= 0:
         raise IvslamError(
             f"the subpavings need more than pairs.max_work = {params.max_work:,} box tests (stopped at landmark "
