@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli.config import resolve_config
@@ -46,6 +46,7 @@ def _check_sound(log, out):
 
 @settings(max_examples=examples(ci=12))
 @given(seed=st.integers(0, 10_000), noise=st.sampled_from(["uniform", "edges", "triangular"]))
+@example(seed=324, noise="uniform")  # lost one true pose in CI on 2026-12-02 (119/120)
 def test_simulated_logs_keep_the_truth(seed, noise):
     log = _sim(seed, noise=noise)
     out = solve(log, LandmarksParams.from_config(_cfg(log)))
