@@ -6,14 +6,15 @@ Containment — the check that the guarantee held — per kind of enclosure:
   reference r, it holds m_i − m_r);
 - **pair**: the truth of pair (i, j) is dl = m_i − m_j; the subpaving holds it when some box
   of its outer approximation (inner ∪ boundary boxes, closed) does;
-- **pose**: checked at the *truth's own stamps*. A truth stamp equal to a pose stamp k is
-  checked against box k; one strictly between pose stamps k and k+1 against the hull of
-  boxes k and k+1 (headings: box k+1's moved by the multiple of 2π nearest box k's).
-  This is the documented stand-in until the pipelines give a true tube between steps, and
-  it is generous for the check: a truth pose anywhere in that hull passes, so it never flags a pose a true tube would hold as long as the robot stays in the
-  hull between the two steps (bounded motion over one step), and it can accept a pose a
-  tighter tube would exclude. Truth stamps outside the span of the pose stamps are not
-  checked (counted in ``not_checked``). Heading is compared modulo 2π.
+- **pose**: every pose box k against the truth at its own stamp ``t_k``. Where the truth has a
+  sample at ``t_k`` the box must hold it. Where ``t_k`` falls strictly between two truth
+  samples (at most ``MAX_TRUTH_GAP`` s apart) the box must meet the hull of those two samples
+  (headings: the second moved by the multiple of 2π nearest the first): the truth is only
+  known at its samples, and between two of them it is taken to stay in their hull, so a
+  failure there means the box misses every pose the truth takes between its samples. The
+  result claims nothing between its own stamps, so truth samples there are not compared. Pose
+  boxes outside the truth's span, or inside a longer gap, are not checked (``not_checked``).
+  Heading is compared modulo 2π.
 
 A fraction below 1.0 is a **SOUNDNESS FAILURE** — unless outliers were injected (the truth
 carries an outlier mask with some True) and the run relaxed them (some q > 0): then the
@@ -215,35 +216,36 @@ def truth_in_frame(poses: Poses, truth: GroundTruth) -> GroundTruth:
     return out
 
 
-def pose_containment(poses: Poses, truth: GroundTruth) -> Containment | None:
-    if truth.pose_stamp is None or truth.pose is None or len(poses) == 0:
+MAX_TRUTH_GAP = 0.5  # s: the longest gap between two truth samples a pose box is compared in
+
+
+def pose_containment(poses: Poses, truth: GroundTruth, max_gap: float = MAX_TRUTH_GAP) -> Containment | None:
+    """Each pose box against the truth at its stamp (see the module docstring); the centre
+    error against the truth interpolated linearly at the stamp."""
+    if truth.pose_stamp is None or truth.pose is None or len(poses) == 0 or len(truth.pose_stamp) == 0:
         return None
-    s, ts = poses.stamp, np.asarray(truth.pose_stamp, float)
-    span = (ts >= s[0]) & (ts <= s[-1])
-    ts, tp = ts[span], np.asarray(truth.pose, float)[span]
-    k = np.clip(np.searchsorted(s, ts, side="right") - 1, 0, len(s) - 1)
-    exact = s[k] == ts
-    k1 = np.where(exact, k, np.minimum(k + 1, len(s) - 1))
-    b0, b1 = poses.box[k], poses.box[k1].copy()
-    # headings: b1 in the branch nearest b0 (the heading turns little between two poses)
-    with np.errstate(invalid="ignore"):
-        turns = np.round((b0[:, 2].mean(axis=-1) - b1[:, 2].mean(axis=-1)) / TWO_PI)
-    turns = np.where(np.isfinite(turns), turns, 0.0)
-    b1[:, 2] = b1[:, 2] + (TWO_PI * turns)[:, None]
-    hull = np.stack([np.minimum(b0[..., 0], b1[..., 0]), np.maximum(b0[..., 1], b1[..., 1])], axis=-1)
-    ok = in_box(hull[:, :2], tp[:, :2]) & angle_in(hull[:, 2, 0], hull[:, 2, 1], tp[:, 2])
-    # centre error: box centres interpolated linearly in time
-    c0, c1 = box_centre(b0[:, :2]), box_centre(b1[:, :2])
-    dt = s[k1] - s[k]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        a = np.where(dt > 0, (ts - s[k]) / np.where(dt > 0, dt, 1.0), 0.0)
-    err = np.linalg.norm(c0 + a[:, None] * (c1 - c0) - tp[:, :2], axis=-1)
+    s, ts, tp = poses.stamp, np.asarray(truth.pose_stamp, float), np.asarray(truth.pose, float)
+    j1 = np.clip(np.searchsorted(ts, s, side="left"), 0, len(ts) - 1)
+    exact = ts[j1] == s
+    j0 = np.where(exact, j1, np.maximum(j1 - 1, 0))
+    use = (s >= ts[0]) & (s <= ts[-1]) & (exact | (ts[j1] - ts[j0] <= max_gap))
+    rows = np.flatnonzero(use)
+    a, b = tp[j0[rows]], tp[j1[rows]].copy()
+    b[:, 2] += TWO_PI * np.round((a[:, 2] - b[:, 2]) / TWO_PI)  # the branch nearest a's heading
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    box = poses.box[rows]
+    with np.errstate(invalid="ignore"):  # empty (NaN) boxes meet nothing
+        meets_xy = np.all((box[:, :2, 0] <= hi[:, :2]) & (lo[:, :2] <= box[:, :2, 1]), axis=-1)
+        # [lo, hi] + 2πn meets the heading interval iff hi + 2πn ∈ [box_lo, box_hi + (hi − lo)]
+        meets_th = angle_in(box[:, 2, 0], box[:, 2, 1] + (hi[:, 2] - lo[:, 2]), hi[:, 2])
+    ok = meets_xy & meets_th
+    err = np.linalg.norm(box_centre(box[:, :2]) - truth_at(truth, s[rows])[:, :2], axis=-1)
     return Containment(
         "pose",
-        int(ts.shape[0]),
+        int(rows.size),
         int(ok.sum()),
-        not_checked=int((~span).sum()),
-        failures=[f"truth pose at t={t:.6g}" for t in ts[~ok]],
+        not_checked=int(len(s) - rows.size),
+        failures=[f"pose {int(k)} at t={t:.6g}" for k, t in zip(rows[~ok], s[rows][~ok])],
         centre_error=err,
     )
 

@@ -77,8 +77,8 @@ class Poses:
     """Pose enclosures: ``box[k]`` holds (x, y, θ) of the robot at ``stamp[k]``.
 
     θ is an interval on the real line (it may extend beyond ±π); the true heading modulo 2π
-    is in it. Between two stamps the pipelines do not (yet) give a tube; ``report`` uses the
-    hull of the two neighbouring boxes there (see ``report.core``).
+    is in it. Nothing is claimed between two stamps; ``report`` checks each box against the
+    truth at its own stamp (see ``report.core``).
 
     ``frame``: :data:`FRAME_WORLD` (the boxes hold the pose in the log's world frame: an
     initial pose was given or taken from the truth) or :data:`FRAME_FIRST_POSE` (the map frame

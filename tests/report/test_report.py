@@ -31,8 +31,8 @@ def test_consistent_example_is_fully_contained():
     rep = compute_report(example_result())
     assert {k: c.fraction for k, c in rep.containment.items()} == {"landmark": 1.0, "pair": 1.0, "pose": 1.0}
     assert rep.soundness == {"landmark": SOUND, "pair": SOUND, "pose": SOUND} and rep.sound
-    # 3 landmarks, 3 pairs, truth every 0.5 s over 5 s = 11 stamps
-    assert [rep.containment[k].checked for k in ("landmark", "pair", "pose")] == [3, 3, 11]
+    # 3 landmarks, 3 pairs, 6 pose boxes (one a second; the truth every 0.5 s)
+    assert [rep.containment[k].checked for k in ("landmark", "pair", "pose")] == [3, 3, 6]
     # landmark boxes are centred 0.05 off in x and y
     np.testing.assert_allclose(rep.containment["landmark"].centre_error, math.hypot(0.05, 0.05))
     np.testing.assert_allclose(rep.containment["pair"].centre_error, math.hypot(0.03, 0.03), atol=1e-12)
@@ -105,45 +105,60 @@ def test_relative_map_is_checked_relative_to_its_reference():
     assert compute_report(r).containment["landmark"].fraction == 1.0
 
 
-def test_pose_between_steps_uses_the_hull_of_neighbours():
+def test_pose_box_is_checked_at_its_own_stamp():
     r = example_result()
-    # box 2 (t = 2 s) shrinks to x in [2.25, 2.3]: the truth at t=1.5 (x=1.5) is still inside the
-    # hull of boxes 1 and 2 (x from 0.7), the truth at t=2 (x=2.0) is not inside box 2 itself.
-    r.poses.box[2, 0] = [2.25, 2.3]
+    r.poses.box[2, 0] = [2.25, 2.3]  # the truth at t = 2 s has x = 2.0
     rep = compute_report(r)
-    assert rep.containment["pose"].failures == ["truth pose at t=2"]
-    assert rep.containment["pose"].contained == 10
+    assert rep.containment["pose"].failures == ["pose 2 at t=2"]
+    assert rep.containment["pose"].contained == 5
+
+
+def test_pose_between_truth_samples_meets_their_hull():
+    """A pose stamp between two truth samples: the box must meet the hull of the two samples
+    (the truth is only known there), and missing it is a failure."""
+    from ivslam_cli.logs.model import GroundTruth
+    from ivslam_cli.report.core import pose_containment
+    from ivslam_cli.results.model import Poses
+
+    truth = GroundTruth(pose_stamp=np.array([0.0, 0.4]), pose=np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.2]]))
+    for x, th, ok in (([0.7, 0.8], [0.15, 0.16], 1), ([0.95, 1.2], [0.19, 0.3], 1),
+                      ([1.01, 1.2], [0.1, 0.11], 0), ([0.5, 0.6], [0.21, 0.3], 0)):
+        poses = Poses(stamp=np.array([0.2]), box=np.array([[x, [-0.1, 0.1], th]], float))
+        c = pose_containment(poses, truth)
+        assert (c.checked, c.contained) == (1, ok), (x, th)
+    gap = GroundTruth(pose_stamp=np.array([0.0, 2.0]), pose=truth.pose)  # a gap > MAX_TRUTH_GAP
+    c = pose_containment(Poses(stamp=np.array([1.0]), box=np.array([[[5.0, 6.0], [5.0, 6.0], [0.0, 0.1]]])), gap)
+    assert (c.checked, c.not_checked) == (0, 1)
 
 
 def test_pose_heading_wraps_around():
     r = example_result()
     r.truth.pose[:, 2] = 0.1 + 2 * np.pi  # the same heading, one turn later
     assert compute_report(r).containment["pose"].fraction == 1.0
-    r.truth.pose[3, 2] = 0.1 + np.pi
-    assert compute_report(r).containment["pose"].contained == 10
+    r.truth.pose[2, 2] = 0.1 + np.pi  # the sample at t = 1 s
+    assert compute_report(r).containment["pose"].contained == 5
 
 
-def test_pose_between_steps_across_the_cut_uses_the_near_branch():
-    """Two pose boxes on either side of ±π (in different branches): a truth heading between
-    them, at the cut, is inside their hull on the circle (not the hull the long way round)."""
+def test_pose_between_truth_samples_across_the_cut_uses_the_near_branch():
+    """Two truth samples on either side of ±π: a pose box between them, at the cut, meets
+    their hull on the circle (not the hull the long way round)."""
     from ivslam_cli.logs.model import GroundTruth
     from ivslam_cli.report.core import pose_containment
     from ivslam_cli.results.model import Poses
 
-    box = np.array([[[0.0, 1.0], [0.0, 1.0], [2.8, 3.1]], [[0.0, 1.0], [0.0, 1.0], [-3.1, -2.7]]])
-    poses = Poses(stamp=np.array([0.0, 1.0]), box=box)
-    for th in (np.pi, -np.pi, 3.12, -3.12, 3.05):
-        truth = GroundTruth(pose_stamp=np.array([0.5]), pose=np.array([[0.5, 0.5, th]]))
+    truth = GroundTruth(pose_stamp=np.array([0.0, 0.2]), pose=np.array([[0.5, 0.5, 3.1], [0.5, 0.5, -3.1]]))
+    for th in ([3.13, 3.15], [-3.15, -3.13], [3.0, 3.11], [-3.11, -3.0], [3.1, 3.2]):
+        poses = Poses(stamp=np.array([0.1]), box=np.array([[[0.0, 1.0], [0.0, 1.0], th]]))
         assert pose_containment(poses, truth).contained == 1, th
-    truth = GroundTruth(pose_stamp=np.array([0.5]), pose=np.array([[0.5, 0.5, 0.0]]))  # the far side
+    poses = Poses(stamp=np.array([0.1]), box=np.array([[[0.0, 1.0], [0.0, 1.0], [-0.1, 0.1]]]))  # the far side
     assert pose_containment(poses, truth).contained == 0
 
 
 def test_truth_outside_the_time_span_is_not_checked():
     r = example_result()
-    r.truth.pose_stamp = r.truth.pose_stamp + 1.0  # last two stamps after the last pose
+    r.truth.pose_stamp = r.truth.pose_stamp + 1.0  # the first pose box before the truth's span
     c = compute_report(r).containment["pose"]
-    assert c.not_checked == 2 and c.checked == 9
+    assert c.not_checked == 1 and c.checked == 5
 
 
 @settings(max_examples=examples(ci=200))
