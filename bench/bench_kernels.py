@@ -137,7 +137,19 @@ def soundness(n: int = N_TRUTH) -> list[tuple[str, int, int, float, float]]:
     truth = [(a, REL * (np.abs(b) + np.abs(c)) + 1e-300), (b, 0.0), (c, 0.0)]
     rows.append(_soundness("difference", ctc.difference, [_box(rng, v, e) for v, e in truth], truth))
 
-    rng = np.random.default_rng(3)
+    boxes, truth = unicycle_truths(n, seed=3)
+    rows.append(_soundness("unicycle", ctc.unicycle, boxes, truth, unicycle_kernel))
+
+    boxes, truth = range_bearing_truths(n, seed=4)
+    rows.append(_soundness("range_bearing", ctc.range_bearing, boxes, truth, range_bearing_kernel))
+    return rows
+
+
+def unicycle_truths(n: int, seed: int = 3):
+    """Boxes around true unicycle steps (12 variables, x0 … qθ): random poses, speeds, turn
+    rates, durations and noises; headings in random branches; each box at a random place
+    around its truth, wider than the float error of the truth by ``_margin``."""
+    rng = np.random.default_rng(seed)
     x0, y0 = rng.uniform(-50, 50, (2, n))
     th0 = _angles(rng, n)
     v = rng.uniform(-2, 2, n)
@@ -154,10 +166,13 @@ def soundness(n: int = N_TRUTH) -> list[tuple[str, int, int, float, float]]:
     truth = [(x0, 0.0), (y0, 0.0), (th0b, _margin(th0b)), (x1, e_p), (y1, e_p),
              (th1, _margin(th1, th0, w * dt)), (v, 0.0), (w, 0.0), (dt, 0.0),
              (qx, 0.0), (qy, 0.0), (qth, 0.0)]
-    rows.append(_soundness("unicycle", ctc.unicycle, [_box(rng, v_, e) for v_, e in truth], truth,
-                           unicycle_kernel))
+    return [_box(rng, a, e) for a, e in truth], truth
 
-    rng = np.random.default_rng(4)
+
+def range_bearing_truths(n: int, seed: int = 4):
+    """Boxes around true range-bearing observations (sx, sy, sθ, mx, my, ρ, α), landmarks at
+    least 0.1 m from the sensor; headings and bearings in random branches."""
+    rng = np.random.default_rng(seed)
     sx, sy, mx, my = rng.uniform(-50, 50, (4, n))
     sth = _angles(rng, n)
     dx, dy = mx - sx, my - sy
@@ -169,10 +184,9 @@ def soundness(n: int = N_TRUTH) -> list[tuple[str, int, int, float, float]]:
     sthb = sth + _branch(rng, far.sum())
     truth = [(sx, 0.0), (sy, 0.0), (sthb, _margin(sthb)), (mx, 0.0), (my, 0.0), (rho, e_r),
              (alpha, e_r / rho + _margin(alpha, sth))]
-    boxes = [_box(rng, v_, e) for v_, e in truth]
+    boxes = [_box(rng, v, e) for v, e in truth]
     boxes[5][:, 0] = np.maximum(boxes[5][:, 0], 0.0)
-    rows.append(_soundness("range_bearing", ctc.range_bearing, boxes, truth, range_bearing_kernel))
-    return rows
+    return boxes, truth
 
 
 def regular_polar_truths(n: int, seed: int = 5):

@@ -325,13 +325,12 @@ def _finish(n, D, box, q, pl, ph, t0l, t0h, ang, acc, G):
 
 
 @njit(cache=True, error_model="numpy")
-def _flush(n, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, D, orig, out, G):
-    """Contract the ``n`` lanes (pieces of ``nb`` boxes, output rows ``rows``) and write out.
-
-    After each pass from the second on, a lane that shrank no width by ``RELATIVE_STOP`` (or was
-    emptied) is copied to ``D`` at its first slot and the others are packed to the front."""
+def _to_fixpoint(n, L, D, orig, pl, ph, t0l, t0h, passes):
+    """Load the ``n`` lanes' tangents of their ψ bounds ``pl``, ``ph`` and run :func:`_passes`
+    (at most ``passes``) until no lane is left. After each pass from the second on, a lane that
+    shrank no width by ``RELATIVE_STOP`` (or was emptied) is copied to ``D`` at its first slot
+    and the others are packed to the front."""
     C = CHUNK
-    nl = n
     for i in range(n):
         t0l[i] = _tan_lo(pl[i])
     for i in range(n):
@@ -340,13 +339,13 @@ def _flush(n, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, D, orig, out, G):
         L[TL * C + i], L[TH * C + i] = t0l[i], t0h[i]
         L[OK * C + i] = 1.0
         orig[i] = i
-    for p in range(MAX_PASSES):
+    for p in range(passes):
         _passes(n, L)
         if p == 0:
             continue
         m = 0
         for i in range(n):
-            if L[OK * C + i] < 0.5 or L[PROG * C + i] < 0.5 or p + 1 == MAX_PASSES:
+            if L[OK * C + i] < 0.5 or L[PROG * C + i] < 0.5 or p + 1 == passes:
                 o = orig[i]
                 for r in range(OK + 1):
                     D[r * C + o] = L[r * C + i]
@@ -359,7 +358,13 @@ def _flush(n, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, D, orig, out, G):
         n = m
         if n == 0:
             break
-    _finish(nl, D, box, q, pl, ph, t0l, t0h, ang, acc, G)
+
+
+@njit(cache=True, error_model="numpy")
+def _flush(n, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, D, orig, out, G):
+    """Contract the ``n`` lanes (pieces of ``nb`` boxes, output rows ``rows``) and write out."""
+    _to_fixpoint(n, L, D, orig, pl, ph, t0l, t0h, MAX_PASSES)
+    _finish(n, D, box, q, pl, ph, t0l, t0h, ang, acc, G)
     sx, sy, st, mx, my, rho, alpha = out
     for j in range(nb):
         k = rows[j]

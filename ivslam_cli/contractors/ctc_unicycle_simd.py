@@ -38,7 +38,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ivslam_cli.contractors.ctc_polar import _atan_hi, _atan_lo, _tan_hi, _tan_lo
+from ivslam_cli.contractors.ctc_polar import _atan_hi, _atan_lo
 from ivslam_cli.contractors.ctc_range_bearing_simd import (
     CHUNK,
     MXH,
@@ -46,7 +46,6 @@ from ivslam_cli.contractors.ctc_range_bearing_simd import (
     MYH,
     MYL,
     OK,
-    PROG,
     RH,
     RL,
     ROWS,
@@ -56,10 +55,6 @@ from ivslam_cli.contractors.ctc_range_bearing_simd import (
     SYL,
     TH,
     TL,
-    UH,
-    UL,
-    VH,
-    VL,
     _arc,
     _flip,
     _from_psi,
@@ -68,8 +63,8 @@ from ivslam_cli.contractors.ctc_range_bearing_simd import (
     _meet3,
     _mn,
     _mx,
-    _passes,
     _shift,
+    _to_fixpoint,
     _to_psi,
 )
 from ivslam_cli.contractors.ctc_unicycle import MAX_PASSES as MAX_ROUNDS
@@ -290,37 +285,9 @@ def _finish(n, D, b, acc, box, q, kk, sg, pl, ph, t0l, t0h):
 
 @njit(cache=True, error_model="numpy")
 def _flush(n, L, D, orig, b, acc, box, q, kk, sg, pl, ph, t0l, t0h):
-    """Contract the ``n`` lanes to their fixpoint (as ``ctc_range_bearing_simd._flush``)."""
-    C = CHUNK
-    nl = n
-    for i in range(n):
-        t0l[i] = _tan_lo(pl[i])
-    for i in range(n):
-        t0h[i] = _tan_hi(ph[i])
-    for i in range(n):
-        L[TL * C + i], L[TH * C + i] = t0l[i], t0h[i]
-        L[OK * C + i] = 1.0
-        orig[i] = i
-    for p in range(PASSES):
-        _passes(n, L)
-        if p == 0:
-            continue
-        m = 0
-        for i in range(n):
-            if L[OK * C + i] < 0.5 or L[PROG * C + i] < 0.5 or p + 1 == PASSES:
-                o = orig[i]
-                for r in range(OK + 1):
-                    D[r * C + o] = L[r * C + i]
-                continue
-            if m != i:
-                orig[m] = orig[i]
-                for r in range(ROWS):
-                    L[r * C + m] = L[r * C + i]
-            m += 1
-        n = m
-        if n == 0:
-            break
-    _finish(nl, D, b, acc, box, q, kk, sg, pl, ph, t0l, t0h)
+    """Contract the ``n`` lanes to their fixpoint (``ctc_range_bearing_simd._to_fixpoint``)."""
+    _to_fixpoint(n, L, D, orig, pl, ph, t0l, t0h, PASSES)
+    _finish(n, D, b, acc, box, q, kk, sg, pl, ph, t0l, t0h)
 
 
 @njit(cache=True, error_model="numpy")

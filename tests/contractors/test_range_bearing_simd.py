@@ -18,7 +18,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.bench_kernels import _angles, _box, _branch, _lost, _margin
+from bench.bench_kernels import _lost, range_bearing_truths
 from ivslam_cli.contractors import range_bearing
 from ivslam_cli.contractors.ctc_range_bearing import range_bearing_kernel
 from ivslam_cli.contractors.ctc_range_bearing_simd import (
@@ -75,27 +75,8 @@ def test_simd_never_loses_the_truth(points):
             assert arrays[j][k, 0] >= before[j][k, 0] and arrays[j][k, 1] <= before[j][k, 1]
 
 
-def rb_truths(n, seed):
-    """The range-bearing mix of bench_kernels (float truths with margins)."""
-    rng = np.random.default_rng(seed)
-    sx, sy, mx, my = rng.uniform(-50, 50, (4, n))
-    sth = _angles(rng, n)
-    dx, dy = mx - sx, my - sy
-    rho = np.hypot(dx, dy)
-    far = rho > 0.1
-    sx, sy, sth, mx, my, dx, dy, rho = (a[far] for a in (sx, sy, sth, mx, my, dx, dy, rho))
-    alpha = np.arctan2(dy, dx) - sth + _branch(rng, far.sum())
-    e_r = _margin(sx, sy, mx, my)
-    sthb = sth + _branch(rng, far.sum())
-    truth = [(sx, 0.0), (sy, 0.0), (sthb, _margin(sthb)), (mx, 0.0), (my, 0.0), (rho, e_r),
-             (alpha, e_r / rho + _margin(alpha, sth))]
-    boxes = [_box(rng, v, e) for v, e in truth]
-    boxes[5][:, 0] = np.maximum(boxes[5][:, 0], 0.0)
-    return boxes, truth
-
-
 def test_simd_against_the_scalar_reference():
-    boxes, truth = rb_truths(40_000, seed=21)
+    boxes, truth = range_bearing_truths(40_000, seed=21)
     s = [b.copy() for b in boxes]
     v = [b.copy() for b in boxes]
     ok_s = range_bearing_kernel(*s)
@@ -169,7 +150,7 @@ def test_on_the_axes_and_at_pi():
 
 
 def test_chunks_pack_and_public_function_is_the_simd_kernel():
-    boxes, truth = rb_truths(3 * CHUNK + 17, seed=5)
+    boxes, truth = range_bearing_truths(3 * CHUNK + 17, seed=5)
     a = [b.copy() for b in boxes]
     c = [b.copy() for b in boxes]
     ok = range_bearing(*a)

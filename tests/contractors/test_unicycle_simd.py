@@ -20,7 +20,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from bench.bench_kernels import _angles, _box, _branch, _lost, _margin
+from bench.bench_kernels import _lost, unicycle_truths
 from ivslam_cli.contractors import unicycle
 from ivslam_cli.contractors.ctc_unicycle import RELATIVE_STOP, unicycle_kernel
 from ivslam_cli.contractors.ctc_unicycle_simd import BLOCK, _heading, _headings, unicycle_simd_kernel
@@ -69,30 +69,8 @@ def test_simd_never_loses_the_truth(points):
             assert arrays[j][k, 0] >= before[j][k, 0] and arrays[j][k, 1] <= before[j][k, 1]
 
 
-def uni_truths(n, seed):
-    """The unicycle mix of bench_kernels (float truths with margins)."""
-    rng = np.random.default_rng(seed)
-    x0, y0 = rng.uniform(-50, 50, (2, n))
-    th0 = _angles(rng, n)
-    v = rng.uniform(-2, 2, n)
-    v[rng.random(n) < 0.05] = 0.0
-    w = rng.uniform(-1.5, 1.5, n)
-    dt = rng.uniform(0.01, 0.5, n)
-    qx, qy = rng.uniform(-0.05, 0.05, (2, n))
-    qth = rng.uniform(-0.02, 0.02, n)
-    x1 = x0 + v * dt * np.cos(th0) + qx
-    y1 = y0 + v * dt * np.sin(th0) + qy
-    th1 = th0 + w * dt + qth + _branch(rng, n)
-    e_p = _margin(x0, y0, v * dt, qx, qy)
-    th0b = th0 + _branch(rng, n)
-    truth = [(x0, 0.0), (y0, 0.0), (th0b, _margin(th0b)), (x1, e_p), (y1, e_p),
-             (th1, _margin(th1, th0, w * dt)), (v, 0.0), (w, 0.0), (dt, 0.0),
-             (qx, 0.0), (qy, 0.0), (qth, 0.0)]
-    return [_box(rng, a, e) for a, e in truth], truth
-
-
 def test_simd_against_the_scalar_reference():
-    boxes, truth = uni_truths(20_000, seed=21)
+    boxes, truth = unicycle_truths(20_000, seed=21)
     s = [b.copy() for b in boxes]
     v = [b.copy() for b in boxes]
     ok_s = unicycle_kernel(*s)
@@ -155,7 +133,7 @@ def test_across_the_cut_and_reversing():
 
 
 def test_blocks_and_public_function_is_the_simd_kernel():
-    boxes, _ = uni_truths(3 * BLOCK + 7, seed=5)
+    boxes, _ = unicycle_truths(3 * BLOCK + 7, seed=5)
     a = [b.copy() for b in boxes]
     c = [b.copy() for b in boxes]
     unicycle(*a)
@@ -170,7 +148,7 @@ def test_blocks_and_public_function_is_the_simd_kernel():
 
 
 def test_vectorised_heading_step_is_the_scalar_one_bit_for_bit():
-    boxes, _ = uni_truths(BLOCK * 20, seed=13)
+    boxes, _ = unicycle_truths(BLOCK * 20, seed=13)
     rows = np.stack(boxes, axis=1).reshape(-1, 24)  # (n, 24) in unicycle_scalar's order
     for s in range(0, rows.shape[0], BLOCK):
         a = rows[s:s + BLOCK].copy()
