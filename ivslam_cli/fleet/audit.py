@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from ivslam_cli.errors import IvslamError
+from ivslam_cli.report.strict_json import strict
 
 FORMAT = "ivslam-fleet"
 VERSION = 1
@@ -120,18 +121,8 @@ def fleet_doc(records: list[dict[str, Any]], *, output_dir: Path, command: str, 
             "logs": records}
 
 
-def _clean(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _clean(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_clean(v) for v in x]
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    return x
-
-
 def render_json(doc: dict[str, Any]) -> str:
-    return json.dumps(_clean(doc), indent=2, allow_nan=False) + "\n"
+    return json.dumps(strict(doc), indent=2, allow_nan=False) + "\n"
 
 
 def _fmt(x: float | None, spec: str = ".3g") -> str:

@@ -29,6 +29,7 @@ import numpy as np
 from ivslam_cli.results.model import CELL_EMPTY
 
 from ivslam_cli.report.core import Report, WidthStat, event_dicts
+from ivslam_cli.report.strict_json import strict
 from ivslam_cli.results.hdf5 import SCHEMA_VERSION
 
 
@@ -155,16 +156,5 @@ def report_dict(rep: Report) -> dict[str, Any]:
     return out
 
 
-def _clean(x: Any) -> Any:
-    """Strict JSON: NaN → null, ±inf → the strings "inf"/"-inf" (e.g. unbounded config values)."""
-    if isinstance(x, dict):
-        return {str(k): _clean(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_clean(v) for v in x]
-    if isinstance(x, float) and not math.isfinite(x):
-        return None if math.isnan(x) else ("inf" if x > 0 else "-inf")
-    return x
-
-
 def render_json(rep: Report) -> str:
-    return json.dumps(_clean(report_dict(rep)), indent=2, allow_nan=False)
+    return json.dumps(strict(report_dict(rep)), indent=2, allow_nan=False)

@@ -69,6 +69,7 @@ from ivslam_cli.interval.pose import (
     relative_enclosure,
 )
 from ivslam_cli.results.model import Poses, RelativePoses, box_is_empty
+from ivslam_cli.report.strict_json import strict
 
 DEFAULT_TOL = 1e-4  # s
 DEFAULT_MAX_HOPS = 8  # relative enclosures composed at most along a chain
@@ -320,20 +321,9 @@ def _ratio(rc: RelationsCheck) -> np.ndarray:
         return np.max(w[:, :2], axis=1) / rc.length() if w.size else np.zeros(0)
 
 
-def _clean(x: Any) -> Any:
-    """Strict JSON, as the rest of ``report --json``: NaN → null, ±inf → "inf"/"-inf"."""
-    if isinstance(x, dict):
-        return {k: _clean(v) for k, v in x.items()}
-    if isinstance(x, list):
-        return [_clean(v) for v in x]
-    if isinstance(x, float) and not math.isfinite(x):
-        return None if math.isnan(x) else ("inf" if x > 0 else "-inf")
-    return x
-
-
 def relations_dict(rc: RelationsCheck) -> dict[str, Any]:
     """The check as strict-JSON-ready data (the ``relations`` key of ``report --json``)."""
-    return _clean(_relations_dict(rc))
+    return strict(_relations_dict(rc))
 
 
 def _width3(w: np.ndarray) -> dict[str, Any]:
