@@ -8,7 +8,7 @@ import numpy as np
 
 from ivslam_cli.results.model import CELL_EMPTY, GRID_MOSAIC
 
-from ivslam_cli.report.core import FAILURE, SOUND, Report, WidthStat, event_dicts
+from ivslam_cli.report.core import FAILURE, MAX_TRUTH_GAP, SOUND, Report, WidthStat, event_dicts
 
 MAX_LISTED = 20  # failures listed per kind (all empty events are always listed)
 
@@ -123,7 +123,8 @@ def render_text(rep: Report, source: str = "") -> str:
         for rid, cn in rep.robot_containment.items():
             add(f"    robot {rid}: poses {cn.contained}/{cn.checked} = {cn.fraction:.4f}")
         if "pose" in rep.containment:
-            add("  (poses: truth between two steps checked against the hull of the two pose boxes)")
+            add("  (poses: each box against the truth at its stamp, or the hull of the two truth samples")
+            add(f"   around it; not checked: outside the truth's span or in a gap > {MAX_TRUTH_GAP:g} s)")
         if rep.outliers_injected:
             add(f"  outliers injected: {rep.outliers_injected}; relaxed: {'yes' if rep.relaxed else 'no'}")
         if any(v == FAILURE for v in rep.soundness.values()):
