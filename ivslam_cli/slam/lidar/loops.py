@@ -144,6 +144,9 @@ class AnchorGraph:
     sweeps: int = 0
     empty_meets: int = 0
     contractions: int = 0
+    paved: int = 0  # wide priors paved (loopsearch)
+    pave_tests: int = 0
+    pave_incomplete: int = 0
 
     def add_edge(self, a: int, b: int, box: np.ndarray, kind: int) -> None:
         """Meet ``box`` (anchor ``b`` in ``a``'s frame) into the edge (a, b)."""

@@ -355,6 +355,28 @@ def _search(box, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_bea
 
 
 @njit(cache=True)
+def beam_table(ranges, valid, a0, inc, r_abs, r_rel, stride, beam_rl, beam_rh, beam_ca, beam_sa, free):
+    """The tested beams (every ``stride``-th valid one): true-distance bounds ``beam_rl``,
+    ``beam_rh`` and the cosine and sine of their angle; ``free[i]``: beam ``i``'s free range
+    (−1 invalid), for every beam. Returns the number of tested beams."""
+    n_beams = 0
+    for i in range(ranges.shape[0]):
+        if valid[i]:
+            rl, rh = range_bounds(float(ranges[i]), r_abs, r_rel)
+            free[i] = rl
+            if i % stride == 0:
+                ang = a0 + i * inc
+                beam_rl[n_beams] = rl
+                beam_rh[n_beams] = rh
+                beam_ca[n_beams] = math.cos(ang)
+                beam_sa[n_beams] = math.sin(ang)
+                n_beams += 1
+        else:
+            free[i] = -1.0
+    return n_beams
+
+
+@njit(cache=True)
 def bound_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_rel, r_alpha, cones, q, stride,
                  W, n_w, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref, fine,
                  reach, max_nodes, max_slices, kept):
@@ -369,20 +391,7 @@ def bound_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_
     beam_ca = np.empty(nb_all)
     beam_sa = np.empty(nb_all)
     free = np.empty(nb_all)
-    n_beams = 0
-    for i in range(nb_all):
-        if valid[i]:
-            rl, rh = range_bounds(float(ranges[i]), r_abs, r_rel)
-            free[i] = rl
-            if i % stride == 0:
-                ang = a0 + i * inc
-                beam_rl[n_beams] = rl
-                beam_rh[n_beams] = rh
-                beam_ca[n_beams] = math.cos(ang)
-                beam_sa[n_beams] = math.sin(ang)
-                n_beams += 1
-        else:
-            free[i] = -1.0
+    n_beams = beam_table(ranges, valid, a0, inc, r_abs, r_rel, stride, beam_rl, beam_rh, beam_ca, beam_sa, free)
     hull = np.empty(6)
     for e in range(6):
         hull[e] = roots[0, e]
@@ -561,19 +570,15 @@ class Matcher:
         build_window(tmap.cells, tmap.coords, tmap.n, x0, y0, nx, ny, self.S)
         return ny + 1, x0, y0, nx, ny, True
 
-    def match(self, k: int, roots: np.ndarray, tmap, refs, budget: int | None = None,
-              stride: int | None = None) -> tuple[np.ndarray, bool, int]:
-        """Match scan ``k`` from the prior ``roots`` against the submap ``tmap``'s proven-free
-        cells and the ``refs`` scans ((scan, robot box) pairs: their free space for rule A, their
-        beam ends for rule B); ``budget``: sub-boxes tested at most (default ``match_boxes``),
-        ``stride``: every n-th beam (default ``match_stride``)."""
-        p = self.p
+    def _setup(self, k: int, roots: np.ndarray, tmap, refs, stride: int):
+        """The kernels' arguments for scan ``k`` over ``roots`` against ``tmap`` and ``refs``:
+        ``(scan, rules, split_reach)`` — scan ``(ranges, valid, a0, inc)``, rules the tuple from
+        the mount to ``n_ref`` in :func:`bound_kernel`'s order — or None when nothing can be
+        tested (no valid beam, unbounded roots, no map and no reference)."""
         r, v, a0, inc = self._scan(k)
-        stride = int(p.match_stride if stride is None else stride)
         self.last_beams = int(np.count_nonzero(v[::stride]))
-        roots = np.ascontiguousarray(roots, float).reshape(-1, 6)
         if not np.all(np.isfinite(roots)) or not v.any():
-            return roots, True, 0
+            return None
         z = r[v].astype(np.float64)
         reach = float(np.max(z)) + self.r_abs + self.r_rel * float(np.max(z)) + 1e-6
         cones = self.fill or self.r_alpha >= 0.5 * inc  # as the map kernels decide (their _cos_gap)
@@ -581,18 +586,31 @@ class Matcher:
         n_w, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref = self.references(refs, stride)
         m, wx0, wy0, nx, ny, use_grid = self.window(tmap, roots, reach)
         if not (use_grid or n_w or n_ref):
+            return None
+        mx, my, myaw = self.mount
+        rules = (mx, my, myaw, self.r_abs, self.r_rel, self.r_alpha, cones, int(self.p.q_beams), stride, self.W, n_w,
+                 self.S, m, wx0, wy0, nx, ny, float(tmap.eps), use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref)
+        return (r, v, a0, inc), rules, float(np.median(z))
+
+    def match(self, k: int, roots: np.ndarray, tmap, refs, budget: int | None = None,
+              stride: int | None = None) -> tuple[np.ndarray, bool, int]:
+        """Match scan ``k`` from the prior ``roots`` against the submap ``tmap``'s proven-free
+        cells and the ``refs`` scans ((scan, robot box) pairs: their free space for rule A, their
+        beam ends for rule B); ``budget``: sub-boxes tested at most (default ``match_boxes``),
+        ``stride``: every n-th beam (default ``match_stride``)."""
+        p = self.p
+        stride = int(p.match_stride if stride is None else stride)
+        roots = np.ascontiguousarray(roots, float).reshape(-1, 6)
+        setup = self._setup(k, roots, tmap, refs, stride)
+        if setup is None:
             return roots, True, 0
+        scan, rules, split_reach = setup
         budget = int(p.match_boxes if budget is None else budget)
         need = p.match_slices + roots.shape[0] + 66
         if self.kept.shape[0] < need:
             self.kept = np.empty((need, 6))
-        mx, my, myaw = self.mount
-        split_reach = float(np.median(z)) if z.size else 1.0
-        n_kept, tested = bound_kernel(roots, roots.shape[0], r, v, a0, inc, mx, my, myaw, self.r_abs, self.r_rel,
-                                      self.r_alpha, cones, int(p.q_beams), stride, self.W, n_w, self.S,
-                                      m, wx0, wy0, nx, ny, float(tmap.eps), use_grid, ref_f, ref_a0, ref_inc, ref_c,
-                                      ref_th, n_ref, float(p.match_resolution), split_reach, budget,
-                                      int(p.match_slices), self.kept)
+        n_kept, tested = bound_kernel(roots, roots.shape[0], *scan, *rules, float(p.match_resolution), split_reach,
+                                      budget, int(p.match_slices), self.kept)
         if n_kept == 0:
             return roots, False, int(tested)
         return slices(self.kept[:n_kept].copy(), int(p.match_slices)), True, int(tested)

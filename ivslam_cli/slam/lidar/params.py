@@ -65,6 +65,7 @@ class Params:
     loop_closure: bool = True
     loop_every: int = 10
     loop_window: tuple[float, float] = (3.0, 1.5)
+    loop_wide: float = 8.0
     loop_candidates: int = 2
     loop_boxes: int = 8000
     loop_stride: int = 1
@@ -99,6 +100,7 @@ class Params:
             pose_margin=tuple(float(v) for v in cfg["lidar.pose_margin"]),
             loop_closure=bool(cfg["lidar.loop_closure"]), loop_every=int(cfg["lidar.loop_every"]),
             loop_window=tuple(float(v) for v in cfg["lidar.loop_window"]),
+            loop_wide=float(cfg["lidar.loop_wide"]),
             loop_candidates=int(cfg["lidar.loop_candidates"]), loop_boxes=int(cfg["lidar.loop_boxes"]),
             loop_stride=int(cfg["lidar.loop_stride"]),
         )

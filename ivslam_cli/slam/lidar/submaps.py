@@ -42,6 +42,7 @@ from ivslam_cli.interval.pose import compose, meet
 from ivslam_cli.slam.lidar import loops as L
 from ivslam_cli.logs.model import LogData, Scans
 from ivslam_cli.paving.tiles import TileMap
+from ivslam_cli.slam.lidar.loopsearch import PAVE_BUDGET, PAVE_LEAF, PAVE_LEAVES, PAVE_STRIDE, pave
 from ivslam_cli.slam.lidar.map_update import check_extent, extent_limits, update_map
 from ivslam_cli.slam.lidar.matcher import Matcher, hull
 from ivslam_cli.slam.lidar.params import Params
@@ -186,15 +187,31 @@ def _search_loops(j: int, scan: int, gb: np.ndarray, submaps, active, graph: L.A
         prior = L.loop_prior(s.G, gb, chain, s.index, h, r_h, max(wt, 1e-9) * 4)
         if prior is None:
             continue
-        if L.width(prior) > wx or L.heading(prior) > wt or not L.near_free(prior, s.extent, 0.0):
+        narrow = L.width(prior) <= wx and L.heading(prior) <= wt
+        if not (narrow or L.width(prior) <= params.loop_wide) or not L.near_free(prior, s.extent, 0.0):
             continue
-        cands.append((-(h - s.index), L.width(prior) + reach * L.heading(prior), s, prior))
+        cands.append((-(h - s.index), L.width(prior) + reach * L.heading(prior), s, prior, narrow))
     cands.sort(key=lambda c: (c[0], c[1]))  # the longest chain first: where a loop tells the most
     added = False
     refs_of = lambda s: [(s.anchor_scan, np.zeros(6))]  # noqa: E731
-    for _, _, s, prior in cands[: params.loop_candidates]:
-        union, ok, nt = matcher.match(scan, prior[None, :], s.tmap, refs_of(s), budget=params.loop_boxes,
-                                      stride=params.loop_stride)
+    for _, _, s, prior, narrow in cands[: params.loop_candidates]:
+        roots = prior[None, :]
+        nt = 0
+        if not narrow:  # a wide prior: pave it on every n-th beam first, the kept leaves are the roots
+            roots, nt = pave(matcher, scan, prior, s.tmap, refs_of(s), PAVE_STRIDE, PAVE_LEAF, PAVE_BUDGET,
+                             PAVE_LEAVES)
+            graph.paved += 1
+            graph.pave_tests += nt
+            if roots is None:
+                graph.pave_incomplete += 1
+                continue
+            if roots.shape[0] == 0:
+                graph.loops.append(L.LoopConstraint(j, s.index, h, prior, np.full(6, np.nan),
+                                                    matcher.last_beams, nt, True))
+                continue
+        union, ok, nt2 = matcher.match(scan, roots, s.tmap, refs_of(s), budget=params.loop_boxes,
+                                       stride=params.loop_stride)
+        nt += nt2
         nb = matcher.last_beams
         # the kept set is a sound prior for the same search: repeat while it shrinks
         for _ in range(3):
