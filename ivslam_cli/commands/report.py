@@ -14,7 +14,8 @@ import click
 @click.option("--tum", type=click.Path(path_type=Path, dir_okay=False),
               help="Export pose box centres as a TUM trajectory (for evo).")
 @click.option("--map-pgm", "map_pgm", type=click.Path(path_type=Path),
-              help="Export the map grid as ROS map_server PREFIX.pgm + PREFIX.yaml.")
+              help="Export the map grid as ROS map_server PREFIX.pgm + PREFIX.yaml (LiDAR runs with loop closure: "
+                   "the global map, proven in the result's frame).")
 @click.option("--graph", "graph", type=click.Path(path_type=Path),
               help="Export the interval pose graph of a LiDAR loop-closure run as PREFIX.graph.json (anchor boxes, "
                    "edge boxes) + PREFIX.g2o (their centres, no guarantee).")
@@ -121,7 +122,7 @@ def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, ma
         if map_pgm is not None:
             from ivslam_cli.results.export import write_map_server
 
-            write_map_server(map_pgm, res.grid, force=force)
+            write_map_server(map_pgm, res.global_map if res.global_map is not None else res.grid, force=force)
         if graph is not None:
             from ivslam_cli.results.export import write_graph
 

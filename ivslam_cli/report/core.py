@@ -310,8 +310,6 @@ def free_cell_containment(r: Result, truth: GroundTruth) -> Containment | None:
     if truth.world is None or r.grid is None:
         return None
     walls = np.asarray(truth.world, float)
-    checked = bad = 0
-    failures: list[str] = []
     grids = []
     if r.submaps is not None:
         if truth.pose is None or truth.pose_stamp is None:
@@ -328,6 +326,20 @@ def free_cell_containment(r: Result, truth: GroundTruth) -> Containment | None:
             grids.append((f"submap {m}", r.submaps.grid(m), w))
     elif r.grid.frame != "mosaic":
         grids.append(("map", r.grid, walls))
+    return _free_cells_on_walls("map_free", grids)
+
+
+def global_free_containment(r: Result, truth: GroundTruth) -> Containment | None:
+    """The global map's P_EMPTY (``r.global_map``, proven in the result's frame) against the
+    true walls in that frame (``truth`` as :func:`truth_in_frame` gives it)."""
+    if truth.world is None or r.global_map is None:
+        return None
+    return _free_cells_on_walls("global_free", [("global map", r.global_map, np.asarray(truth.world, float))])
+
+
+def _free_cells_on_walls(kind: str, grids) -> Containment:
+    checked = bad = 0
+    failures: list[str] = []
     for name, g, w in grids:
         rows, cols = np.nonzero(g.state == CELL_EMPTY)
         meet = segments_meet_cells(w, np.column_stack([cols, rows]), g.resolution, g.origin)
@@ -336,7 +348,7 @@ def free_cell_containment(r: Result, truth: GroundTruth) -> Containment | None:
         bad += nb
         if nb:
             failures.append(f"{name}: {nb} proven-free cell(s) on a true wall")
-    return Containment("map_free", checked, checked - bad, failures=failures)
+    return Containment(kind, checked, checked - bad, failures=failures)
 
 def robot_pose_containment(r: Result) -> dict[int, Containment]:
     """Per robot of a result of several (``r.robots``): its pose rows against its truth rows."""
@@ -500,6 +512,7 @@ def compute_report(r: Result) -> Report:
             poses,
             relative_containment(r, truth),
             free_cell_containment(r, framed),
+            global_free_containment(r, framed),
         ):
             if c is not None and c.checked:
                 cont[c.kind] = c

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from ivslam_cli.results.model import CELL_EMPTY
+from ivslam_cli.results.model import CELL_EMPTY, CELL_OBSTACLE
 
 from ivslam_cli.report.core import Report, WidthStat, event_dicts
 from ivslam_cli.report.strict_json import strict
@@ -132,6 +132,16 @@ def report_dict(rep: Report) -> dict[str, Any]:
             "anchor_boxes": r.submaps.anchor_box.tolist() if r.submaps is not None else [],
             "anchor_boxes_open_loop": lp.anchor_box_open.tolist(),
             "edges": int(len(lp.edge_a)), "sweeps": int(lp.sweeps),
+        }
+    if r.global_map is not None:
+        g, st = r.global_map, r.stats
+        free = int(np.count_nonzero(g.state == CELL_EMPTY))
+        out["global_map"] = {
+            "frame": g.frame, "origin": [float(x) for x in g.origin], "resolution": float(g.resolution),
+            "shape": list(g.shape), "scans_mapped": int(st.get("global_scans_mapped", 0)),
+            "proven_free_cells": free, "proven_free_m2": float(free * g.resolution ** 2),
+            "logodds_free_cells": int(st.get("global_logodds_free_cells", 0)),
+            "obstacle_cells": int(np.count_nonzero(g.state == CELL_OBSTACLE)),
         }
     if r.grid is not None:
         out["map"] = {

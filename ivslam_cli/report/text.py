@@ -163,6 +163,17 @@ def render_text(rep: Report, source: str = "") -> str:
             add(f"            global box median {_g(float(st['median_pose_width']))} m after closure, "
                 f"{_g(float(st['median_open_loop_width']))} m from the chain of anchors alone; anchor graph: "
                 f"{len(lp.edge_a)} edges, {int(lp.sweeps)} sweeps")
+    if r.global_map is not None:
+        g, st = r.global_map, r.stats
+        free = int(np.count_nonzero(g.state == CELL_EMPTY))
+        lo_free = int(st.get("global_logodds_free_cells", 0))
+        local = int(st.get("empty_cells", 0))
+        ratio = f" = {free / lo_free:.3g}× the log-odds free cells on the same scans ({lo_free})" if lo_free else ""
+        add(f"global map: every scan with a global box ≤ lidar.max_pose_width mapped in the result's frame "
+            f"({st.get('global_scans_mapped', '?')} scans; P_EMPTY proven in that frame), {g.shape[1]}×{g.shape[0]} "
+            f"cells of {g.resolution:g} m")
+        add(f"            proven free: {free} cells = {free * g.resolution ** 2:.4g} m²{ratio}; "
+            f"the submaps, each in its frame: {local} cells")
     if r.grid is not None:
         g = r.grid
         add("")

@@ -58,6 +58,18 @@ def _put(g: h5py.Group, name: str, arr: Any, dtype: Any = None) -> None:
         g.create_dataset(name, data=a)
 
 
+def _put_grid(g: h5py.Group, grid: MapGrid) -> None:
+    g.attrs["frame"] = grid.frame
+    g.attrs["origin"] = np.asarray(grid.origin, dtype=np.float64)
+    g.attrs["resolution"] = np.float64(grid.resolution)
+    st = np.ascontiguousarray(grid.state, dtype=np.uint8)
+    if st.size:
+        chunks = (min(256, st.shape[0]), min(256, st.shape[1]))
+        g.create_dataset("state", data=st, chunks=chunks, compression="gzip", compression_opts=4, shuffle=True)
+    else:
+        g.create_dataset("state", data=st)
+
+
 def _put_text(g: h5py.Group, name: str, values: np.ndarray) -> None:
     """A text column as ``<name>_code`` (int32) + ``<name>_vocab`` (sorted unique strings)."""
     vocab, codes = np.unique(np.asarray(values, dtype=str), return_inverse=True)
@@ -145,17 +157,9 @@ def _write(f: h5py.File, r: Result) -> None:
         _put(g, "offsets", r.pairs.offsets, np.int64)
         _put(g, "boxes", r.pairs.boxes, np.float64)
         _put(g, "label", r.pairs.label, np.uint8)
-    if r.grid is not None:
-        g = f.create_group("map")
-        g.attrs["frame"] = r.grid.frame
-        g.attrs["origin"] = np.asarray(r.grid.origin, dtype=np.float64)
-        g.attrs["resolution"] = np.float64(r.grid.resolution)
-        st = np.ascontiguousarray(r.grid.state, dtype=np.uint8)
-        if st.size:
-            chunks = (min(256, st.shape[0]), min(256, st.shape[1]))
-            g.create_dataset("state", data=st, chunks=chunks, compression="gzip", compression_opts=4, shuffle=True)
-        else:
-            g.create_dataset("state", data=st)
+    for name, grid in (("map", r.grid), ("global_map", r.global_map)):
+        if grid is not None:
+            _put_grid(f.create_group(name), grid)
     if r.logodds is not None:
         lo = r.logodds
         g = f.create_group("logodds")
@@ -274,6 +278,11 @@ def _get(g: h5py.Group, name: str, dtype: Any) -> np.ndarray:
     return np.asarray(_dataset(g, name)[()], dtype=dtype)
 
 
+def _get_grid(g: h5py.Group) -> MapGrid:
+    return MapGrid(origin=np.asarray(_attr(g, "origin"), dtype=np.float64), resolution=float(_attr(g, "resolution")),
+                   state=_get(g, "state", np.uint8), frame=str(_attr(g, "frame")) if "frame" in g.attrs else "proven")
+
+
 def _get_text(g: h5py.Group, name: str) -> np.ndarray:
     codes = _get(g, f"{name}_code", np.int64)
     if f"{name}_vocab" not in g:
@@ -376,13 +385,9 @@ def _read(f: h5py.File) -> Result:
             label=_get(g, "label", np.uint8),
         )
     if "map" in f:
-        g = f["map"]
-        r.grid = MapGrid(
-            origin=np.asarray(_attr(g, "origin"), dtype=np.float64),
-            resolution=float(_attr(g, "resolution")),
-            state=_get(g, "state", np.uint8),
-            frame=str(_attr(g, "frame")) if "frame" in g.attrs else "proven",
-        )
+        r.grid = _get_grid(f["map"])
+    if "global_map" in f:  # optional
+        r.global_map = _get_grid(f["global_map"])
     if "logodds" in f:  # optional
         g = f["logodds"]
         r.logodds = LogOddsGrid(
@@ -519,8 +524,9 @@ def _check_values(r: Result) -> None:
             d[cut[(cut > 0) & (cut < st.size)] - 1] = 0.0
         if not np.isfinite(st).all() or np.any(d < 0):
             raise _Corrupt("poses/stamp is not finite and sorted")
-    if r.grid is not None and not (np.isfinite(r.grid.origin).all() and np.isfinite(r.grid.resolution)):
-        raise _Corrupt("map origin or resolution is not finite")
+    for name, grid in (("map", r.grid), ("global_map", r.global_map)):
+        if grid is not None and not (np.isfinite(grid.origin).all() and np.isfinite(grid.resolution)):
+            raise _Corrupt(f"{name} origin or resolution is not finite")
 
 
 def _first_line(exc: BaseException) -> str:

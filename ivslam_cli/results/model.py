@@ -406,6 +406,7 @@ class Result:
     relative: RelativePoses | None = None  # lidar: pose of one row in another's frame
     submaps: Submaps | None = None  # lidar: local frames, their maps and members
     loops: Loops | None = None  # lidar: loop constraints and the anchor graph
+    global_map: MapGrid | None = None  # lidar with loop closure: every scan at its global box (proven)
     pose_sets: PoseSets | None = None  # landmarks: the union of boxes each pose box is the hull of
     robots: Robots | None = None  # several robots in one result: which pose (and truth) rows are whose
     consistency: Consistency = field(default_factory=Consistency)
@@ -488,11 +489,14 @@ def _validate(r: Result) -> None:
         _check(int(p.offsets[0]) == 0 and int(p.offsets[-1]) == p.boxes.shape[0], "pairs.offsets ends")
         _check(bool(np.all(np.diff(p.offsets) >= 0)), "pairs.offsets must be non-decreasing")
         _check(bool(np.all(np.isin(p.label, (LABEL_INNER, LABEL_BOUNDARY)))), "pairs.label values")
-    if r.grid is not None:
-        _check(r.grid.state.ndim == 2 and r.grid.state.dtype == np.uint8, "grid.state must be (H, W) uint8")
-        _check(r.grid.frame in (GRID_PROVEN, GRID_MOSAIC), "grid.frame must be proven or mosaic")
-        _check(np.asarray(r.grid.origin).shape == (2,), "grid.origin must be (2,)")
-        _check(r.grid.resolution > 0, "grid.resolution must be > 0")
+    for name, g in (("grid", r.grid), ("global_map", r.global_map)):
+        if g is not None:
+            _check(g.state.ndim == 2 and g.state.dtype == np.uint8, f"{name}.state must be (H, W) uint8")
+            _check(g.frame in (GRID_PROVEN, GRID_MOSAIC), f"{name}.frame must be proven or mosaic")
+            _check(np.asarray(g.origin).shape == (2,), f"{name}.origin must be (2,)")
+            _check(g.resolution > 0, f"{name}.resolution must be > 0")
+    if r.global_map is not None:
+        _check(r.global_map.frame == GRID_PROVEN, "global_map.frame must be proven")
     if r.logodds is not None:
         lo = r.logodds
         _check(r.grid is not None, "logodds needs the map grid (it has its geometry)")

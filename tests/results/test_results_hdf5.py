@@ -312,3 +312,20 @@ def test_schema_md_documents_the_pose_sets_and_robots(tmp_path):
     for name in names:
         group, leaf = name.split("/")
         assert f"`/{group}`" in doc and f"`{leaf}`" in doc, name
+
+
+def test_round_trip_global_map(tmp_path):
+    """The LiDAR global map (``/global_map``, optional): same layout as ``/map``, always proven."""
+    from ivslam_cli.results.model import MapGrid
+
+    r = example_result("lidar")
+    r.global_map = MapGrid(origin=np.array([-2.0, 1.5]), resolution=0.05,
+                           state=np.arange(12, dtype=np.uint8).reshape(3, 4) % 3)
+    write_result(tmp_path / "g.h5", r)
+    back = read_result(tmp_path / "g.h5")
+    assert_same(r, back)
+    with h5py.File(tmp_path / "g.h5", "r") as f:
+        assert f["global_map"].attrs["frame"] == "proven"
+    r.global_map.frame = "mosaic"
+    with pytest.raises(ValueError, match="global_map.frame"):
+        r.validate()

@@ -72,6 +72,7 @@ class LidarOutput:
     tracking: object | None = None  # the submap pass (its submaps' maps and trajectories), dead reckoning
     tmap: object | None = None  # the one map, given poses
     loops: object | None = None  # Loops record (loop closure)
+    global_map: MapGrid | None = None  # every scan at its global box after loop closure (proven)
 
 
 def _median(w: np.ndarray) -> float:
@@ -283,6 +284,7 @@ def solve(log: LogData, params: Params, progress=None) -> LidarOutput:
             "nodes_smoothed": int(tracking.smoothed),
         })
     loops_rec = None
+    global_grid = None
     if tracking is not None and tracking.graph is not None and params.loop_closure and params.contract:
         from ivslam_cli.slam.lidar.loops import loops_record
 
@@ -298,6 +300,19 @@ def solve(log: LogData, params: Params, progress=None) -> LidarOutput:
             "median_loop_heading": _median(loops_rec.box[~loops_rec.empty, 2, 1] - loops_rec.box[~loops_rec.empty, 2, 0])
             if found else float("nan"),
             "graph_sweeps": int(tracking.graph.sweeps), "graph_empty_meets": int(tracking.graph.empty_meets),
+            "loop_priors_paved": int(tracking.graph.paved), "loop_pave_tests": int(tracking.graph.pave_tests),
+            "loop_pave_incomplete": int(tracking.graph.pave_incomplete),
+        })
+        from ivslam_cli.slam.lidar.global_map import render_global
+
+        t3 = time.perf_counter()
+        gm = render_global(scans, used, pred.boxes, bounds, eps, max_w, path)
+        global_grid = gm.grid
+        stats.update({
+            "global_scans_mapped": gm.scans_mapped, "global_empty_cells": gm.empty_cells,
+            "global_logodds_free_cells": gm.logodds_free_cells,
+            "global_area_empty_m2": float(np.nextafter(gm.empty_cells * area, 0.0)) if gm.empty_cells else 0.0,
+            "global_map_s": float(time.perf_counter() - t3),
         })
     poses = Poses(stamp=stamp, box=np.ascontiguousarray(box3))
     if tracking is not None:
@@ -306,7 +321,7 @@ def solve(log: LogData, params: Params, progress=None) -> LidarOutput:
     poses.frame, poses.origin_stamp = pose_frame(params, pred)
     return LidarOutput(poses=poses, grid=grid, consistency=consistency, stats=stats, dropped=dropped, is_old=is_old,
                        mapped=mapped, used=used, scans=scans, logodds=logodds, submaps=submaps, relative=relative,
-                       tracking=tracking, tmap=tmap, loops=loops_rec)
+                       tracking=tracking, tmap=tmap, loops=loops_rec, global_map=global_grid)
 
 
 def pose_frame(params: Params, pred) -> tuple[str, float]:
@@ -323,7 +338,7 @@ def run(log: LogData, params: Params, progress=None) -> Result:
     log-odds baseline from the same scans."""
     out = solve(log, params, progress)
     return make_result("lidar", log, dropped=out.dropped, poses=out.poses, grid=out.grid, logodds=out.logodds,
-                       relative=out.relative, submaps=out.submaps, loops=out.loops, consistency=out.consistency,
+                       relative=out.relative, submaps=out.submaps, loops=out.loops, global_map=out.global_map, consistency=out.consistency,
                        stats=out.stats)
 
 

@@ -2,7 +2,7 @@
 submaps, the anchor graph contracted to a fixpoint, global boxes that stay bounded.
 
 Every global box after closure must hold the truth in the result's frame (the report's ``pose``
-check), every relative box and every submap's P_EMPTY too; a log with no loop runs, says so
+check), every relative box, every submap's P_EMPTY and the global map's too; a log with no loop runs, says so
 and keeps its local guarantees. Short simulated rooms logs in the default lane, more seeds
 under ``slow``.
 """
@@ -35,9 +35,11 @@ def _solved(seed, **kw):
 def _check_closed(seed, duration):
     log, params = _run(seed, duration=duration)
     res = run(log, params)
-    assert_contained(res, ("pose", "pose_relative", "map_free"))
+    assert_contained(res, ("pose", "pose_relative", "map_free", "global_free"))
     st = res.stats
     assert st["loops_found"] > 0
+    # the global map, proven in the result's frame, keeps at least half of what log-odds calls free
+    assert st["global_empty_cells"] >= 0.5 * st["global_logodds_free_cells"] > 0
     assert st["graph_empty_meets"] == 0
     w = position_width(res.poses.box)
     assert np.nanmedian(w) < st["median_open_loop_width"]
@@ -64,6 +66,7 @@ def test_a_log_with_no_loop_says_so_and_keeps_local_guarantees():
     assert_contained(res, ("pose", "pose_relative", "map_free"))
     assert out.stats["loops_found"] == 0
     assert "no loop found" in summary(res)
+    assert res.global_map is not None and res.global_map.frame == "proven"
     # the open-loop boxes are the closed ones when no loop edge exists
     assert out.stats["median_open_loop_width"] >= out.stats["median_pose_width"] - 1e-9
 

@@ -265,7 +265,8 @@ def test_cli_run_report_exports_on_the_samples(tmp_path, sample):
     res = read_result(out)
     assert res.submaps is not None and res.grid.frame == "mosaic"
     assert res.stats["area_empty_m2"] > 0 and res.stats["scans_mapped"] == res.stats["scans_used"]
-    g = res.grid
+    g = res.global_map  # --map-pgm exports the global map, proven in the result's frame
+    assert g is not None and g.frame == "proven" and "global map:" in text
     img = _pgm(prefix.with_suffix(".pgm"))
     assert img.shape == g.state.shape
     assert np.array_equal(img[::-1] == 254, g.state == CELL_EMPTY)
