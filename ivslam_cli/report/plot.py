@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ivslam_cli.errors import IvslamError
-from ivslam_cli.report.core import Report, box_centre
+from ivslam_cli.report.core import Report, box_centre, truth_in_frame
 from ivslam_cli.atomic import atomic_path
 from ivslam_cli.results.model import CELL_EMPTY, CELL_OBSTACLE, LABEL_INNER, box_is_empty
 
@@ -41,14 +41,16 @@ def _rects(ax, boxes: np.ndarray, **style) -> int:
 
 def _draw_map(ax, rep: Report) -> None:
     r = rep.result
-    t = r.truth
-    if r.grid is not None and r.grid.state.size:
-        g = r.grid
+    t = truth_in_frame(r.poses, r.truth) if r.truth is not None and r.poses is not None else r.truth
+    g = r.global_map if r.global_map is not None and r.global_map.state.size else r.grid
+    if g is not None and g.state.size:
         img = np.full(g.state.shape + (4,), 0.0)
         img[g.state == CELL_EMPTY] = (1.0, 1.0, 1.0, 1.0)
         img[g.state == CELL_OBSTACLE] = (0.0, 0.0, 0.0, 1.0)
         img[(g.state != CELL_EMPTY) & (g.state != CELL_OBSTACLE)] = (0.75, 0.75, 0.75, 1.0)
         ax.imshow(img, origin="lower", interpolation="nearest", extent=_grid_extent(g))
+    if r.loops is not None and r.submaps is not None and len(r.submaps):
+        _draw_anchor_graph(ax, r.submaps.anchor_box, r.loops)
     if r.poses is not None and len(r.poses):
         _rects(ax, r.poses.box[:, :2], facecolor="tab:blue", alpha=0.15, edgecolor="tab:blue", linewidth=0.3)
         c = box_centre(r.poses.box[:, :2])
@@ -94,9 +96,30 @@ def _draw_map(ax, rep: Report) -> None:
     ax.autoscale_view()
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.set_title(f"{r.mode}: enclosures and truth")
+    what = ""
+    if g is not None and g is r.global_map:
+        what = " (global map: proven in this frame)"
+    elif g is not None and g.frame == "mosaic":
+        what = " (mosaic of the submaps: display only)"
+    ax.set_title(f"{r.mode}: enclosures and truth{what}")
     if ax.get_legend_handles_labels()[0]:
         ax.legend(fontsize="x-small", loc="best")
+
+
+def _draw_anchor_graph(ax, anchor_box: np.ndarray, loops) -> None:
+    """The anchor graph: anchors at their box centres, chain edges grey, loop edges orange."""
+    from matplotlib.collections import LineCollection
+
+    c = box_centre(anchor_box[:, :2])
+    for kind, colour, label in ((0, "0.45", "anchor graph: chain edges"), (1, "tab:orange", "loop edges")):
+        sel = loops.edge_kind == kind
+        segs = np.stack([c[loops.edge_a[sel]], c[loops.edge_b[sel]]], axis=1)
+        segs = segs[np.isfinite(segs).all(axis=(1, 2))]
+        if segs.shape[0]:
+            ax.add_collection(LineCollection(segs, colors=colour, linewidths=0.9 if kind else 0.6, zorder=3,
+                                             label=f"{label} ({segs.shape[0]})"))
+    ok = np.isfinite(c).all(axis=1)
+    ax.plot(c[ok, 0], c[ok, 1], ".", color="0.2", ms=3, zorder=4, label="anchors (box centres)")
 
 
 # disagreement code -> colour, legend (see slam.lidar.logodds.compare). (a) and the occupied

@@ -294,3 +294,39 @@ def test_angle_in_requires_both_bounds():
     assert not bool(angle_in(0.0, 0.0, -5e-324))
     assert bool(angle_in(0.0, 0.0, 0.0))
     assert bool(angle_in(6.0, 7.0, 6.5 - 2 * math.pi))
+
+
+def test_plot_draws_the_truth_in_the_result_frame_and_the_anchor_graph():
+    """A first-pose-frame result: the walls are drawn where the report compares them (the
+    truth relative to its pose at the origin stamp), and the anchor graph's chain and loop
+    edges between the anchors' box centres."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    from matplotlib.collections import LineCollection
+    from matplotlib.figure import Figure
+
+    from ivslam_cli.report.core import truth_in_frame
+    from ivslam_cli.report.plot import _draw_map
+    from ivslam_cli.results.model import FRAME_FIRST_POSE, Loops, Submaps
+
+    r = example_result("lidar")
+    r.truth.world = np.array([[0.0, 5.0, 4.0, 5.0]])
+    r.poses.frame, r.poses.origin_stamp = FRAME_FIRST_POSE, float(r.truth.pose_stamp[2])
+    a = np.zeros((3, 3, 2))
+    a[:, 0] = [[0, 0.1], [1, 1.1], [2, 2.1]]
+    r.submaps = Submaps(anchor=np.array([0, 2, 4]), anchor_box=a, resolution=0.25, origin=np.zeros((3, 2)),
+                        shape=np.zeros((3, 2), np.int64), state=np.zeros(0, np.uint8),
+                        member_offsets=np.zeros(4, np.int64), member_row=np.zeros(0, np.int64),
+                        member_box=np.zeros((0, 3, 2)), member_mapped=np.zeros(0, bool))
+    z = np.zeros(0, np.int64)
+    r.loops = Loops(row=z, submap=z, home=z, prior=np.zeros((0, 3, 2)), box=np.zeros((0, 3, 2)), beams=z,
+                    empty=np.zeros(0, bool), edge_a=np.array([0, 1, 0]), edge_b=np.array([1, 2, 2]),
+                    edge_box=np.zeros((3, 3, 2)), edge_kind=np.array([0, 0, 1]), anchor_box_open=a.copy())
+    ax = Figure().subplots()
+    _draw_map(ax, compute_report(r))
+    framed = truth_in_frame(r.poses, r.truth).world[0]
+    drawn = [ln.get_xydata() for ln in ax.get_lines() if ln.get_color() == "tab:red" and len(ln.get_xydata()) == 2]
+    assert any(np.allclose(d.reshape(-1), framed[[0, 1, 2, 3]]) for d in drawn)
+    edges = {c.get_label(): len(c.get_segments()) for c in ax.collections if isinstance(c, LineCollection)}
+    assert edges == {"anchor graph: chain edges (2)": 2, "loop edges (1)": 1}
