@@ -17,6 +17,7 @@ from ivslam_cli.interval.pose import position_width
 from ivslam_cli.simulate import SimConfig, simulate
 from ivslam_cli.slam.lidar import Params as LidarParams
 from ivslam_cli.slam.lidar.pipeline import run, solve, summary
+from tests.helpers.hyp import seeds
 from tests.helpers.lidar_truth import assert_contained
 
 
@@ -54,10 +55,12 @@ def test_loops_keep_the_truth_and_bound_the_global_boxes(seed):
     assert st["median_pose_width"] <= 1.0
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("seed", [0, 1, 2, 4, 5])  # ~2-3 min each on one core: the CI budget
+@pytest.mark.slow  # ~15 s each
+@pytest.mark.parametrize("seed", seeds(ci=20))
 def test_loops_keep_the_truth_on_more_seeds(seed):
-    _check_closed(seed, 30.0)
+    """20 s logs (200 scans, about 7 submaps). Measured on seeds 0-19:
+    global box median 0.44–1.14 m (14 of 20 ≤ 0.5 m) against 0.94–1.41 m from the chain alone."""
+    _check_closed(seed, 20.0)
 
 
 def test_a_log_with_no_loop_says_so_and_keeps_local_guarantees():
