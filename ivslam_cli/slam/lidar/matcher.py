@@ -570,7 +570,7 @@ class Matcher:
         build_window(tmap.cells, tmap.coords, tmap.n, x0, y0, nx, ny, self.S)
         return ny + 1, x0, y0, nx, ny, True
 
-    def _setup(self, k: int, roots: np.ndarray, tmap, refs, stride: int):
+    def _setup(self, k: int, roots: np.ndarray, tmap, refs, stride: int, q: int | None = None):
         """The kernels' arguments for scan ``k`` over ``roots`` against ``tmap`` and ``refs``:
         ``(scan, rules, split_reach)`` — scan ``(ranges, valid, a0, inc)``, rules the tuple from
         the mount to ``n_ref`` in :func:`bound_kernel`'s order — or None when nothing can be
@@ -588,20 +588,22 @@ class Matcher:
         if not (use_grid or n_w or n_ref):
             return None
         mx, my, myaw = self.mount
-        rules = (mx, my, myaw, self.r_abs, self.r_rel, self.r_alpha, cones, int(self.p.q_beams), stride, self.W, n_w,
+        q = int(self.p.q_beams if q is None else q)
+        rules = (mx, my, myaw, self.r_abs, self.r_rel, self.r_alpha, cones, q, stride, self.W, n_w,
                  self.S, m, wx0, wy0, nx, ny, float(tmap.eps), use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref)
         return (r, v, a0, inc), rules, float(np.median(z))
 
     def match(self, k: int, roots: np.ndarray, tmap, refs, budget: int | None = None,
-              stride: int | None = None) -> tuple[np.ndarray, bool, int]:
+              stride: int | None = None, q: int | None = None) -> tuple[np.ndarray, bool, int]:
         """Match scan ``k`` from the prior ``roots`` against the submap ``tmap``'s proven-free
         cells and the ``refs`` scans ((scan, robot box) pairs: their free space for rule A, their
         beam ends for rule B); ``budget``: sub-boxes tested at most (default ``match_boxes``),
-        ``stride``: every n-th beam (default ``match_stride``)."""
+        ``stride``: every n-th beam (default ``match_stride``); ``q``: beams allowed to break each
+        rule (default ``q_beams``)."""
         p = self.p
         stride = int(p.match_stride if stride is None else stride)
         roots = np.ascontiguousarray(roots, float).reshape(-1, 6)
-        setup = self._setup(k, roots, tmap, refs, stride)
+        setup = self._setup(k, roots, tmap, refs, stride, q)
         if setup is None:
             return roots, True, 0
         scan, rules, split_reach = setup

@@ -50,6 +50,7 @@ class Params:
     max_step: float
     contract: bool
     q_beams: int
+    q_retry: int
     submap_distance: float
     submap_turn: float
     submap_width: float
@@ -90,6 +91,7 @@ class Params:
             strict=bool(cfg["robust.strict"]), eps=float(cfg["lidar.eps"]), max_range=float(cfg["lidar.max_range"]),
             motion=motion, max_pose_width=float(cfg["lidar.max_pose_width"]), max_step=float(cfg["lidar.max_step"]),
             contract=bool(cfg["lidar.contract"]), q_beams=int(cfg["lidar.q_beams"]),
+            q_retry=int(cfg["lidar.q_retry"]),
             submap_distance=float(cfg["lidar.submap_distance"]), submap_turn=float(cfg["lidar.submap_turn"]),
             submap_width=float(cfg["lidar.submap_width"]), submap_overlap=float(cfg["lidar.submap_overlap"]),
             match_boxes=int(cfg["lidar.match_boxes"]), match_stride=int(cfg["lidar.match_stride"]),

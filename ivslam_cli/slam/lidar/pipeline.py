@@ -236,6 +236,11 @@ def solve(log: LogData, params: Params, progress=None) -> LidarOutput:
                              f"scan {int(used[j])} (t={float(stamp[j]):.3f} s) against older submap {lc.submap}: no "
                              "pose its global box and the chain of anchors allow agrees with that submap beyond q "
                              "beams; no loop constraint (nothing contracted)"))
+        for j, sidx in tracking.q_relaxed:
+            rows.append((float(stamp[j]), int(used[j]), "q_relaxed", (int(used[j]), int(sidx)), -1,
+                         f"scan {int(used[j])} (t={float(stamp[j]):.3f} s) in submap {sidx}: every pose of its "
+                         f"predicted box puts more than q_beams = {params.q_beams} beams against the submap; "
+                         f"contracted with q = {params.q_retry} instead"))
         for j, sidx in tracking.relocalised:
             rows.append((float(stamp[j]), int(used[j]), "motion_outlier", (int(used[j]), int(sidx)), -1,
                          f"scan {int(used[j])} (t={float(stamp[j]):.3f} s) in submap {sidx}: no pose of its predicted "
@@ -245,6 +250,10 @@ def solve(log: LogData, params: Params, progress=None) -> LidarOutput:
         rows.sort(key=lambda r: r[0])
     events = empty_events(rows)
     assumption = _assumption(params, scans, pred, tracking is not None, int((~narrow).sum()), len(events))
+    if tracking is not None and tracking.q_relaxed:
+        assumption += (f"; {len(tracking.q_relaxed)} scan(s) contradicted the static world beyond q_beams beams "
+                       f"(empty events q_relaxed): their poses hold if at most q = {params.q_retry} of their "
+                       "beams (and of their references') break it")
     if tracking is not None and tracking.relocalised:
         assumption += (f"; {len(tracking.relocalised)} motion step(s) broke their bounds, or more than "
                        f"q_beams beams of their scans did (empty events motion_outlier): their scans were relocalised, assuming the true pose within "
@@ -277,6 +286,7 @@ def solve(log: LogData, params: Params, progress=None) -> LidarOutput:
             "max_relative_width": float(np.nanmax(position_width(rel_boxes))),
             "scans_contracted": int(tracking.contracted.sum()),
             "scans_relocalised": int(len(tracking.relocalised)),
+            "scans_q_relaxed": int(len(tracking.q_relaxed)),
             "scans_contradicting": int(len({j for j, _, _ in tracking.contradicted})),
             "contraction_boxes_tested": int(tracking.tested),
             "median_predicted_width": _median(position_width(tracking.predicted)),

@@ -95,6 +95,7 @@ class SubmapTracking:
     contradicted: list  # (row, submap, kind) of matches where no pose agreed with the data (box kept)
     compose_empty: list  # (row, submap) where anchor box ⊕ relative box missed the global box
     relocalised: list  # (row, submap) where the motion step broke its bounds and the scan was relocalised
+    q_relaxed: list  # (row, submap) contracted with lidar.q_retry beams allowed (none agreed with q_beams)
     forward: np.ndarray  # (S', 6) global boxes before the backward pass
     predicted: np.ndarray  # (S', 6) global dead-reckoned boxes before any contraction reached them
     tested: int  # pose sub-boxes tested in all
@@ -264,6 +265,7 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
     contradicted: list = []
     compose_empty: list = []
     relocalised: list = []
+    q_relaxed: list = []
     broken_global = False
     stats = np.zeros((len(scans), 6), np.int64)
     is_old = np.zeros(scans.ranges.shape[0], bool)
@@ -325,6 +327,13 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                     union, ok, nt = matcher.match(scan, roots, s.tmap, refs)
                     tested += nt
                     reloc = False
+                    if not ok and params.q_retry > params.q_beams:
+                        # more than q beams contradict every predicted pose: people, glass, mixed
+                        # returns? match again allowing q_retry beams before doubting the motion
+                        union, ok, nt = matcher.match(scan, roots, s.tmap, refs, q=params.q_retry)
+                        tested += nt
+                        if ok:
+                            q_relaxed.append((j, s.index))
                     if not ok and params.relocalise[0] > 0:
                         # no pose of the prediction agrees with the submap: the motion step broke
                         # its bounds (an odometry jump)? search the relocalisation window around it
@@ -494,5 +503,5 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
     pred = PosePrediction(used=used, boxes=glob, source=source, motion=m.motion, step_events=events,
                           node_stamp=m.node_stamp, dropped=dropped)
     return SubmapTracking(pred, submaps, home, relative, mapped, contracted, contradicted, compose_empty,
-                          relocalised, forward, predicted, tested, smoothed, stats, is_old, graph, open_loop,
+                          relocalised, q_relaxed, forward, predicted, tested, smoothed, stats, is_old, graph, open_loop,
                           anchor_before)

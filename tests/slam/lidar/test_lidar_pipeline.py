@@ -348,3 +348,31 @@ def test_a_scan_contradicting_its_submap_is_an_empty_event():
     kinds = [str(c) for c in out.consistency.empty_events.constraint]
     assert "submap_match" in kinds, kinds
     assert "contradiction" in out.consistency.assumption
+
+
+def _phantoms(seed=2, first=20, last=26, every=40, factor=0.3):
+    """Scans ``first..last-1`` with every ``every``-th valid beam returning at ``factor`` of its
+    range (a person close to the laser): more than q_beams = 5 beams break the static world."""
+    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=seed, steps=40))
+    sc = log.scans
+    r = sc.ranges.copy()
+    for k in range(first, last):
+        idx = np.arange(sc.offsets[k], sc.offsets[k + 1])
+        idx = idx[sc.valid[idx]][::every]
+        r[idx] *= factor
+    return log, replace(log, scans=replace(sc, ranges=r))
+
+
+def test_scans_beyond_q_beams_are_retried_with_q_retry_and_keep_the_truth():
+    log, bad = _phantoms()
+    cfg = resolve_config(None, {"lidar.q_beams": 5, "lidar.q_retry": 30}, log_bounds=log.bounds)
+    res = run(bad, LidarParams.from_config(cfg))
+    kinds = [str(c) for c in res.consistency.empty_events.constraint]
+    assert "q_relaxed" in kinds and "motion_outlier" not in kinds, kinds
+    assert res.stats["scans_q_relaxed"] == kinds.count("q_relaxed") > 0
+    assert "q = 30" in res.consistency.assumption
+    assert_contained(res, ("pose", "pose_relative", "map_free"))
+    # without the retry the same scans doubt the motion instead (relocalised or contradicted)
+    cfg0 = resolve_config(None, {"lidar.q_beams": 5, "lidar.q_retry": 0}, log_bounds=log.bounds)
+    kinds0 = [str(c) for c in solve(bad, LidarParams.from_config(cfg0)).consistency.empty_events.constraint]
+    assert "q_relaxed" not in kinds0 and ({"motion_outlier", "submap_match"} & set(kinds0)), kinds0
