@@ -62,12 +62,16 @@ def _put_grid(g: h5py.Group, grid: MapGrid) -> None:
     g.attrs["frame"] = grid.frame
     g.attrs["origin"] = np.asarray(grid.origin, dtype=np.float64)
     g.attrs["resolution"] = np.float64(grid.resolution)
-    st = np.ascontiguousarray(grid.state, dtype=np.uint8)
-    if st.size:
-        chunks = (min(256, st.shape[0]), min(256, st.shape[1]))
-        g.create_dataset("state", data=st, chunks=chunks, compression="gzip", compression_opts=4, shuffle=True)
+    _put_image(g, "state", np.ascontiguousarray(grid.state, dtype=np.uint8))
+
+
+def _put_image(g: h5py.Group, name: str, a: np.ndarray) -> None:
+    """A 2-D grid, chunked in tiles of at most 256 × 256 and gzip + shuffle (empty: plain)."""
+    if a.size:
+        chunks = (min(256, a.shape[0]), min(256, a.shape[1]))
+        g.create_dataset(name, data=a, chunks=chunks, compression="gzip", compression_opts=4, shuffle=True)
     else:
-        g.create_dataset("state", data=st)
+        g.create_dataset(name, data=a)
 
 
 def _put_text(g: h5py.Group, name: str, values: np.ndarray) -> None:
@@ -168,12 +172,7 @@ def _write(f: h5py.File, r: Result) -> None:
         g.attrs["scans"] = np.int64(lo.scans)
         g.attrs["beams"] = np.int64(lo.beams)
         g.attrs["guaranteed"] = np.bool_(False)
-        v = np.ascontiguousarray(lo.value, dtype=np.float32)
-        if v.size:
-            chunks = (min(256, v.shape[0]), min(256, v.shape[1]))
-            g.create_dataset("value", data=v, chunks=chunks, compression="gzip", compression_opts=4, shuffle=True)
-        else:
-            g.create_dataset("value", data=v)
+        _put_image(g, "value", np.ascontiguousarray(lo.value, dtype=np.float32))
 
     c = r.consistency
     g = f.create_group("consistency")

@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ivslam_cli.slam.lidar.matcher import _node_test, beam_table
+from ivslam_cli.slam.lidar.matcher import _node_test, beam_table, split_axis
 
 #: the bisection's stack: one entry per level (x, y and θ halvings from the prior to a leaf)
 STACK = 192
@@ -72,10 +72,8 @@ def pave_kernel(prior, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_rel, r_alp
         if _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw, r_alpha,
                       cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref):
             continue
-        wx = b[1] - b[0]
-        wy = b[3] - b[2]
-        wt = (b[5] - b[4]) * reach
-        if wx <= fine and wy <= fine and wt <= fine:
+        s = split_axis(b[1] - b[0], b[3] - b[2], (b[5] - b[4]) * reach, fine)
+        if s < 0:
             if n_out >= cap:
                 return n_out, tested, False
             for e in range(6):
@@ -84,7 +82,6 @@ def pave_kernel(prior, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_rel, r_alp
             continue
         if n + 2 > STACK:
             return n_out, tested, False
-        s = 0 if (wx >= wy and wx >= wt) else (1 if wy >= wt else 2)
         mid = 0.5 * (b[2 * s] + b[2 * s + 1])
         for e in range(6):
             stack[n, e] = b[e]

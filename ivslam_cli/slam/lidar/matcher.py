@@ -302,6 +302,16 @@ def _meets_roots(b, roots, n_roots):
     return False
 
 
+@njit(cache=True, inline="always")
+def split_axis(wx, wy, wt, fine):
+    """The axis a sub-box of widths ``wx``, ``wy`` and ``wt`` (θ width × median range) is split
+    along: the widest (rotation first when it moves the beam ends most); −1 for a leaf (every
+    width at most ``fine``)."""
+    if wx <= fine and wy <= fine and wt <= fine:
+        return -1
+    return 0 if (wx >= wy and wx >= wt) else (1 if wy >= wt else 2)
+
+
 @njit(cache=True)
 def _search(box, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my,
             myaw, r_alpha, cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th,
@@ -333,12 +343,9 @@ def _search(box, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_bea
         if _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw, r_alpha,
                       cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref):
             continue
-        wx = b[1] - b[0]
-        wy = b[3] - b[2]
-        wt = (b[5] - b[4]) * reach
-        if wx <= fine and wy <= fine and wt <= fine:
+        s = split_axis(b[1] - b[0], b[3] - b[2], (b[5] - b[4]) * reach, fine)
+        if s < 0:
             return (keys[i] if lo_side else -keys[i]), t
-        s = 0 if (wx >= wy and wx >= wt) else (1 if wy >= wt else 2)
         mid = 0.5 * (b[2 * s] + b[2 * s + 1])
         for h in range(2):
             c = used
