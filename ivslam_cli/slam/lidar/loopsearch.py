@@ -47,13 +47,7 @@ def pave_kernel(prior, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_rel, r_alp
     excluded, written to ``leaves``. Returns ``(n_leaves, tested, complete)``; ``complete`` is
     False when ``budget`` tests or the capacity of ``leaves`` ran out (the leaves are then not a
     cover of the kept poses)."""
-    nb_all = ranges.shape[0]
-    beam_rl = np.empty(nb_all)
-    beam_rh = np.empty(nb_all)
-    beam_ca = np.empty(nb_all)
-    beam_sa = np.empty(nb_all)
-    free = np.empty(nb_all)
-    n_beams = beam_table(ranges, valid, a0, inc, r_abs, r_rel, stride, beam_rl, beam_rh, beam_ca, beam_sa, free)
+    beam_rl, beam_rh, beam_ca, beam_sa, free, n_beams = beam_table(ranges, valid, a0, inc, r_abs, r_rel, stride)
     stack = np.empty((STACK, 6))
     b = np.empty(6)
     for e in range(6):

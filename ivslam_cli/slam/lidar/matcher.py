@@ -362,10 +362,17 @@ def _search(box, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_bea
 
 
 @njit(cache=True)
-def beam_table(ranges, valid, a0, inc, r_abs, r_rel, stride, beam_rl, beam_rh, beam_ca, beam_sa, free):
+def beam_table(ranges, valid, a0, inc, r_abs, r_rel, stride):
     """The tested beams (every ``stride``-th valid one): true-distance bounds ``beam_rl``,
     ``beam_rh`` and the cosine and sine of their angle; ``free[i]``: beam ``i``'s free range
-    (−1 invalid), for every beam. Returns the number of tested beams."""
+    (−1 invalid), for every beam. Returns ``(beam_rl, beam_rh, beam_ca, beam_sa, free,
+    n_beams)`` (the first four hold ``n_beams`` tested beams)."""
+    nb_all = ranges.shape[0]
+    beam_rl = np.empty(nb_all)
+    beam_rh = np.empty(nb_all)
+    beam_ca = np.empty(nb_all)
+    beam_sa = np.empty(nb_all)
+    free = np.empty(nb_all)
     n_beams = 0
     for i in range(ranges.shape[0]):
         if valid[i]:
@@ -380,7 +387,7 @@ def beam_table(ranges, valid, a0, inc, r_abs, r_rel, stride, beam_rl, beam_rh, b
                 n_beams += 1
         else:
             free[i] = -1.0
-    return n_beams
+    return beam_rl, beam_rh, beam_ca, beam_sa, free, n_beams
 
 
 @njit(cache=True)
@@ -392,13 +399,7 @@ def bound_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_
     heading interval cut into at most ``max_slices`` slices and each slice's x and y bounds.
     Writes the slices to ``kept``; returns ``(n_slices, tested)`` (0 slices: every pose
     excluded)."""
-    nb_all = ranges.shape[0]
-    beam_rl = np.empty(nb_all)
-    beam_rh = np.empty(nb_all)
-    beam_ca = np.empty(nb_all)
-    beam_sa = np.empty(nb_all)
-    free = np.empty(nb_all)
-    n_beams = beam_table(ranges, valid, a0, inc, r_abs, r_rel, stride, beam_rl, beam_rh, beam_ca, beam_sa, free)
+    beam_rl, beam_rh, beam_ca, beam_sa, free, n_beams = beam_table(ranges, valid, a0, inc, r_abs, r_rel, stride)
     hull = np.empty(6)
     for e in range(6):
         hull[e] = roots[0, e]
