@@ -109,7 +109,9 @@ def one_case(name: str, log_path: str, config: str | None, overrides: dict, repe
             "rel_th": float(s.get("median_relative_heading", float("nan"))), "glob_w": float(s["median_pose_width"]),
             "glob_th": float(s.get("median_pose_heading", float("nan"))), "free_m2": float(s["area_empty_m2"]),
             "free_cells": int(s["empty_cells"]), "lo_free": int(s.get("logodds_free_cells", 0)),
-            "submaps": int(s.get("submaps", 0)), "total_s": best, "containment": cont}
+            "submaps": int(s.get("submaps", 0)), "total_s": best, "containment": cont,
+            "loops": int(s.get("loops_found", -1)), "open_w": float(s.get("median_open_loop_width", float("nan"))),
+            "gfree": int(s.get("global_empty_cells", -1)), "glo_free": int(s.get("global_logodds_free_cells", 0))}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -145,6 +147,11 @@ def main(argv: list[str] | None = None) -> int:
                   f"(medians); proven free {r['free_m2']:.4g} m² = {r['free_cells']} cells "
                   f"(log-odds free {r['lo_free']}: ratio {r['free_cells'] / max(r['lo_free'], 1):.2f}); "
                   f"truth {r['containment'] or 'none'}")
+            if r["loops"] >= 0:
+                print(f"{'':14s} loop closure: {r['loops']} loop constraints, global box median {r['glob_w']:.3g} m "
+                      f"({r['open_w']:.3g} m from the chain of anchors alone); global map {r['gfree']} proven-free "
+                      f"cells (log-odds free {r['glo_free']} on the same scans: ratio "
+                      f"{r['gfree'] / max(r['glo_free'], 1):.2f})")
             if name in TARGETED:
                 ok = rt >= TARGET and r["mapped"] == r["scans"]
                 print(f"{'':14s} target >= {TARGET:g}x real time with every scan mapped: {'PASS' if ok else 'FAIL'} "
