@@ -122,7 +122,7 @@ def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, ma
         if map_pgm is not None:
             from ivslam_cli.results.export import write_map_server
 
-            write_map_server(map_pgm, res.global_map if res.global_map is not None else res.grid, force=force)
+            write_map_server(map_pgm, res.main_map, force=force)
         if graph is not None:
             from ivslam_cli.results.export import write_graph
 

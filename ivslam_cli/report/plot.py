@@ -42,7 +42,7 @@ def _rects(ax, boxes: np.ndarray, **style) -> int:
 def _draw_map(ax, rep: Report) -> None:
     r = rep.result
     t = truth_in_frame(r.poses, r.truth) if r.truth is not None and r.poses is not None else r.truth
-    g = r.global_map if r.global_map is not None and r.global_map.state.size else r.grid
+    g = r.main_map
     if g is not None and g.state.size:
         img = np.full(g.state.shape + (4,), 0.0)
         img[g.state == CELL_EMPTY] = (1.0, 1.0, 1.0, 1.0)

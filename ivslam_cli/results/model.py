@@ -413,6 +413,14 @@ class Result:
     truth: GroundTruth | None = None
     stats: dict[str, float | int | str] = field(default_factory=dict)
 
+    @property
+    def main_map(self) -> MapGrid | None:
+        """The map to show and export: the global map (proven in the result's frame) when it has
+        cells, else ``grid``."""
+        if self.global_map is not None and self.global_map.state.size:
+            return self.global_map
+        return self.grid
+
     def validate(self) -> None:
         """Raise ValueError if shapes/dtypes are inconsistent (a pipeline bug, not user input)."""
         _validate(self)

@@ -5,6 +5,8 @@ The submaps' maps are proven each in its anchor's frame (from tight relative box
 that places them at their anchors' box centres is a picture. Here each scan whose global box is
 at most ``lidar.max_pose_width`` wide is mapped once more, into one map in the result's frame,
 with that box (the anchor's box ⊕ the relative box, met with the dead reckoning and smoothed):
+(``lidar.max_pose_width`` 0, "map every scan" in the submaps, means :data:`MAX_WIDTH_ANY` here:
+a box hundreds of metres wide proves nothing and would make the map span kilometres) with
 the same old/new test and map update (:mod:`.map_update`) as a run with given poses, the box's
 width eroding the free space it proves. A log-odds grid from the same scans at their box
 centres, on the same geometry, is the probabilistic comparison (not guaranteed).
@@ -26,6 +28,10 @@ from ivslam_cli.results.model import CELL_EMPTY, MapGrid
 from ivslam_cli.slam.lidar.map_update import grid_of, map_scans
 
 
+#: the width limit when ``lidar.max_pose_width`` is 0 [m] (that key's default)
+MAX_WIDTH_ANY = 2.0
+
+
 @dataclass
 class GlobalMap:
     grid: MapGrid  # frame "proven": the result's frame
@@ -37,13 +43,13 @@ class GlobalMap:
 def render_global(scans, used: np.ndarray, boxes: np.ndarray, bounds, eps: float, max_width: float,
                   path=None) -> GlobalMap:
     """Map the used scans ``used`` (log order) whose global boxes ``boxes`` (one (6,) row per used
-    scan) are finite and at most ``max_width`` wide (0: any) into one map in the result's frame."""
+    scan) are finite and at most ``max_width`` wide (0: :data:`MAX_WIDTH_ANY`) into one map in the
+    result's frame."""
     from ivslam_cli.slam.lidar.logodds import build_logodds
 
     w = position_width(boxes)
     ok = np.isfinite(w) & np.all(np.isfinite(boxes), axis=1)
-    if max_width > 0:
-        ok &= w <= max_width
+    ok &= w <= (max_width if max_width > 0 else MAX_WIDTH_ANY)
     rows = np.flatnonzero(ok)
     tmap = TileMap(eps)
     if rows.size:

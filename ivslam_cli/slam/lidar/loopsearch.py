@@ -110,7 +110,7 @@ def pave(matcher, k: int, prior: np.ndarray, tmap, refs, stride: int, fine: floa
     merged (an empty array: every pose excluded, a contradiction), or None when the paving is
     incomplete or nothing could be tested (then nothing follows from it)."""
     prior = np.ascontiguousarray(prior, float).reshape(6)
-    setup = matcher._setup(k, prior[None, :], tmap, refs, int(stride))
+    setup = matcher.kernel_args(k, prior[None, :], tmap, refs, int(stride))
     if setup is None:
         return None, 0
     scan, rules, split_reach = setup

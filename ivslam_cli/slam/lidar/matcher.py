@@ -578,7 +578,7 @@ class Matcher:
         build_window(tmap.cells, tmap.coords, tmap.n, x0, y0, nx, ny, self.S)
         return ny + 1, x0, y0, nx, ny, True
 
-    def _setup(self, k: int, roots: np.ndarray, tmap, refs, stride: int, q: int | None = None):
+    def kernel_args(self, k: int, roots: np.ndarray, tmap, refs, stride: int, q: int | None = None):
         """The kernels' arguments for scan ``k`` over ``roots`` against ``tmap`` and ``refs``:
         ``(scan, rules, split_reach)`` — scan ``(ranges, valid, a0, inc)``, rules the tuple from
         the mount to ``n_ref`` in :func:`bound_kernel`'s order — or None when nothing can be
@@ -611,7 +611,7 @@ class Matcher:
         p = self.p
         stride = int(p.match_stride if stride is None else stride)
         roots = np.ascontiguousarray(roots, float).reshape(-1, 6)
-        setup = self._setup(k, roots, tmap, refs, stride, q)
+        setup = self.kernel_args(k, roots, tmap, refs, stride, q)
         if setup is None:
             return roots, True, 0
         scan, rules, split_reach = setup

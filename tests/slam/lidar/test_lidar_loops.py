@@ -98,3 +98,21 @@ def test_graph_contraction_is_sound_on_a_triangle():
     for b, true in zip(G, [(0, 0, 0), (1, 0, np.pi / 2), (1, 1, np.pi)]):
         assert b[0] <= true[0] <= b[1] and b[2] <= true[1] <= b[3] and b[4] <= true[2] <= b[5]
     assert position_width(G[2]) < position_width(chain_only[2])
+
+
+def test_the_global_map_skips_boxes_too_wide_to_prove_anything():
+    """With lidar.max_pose_width = 0 (every scan mapped in its submap) a global box hundreds of
+    metres wide (an Intel-like tube without closure) is not rendered: it would prove nothing and
+    make the map span kilometres (the map-size limit would stop the run)."""
+    from ivslam_cli.slam.lidar.global_map import MAX_WIDTH_ANY, render_global
+    from ivslam_cli.slam.lidar.map_update import usable_scans
+
+    log, params = _run(1, world="corridor", steps=6)
+    scans, _ = usable_scans(log.scans, params.beams, params.max_range, params.eps, None)
+    used = np.arange(len(scans))
+    boxes = np.zeros((used.size, 6))
+    boxes[:, 1::2] = 0.01
+    boxes[-1] = [-900.0, 900.0, -900.0, 900.0, -3.0, 3.0]
+    gm = render_global(scans, used, boxes, params.beams, params.eps, 0.0)
+    assert gm.scans_mapped == used.size - 1 and gm.empty_cells > 0
+    assert gm.grid.shape[0] * params.eps < 2 * 30.0 + MAX_WIDTH_ANY
