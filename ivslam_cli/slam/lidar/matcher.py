@@ -25,7 +25,10 @@ Cost: the submap's cells not proven free are counted in a summed-area table over
 rectangle of cells in O(1), whatever its size — Cartographer's branch-and-bound scan matcher
 precomputes per-level grids for the same reason, Hess, Kohler, Rapp & Andor 2016); a beam's
 end-point region over a sub-box is an oriented rectangle from one cosine and sine per sub-box
-(no trigonometry per beam).
+(no trigonometry per beam). Before the exact test of a rectangle against a scan's free cones,
+one point of it is looked up in that scan's free ranges (:func:`_may_cover`, a necessary
+condition): most rectangles straddle a surface and are rejected there, in a third of the
+exact test's time, with the same result.
 
 Guarantee: if the true relative pose is in the prior, the bounds hold, the world is static but
 for at most ``q`` beams of the scan and ``q`` of each rule's references, and the submap's
@@ -211,6 +214,50 @@ def _seg_free(vx, vy, ux, uy, ah, ac, stl, sth, f, a0, inc):
     return covered_free(f, a0, inc, bc - half - _BEAR_MARGIN - sth, bc + half + _BEAR_MARGIN - stl, rho_h)
 
 
+#: angle error of :func:`_may_cover`'s bearings: atan2_fast's plus what coordinates below
+#: :data:`_QUICK_COORD` can add at distances above :data:`_QUICK_RHO2`'s root
+_QUICK_M = ATAN_ERR + 1e-7
+_QUICK_COORD = 1e4
+_QUICK_RHO2 = 1e-6
+
+
+@njit(cache=True, inline="always")
+def _cover_setup(nb, a0, inc):
+    """:func:`_may_cover`'s per-scan constants: ``(1 / inc, centre angle, index margin, usable)``."""
+    ok = inc >= 1e-5 and (nb - 1) * inc < TWO_PI - 1e-3
+    ii = 1.0 / inc if inc > 0.0 else 0.0
+    return ii, a0 + 0.5 * (nb - 1) * inc, _QUICK_M * ii + 1e-9, ok
+
+
+@njit(cache=True, inline="always")
+def _may_cover(px, py, cx, cy, c, f, a0, ii, ac, mi, ok):
+    """False only if the point ``(px, py)`` cannot be in what :func:`covered_free` certifies
+    free for a scan (free ranges ``f``, beams at ``a0 + i·inc``; ``ii, ac, mi, ok`` from
+    :func:`_cover_setup`) from a sensor at ``(cx, cy)`` with heading ``c``: a certified point
+    at sensor bearing ``β`` is nearer than ``f[j]``, ``j = ⌊(β − a0) / inc⌋`` (that beam is in
+    every window holding ``β``). A cheap necessary condition, so :func:`_seg_free` runs only
+    where it may succeed."""
+    if not ok or not (abs(px) + abs(py) + abs(cx) + abs(cy) < _QUICK_COORD):
+        return True
+    dx = px - cx
+    dy = py - cy
+    rho2 = dx * dx + dy * dy
+    if not rho2 > _QUICK_RHO2:
+        return True
+    b = atan2_fast(dy, dx) - c
+    while b - ac >= math.pi:
+        b -= TWO_PI
+    while b - ac < -math.pi:
+        b += TWO_PI
+    jc = (b - a0) * ii
+    j0 = max(math.floor(jc - mi), 0)
+    j1 = min(math.floor(jc + mi), f.shape[0] - 1)
+    fm = -1.0
+    for j in range(j0, j1 + 1):
+        fm = max(fm, f[j])
+    return fm > 0.0 and rho2 < fm * fm * (1.0 + 1e-9)
+
+
 @njit(cache=True)
 def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw, r_alpha,
                cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref):
@@ -241,6 +288,11 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
             r = 0
             while not hit and r < n_ref:
                 extra = rs + ref_c[r, 2]
+                ii, acr, mi, ok = _cover_setup(ref_f.shape[1], ref_a0[r], ref_inc[r])
+                if not _may_cover(cx + (ah + extra) * ux, cy + (ah + extra) * uy, ref_c[r, 0], ref_c[r, 1],
+                                  0.5 * (ref_th[r, 0] + ref_th[r, 1]), ref_f[r], ref_a0[r], ii, acr, mi, ok):
+                    r += 1
+                    continue
                 hit = _seg_free(cx - ref_c[r, 0], cy - ref_c[r, 1], ux, uy, ah + extra, ac + extra, ref_th[r, 0],
                                 ref_th[r, 1], ref_f[r], ref_a0[r], ref_inc[r])
                 r += 1
@@ -250,7 +302,11 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
                     return True
     if cones:
         nb = 0
+        ii, acb, mi, ok = _cover_setup(free.shape[0], a0, inc)
         for j in range(n_w):
+            ahj = W[j, 4] + rs
+            if not _may_cover(W[j, 0] + ahj * W[j, 2], W[j, 1] + ahj * W[j, 3], ccx, ccy, c, free, a0, ii, acb, mi, ok):
+                continue
             if _seg_free(W[j, 0] - ccx, W[j, 1] - ccy, W[j, 2], W[j, 3], W[j, 4] + rs, W[j, 5] + rs, stl, sth, free, a0,
                          inc):
                 nb += 1
