@@ -83,18 +83,16 @@ def mosaic(sm: Submaps, logodds: list[LogOddsGrid] | None = None) -> tuple[MapGr
     i1, j1 = ij.max(axis=0)
     shape = (int(j1 - j0 + 1), int(i1 - i0 + 1))
     state = np.zeros(shape, np.uint8)
-    cols, rows = ij[:, 0] - i0, ij[:, 1] - j0
-    n_free = np.zeros(shape, np.int32)
-    n_obst = np.zeros(shape, np.int32)
-    np.add.at(n_free, (rows, cols), (st == CELL_EMPTY).astype(np.int32))
-    np.add.at(n_obst, (rows, cols), (st == CELL_OBSTACLE).astype(np.int32))
+    flat = (ij[:, 1] - j0) * shape[1] + (ij[:, 0] - i0)
+    n_cells = shape[0] * shape[1]
+    n_free = np.bincount(flat[st == CELL_EMPTY], minlength=n_cells).reshape(shape)
+    n_obst = np.bincount(flat[st == CELL_OBSTACLE], minlength=n_cells).reshape(shape)
     state[n_free > 0] = CELL_EMPTY  # where the submaps disagree, the majority is drawn
     state[(n_obst > 0) & (n_obst >= n_free)] = CELL_OBSTACLE
     grid = MapGrid(origin=np.array([i0 * eps, j0 * eps], float), resolution=eps, state=state, frame=GRID_MOSAIC)
     if logodds is None:
         return grid, None
-    v = np.zeros(state.shape, np.float64)
-    np.add.at(v, (rows, cols), np.concatenate(vals).astype(np.float64))
+    v = np.bincount(flat, weights=np.concatenate(vals).astype(np.float64), minlength=n_cells).reshape(shape)
     l_occ, l_free, l_min, l_max = _params(logodds)[:4]
     lo = LogOddsGrid(value=np.clip(v, l_min, l_max).astype(np.float32), l_occ=l_occ, l_free=l_free, l_min=l_min,
                      l_max=l_max, scans=int(sum(x.scans for x in logodds)), beams=int(sum(x.beams for x in logodds)))
