@@ -139,7 +139,7 @@ KEYS: tuple[Key, ...] = (
     Key("lidar", "match_slices", 8, "int", "scan-to-submap matching: the pose set kept per scan as at most this many boxes (one per heading slice)", "", 1),
     Key("lidar", "relocalise", (0.5, 0.5), "float2", "when no pose of a scan's predicted box agrees with its submap (the motion step broke its bounds, an odometry jump, or more than q_beams beams did), the scan is matched again over its box widened by this much in x, y [m] and θ [rad]; a pose found there is kept, the step recorded as an outlier and the assumption relaxed to say so; [0, 0]: never (the box is kept, an empty event)", "m, rad"),
     Key("lidar", "loop_closure", True, "bool", "match scans against older submaps they may be in (loop constraints) and contract the anchor graph to a fixpoint (dead-reckoning runs only)"),
-    Key("lidar", "loop_every", 10, "int", "loop closure: every n-th scan is searched for loops", "", 1),
+    Key("lidar", "loop_every", 5, "int", "loop closure: every n-th scan is searched for loops", "", 1),
     Key("lidar", "loop_window", (3.0, 1.5), "float2", "loop closure: an older submap is searched only when the scan's pose in its anchor's frame (what the global boxes and the chain of anchors allow) is at most this wide in x, y [m] and θ [rad]", "m, rad", 0.0),
     Key("lidar", "loop_wide", 8.0, "float", "loop closure: a prior wider than loop_window but at most this wide in x and y [m], any heading, is paved first (every 4th beam, leaves of 0.25 m) and its kept leaves matched; 0 = off", "m", 0.0),
     Key("lidar", "loop_candidates", 2, "int", "loop closure: at most this many older submaps are searched per scan (the narrowest priors first)", "", 1),

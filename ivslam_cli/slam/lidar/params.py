@@ -64,7 +64,7 @@ class Params:
     known_poses: str
     pose_margin: tuple[float, float, float]
     loop_closure: bool = True
-    loop_every: int = 10
+    loop_every: int = 5
     loop_window: tuple[float, float] = (3.0, 1.5)
     loop_wide: float = 8.0
     loop_candidates: int = 2
