@@ -280,6 +280,11 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
         cc = math.cos(c)
         sc = math.sin(c)
         na = 0
+        ref_q = np.empty((max(n_ref, 1), 5))
+        for r in range(n_ref):
+            ii, acr, mi, ok = _cover_setup(ref_f.shape[1], ref_a0[r], ref_inc[r])
+            ref_q[r, 0], ref_q[r, 1], ref_q[r, 2], ref_q[r, 3] = ii, acr, mi, 1.0 if ok else 0.0
+            ref_q[r, 4] = 0.5 * (ref_th[r, 0] + ref_th[r, 1])
         for i in range(n_beams):
             cx, cy, ux, uy, ah, ac, hx, hy = _rotated_region(ccx, ccy, cc, sc, beam_ca[i], beam_sa[i], beam_rl[i],
                                                              beam_rh[i], d)
@@ -288,9 +293,9 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
             r = 0
             while not hit and r < n_ref:
                 extra = rs + ref_c[r, 2]
-                ii, acr, mi, ok = _cover_setup(ref_f.shape[1], ref_a0[r], ref_inc[r])
                 if not _may_cover(cx + (ah + extra) * ux, cy + (ah + extra) * uy, ref_c[r, 0], ref_c[r, 1],
-                                  0.5 * (ref_th[r, 0] + ref_th[r, 1]), ref_f[r], ref_a0[r], ii, acr, mi, ok):
+                                  ref_q[r, 4], ref_f[r], ref_a0[r], ref_q[r, 0], ref_q[r, 1], ref_q[r, 2],
+                                  ref_q[r, 3] > 0.0):
                     r += 1
                     continue
                 hit = _seg_free(cx - ref_c[r, 0], cy - ref_c[r, 1], ux, uy, ah + extra, ac + extra, ref_th[r, 0],
