@@ -151,6 +151,22 @@ def _set_anchor_boxes(submaps, G: np.ndarray) -> None:
         s.G = g.copy()
 
 
+def _meet_loops(constraints, submaps, gb: np.ndarray, compose_empty: list) -> np.ndarray:
+    """``gb`` (a scan's global box) met with ``G_i ⊕ L`` for each of its non-empty loop
+    constraints ``L`` (its pose in old anchor ``i``'s frame); a miss is recorded, not met."""
+    g = np.empty((3, 2))
+    met = np.empty((3, 2))
+    for lc in constraints:
+        if lc.empty or not np.all(np.isfinite(lc.box)):
+            continue
+        compose(submaps[lc.submap].G.reshape(3, 2), np.ascontiguousarray(lc.box, float).reshape(3, 2), 1, g)
+        if meet(gb.reshape(3, 2), g, met):
+            gb = met.reshape(6).copy()
+        else:
+            compose_empty.append((lc.row, lc.submap))
+    return gb
+
+
 def _open_chain(graph: L.AnchorGraph, submaps, predicted: np.ndarray) -> np.ndarray:
     """The anchor boxes the chain alone gives (no loop edge): ``G_{i+1} = (G_i ⊕ E_{i,i+1}) ∩``
     the dead-reckoned box of its anchor scan (dead reckoning alone, ``predicted``)."""
@@ -396,6 +412,7 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                 graph.add_member_pair(both[a].index, both[a].rel[-1], both[b].index, both[b].rel[-1])
         if loops_on and j % params.loop_every == 0 and len(submaps) > 2 and np.all(np.isfinite(gb)):
             reach_j = float(np.median(scans.ranges[scans.offsets[scan]:scans.offsets[scan + 1]]))
+            n_loops = len(graph.loops)
             if _search_loops(j, scan, gb, submaps, active, graph, matcher, params, reach_j):
                 G = _anchor_boxes(submaps)
                 graph.contract(G)
@@ -406,6 +423,9 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                         gb = met.copy()
                     else:
                         compose_empty.append((j, t.index))
+                # the scan's own loop constraints, from the old anchors directly (not through the
+                # anchor edge, which composes its relative box twice)
+                gb = _meet_loops(graph.loops[n_loops:], submaps, gb, compose_empty)
         if broken_global:
             _reset_node(Pg, k, gb, rp, rt)
             broken_global = False
@@ -489,6 +509,11 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                 if meet(dst.reshape(3, 2), g.reshape(3, 2), met.reshape(3, 2)):
                     dst[:] = met
         open_loop[row] = ob
+    by_row: dict = {}
+    for lc in graph.loops:
+        by_row.setdefault(lc.row, []).append(lc)
+    for row, lst in by_row.items():
+        glob[row] = _meet_loops(lst, submaps, glob[row], compose_empty)
     if graph.loops:
         scratch = np.zeros_like(events)
         for j in range(S):
