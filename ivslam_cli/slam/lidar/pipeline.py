@@ -225,10 +225,11 @@ def solve(log: LogData, params: Params, progress=None) -> LidarOutput:
             rows.append((float(stamp[j]), int(used[j]), kind, (int(used[j]), int(sidx)), -1,
                          f"scan {int(used[j])} (t={float(stamp[j]):.3f} s) in submap {sidx}: {what}; its box kept "
                          "uncontracted"))
-        for j, sidx in tracking.compose_empty:
+        for j, sidx, what in tracking.compose_empty:
             rows.append((float(stamp[j]), int(used[j]), "submap_compose", (int(used[j]), int(sidx)), -1,
                          f"scan {int(used[j])} (t={float(stamp[j]):.3f} s): submap {sidx}'s anchor box composed with "
-                         "its relative box misses its global box; not met"))
+                         f"the scan's {'loop constraint' if what == 'loop' else 'relative box'} misses its global box; "
+                         "not met"))
         for lc in (tracking.graph.loops if tracking.graph is not None else []):
             if lc.empty:
                 j = lc.row

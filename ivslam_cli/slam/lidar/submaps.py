@@ -93,7 +93,7 @@ class SubmapTracking:
     mapped: np.ndarray  # (S',) bool: mapped into at least one submap
     contracted: np.ndarray  # (S',) bool: some contraction narrowed the box
     contradicted: list  # (row, submap, kind) of matches where no pose agreed with the data (box kept)
-    compose_empty: list  # (row, submap) where anchor box ⊕ relative box missed the global box
+    compose_empty: list  # (row, submap, what) where the anchor box ⊕ its relative (or loop) box missed the global box
     relocalised: list  # (row, submap) where the motion step broke its bounds and the scan was relocalised
     q_relaxed: list  # (row, submap) contracted with lidar.q_retry beams allowed (none agreed with q_beams)
     forward: np.ndarray  # (S', 6) global boxes before the backward pass
@@ -163,7 +163,7 @@ def _meet_loops(constraints, submaps, gb: np.ndarray, compose_empty: list) -> np
         if meet(gb.reshape(3, 2), g, met):
             gb = met.reshape(6).copy()
         else:
-            compose_empty.append((lc.row, lc.submap))
+            compose_empty.append((lc.row, lc.submap, "loop"))
     return gb
 
 
@@ -387,7 +387,7 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                 gb = g.copy()  # the global dead reckoning broke with the relocalised motion step
                 broken_global = True
             else:
-                compose_empty.append((j, s.index))
+                compose_empty.append((j, s.index, "relative"))
             # map the scan into the submap
             if params.max_pose_width <= 0 or _width(r) <= params.max_pose_width:
                 check_extent(r, used[j:j + 1], extent, path)
@@ -422,7 +422,7 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                     if meet(gb.reshape(3, 2), g.reshape(3, 2), met.reshape(3, 2)):
                         gb = met.copy()
                     else:
-                        compose_empty.append((j, t.index))
+                        compose_empty.append((j, t.index, "relative"))
                 # the scan's own loop constraints, from the old anchors directly (not through the
                 # anchor edge, which composes its relative box twice)
                 gb = _meet_loops(graph.loops[n_loops:], submaps, gb, compose_empty)

@@ -128,3 +128,29 @@ def test_the_global_map_skips_boxes_too_wide_to_prove_anything():
     gm = render_global(scans, used, boxes, params.beams, params.eps, 0.0)
     assert gm.scans_mapped == used.size - 1 and gm.empty_cells > 0
     assert gm.grid.shape[0] * params.eps < 2 * 30.0 + MAX_WIDTH_ANY
+
+
+def test_a_loop_scan_is_met_with_the_old_anchor_and_its_loop_constraint():
+    """``G_i ⊕ L`` narrows the scan's global box and keeps its true pose; a constraint that
+    misses the box is recorded (a contradiction, never an empty box) and not met."""
+    from types import SimpleNamespace
+
+    from ivslam_cli.slam.lidar.loops import LoopConstraint
+    from ivslam_cli.slam.lidar.submaps import _meet_loops
+
+    true = np.array([2.0, 1.0, 0.3])  # the scan's true pose in the result's frame
+    G = np.array([1.0 - 1e-3, 1.0 + 1e-3, 0.0 - 1e-3, 0.0 + 1e-3, 0.5 - 1e-3, 0.5 + 1e-3])  # old anchor
+    c, s = np.cos(-0.5), np.sin(-0.5)
+    rel = np.array([c * 1.0 - s * 1.0, s * 1.0 + c * 1.0, 0.3 - 0.5])  # the scan in the anchor's frame
+    L = np.column_stack([rel - 0.1, rel + 0.1]).reshape(6)
+    wide = np.column_stack([true - 1.0, true + 1.0]).reshape(6)
+    subs = [SimpleNamespace(G=G)]
+    missed: list = []
+    gb = _meet_loops([LoopConstraint(7, 0, 1, wide, L, 100, 10, False)], subs, wide.copy(), missed)
+    assert not missed
+    assert np.all(gb[0::2] <= true) and np.all(true <= gb[1::2])
+    assert np.all(gb[1::2] - gb[0::2] < 0.5) and np.all(gb[1::2] - gb[0::2] > 0.1)
+    far = np.column_stack([true + 5.0, true + 6.0]).reshape(6)
+    out = _meet_loops([LoopConstraint(7, 0, 1, wide, L, 100, 10, False),
+                       LoopConstraint(8, 0, 1, wide, np.full(6, np.nan), 100, 10, True)], subs, far.copy(), missed)
+    assert np.array_equal(out, far) and missed == [(7, 0, "loop")]
