@@ -3,12 +3,12 @@ anchor graph is contracted (loop closure), so that P_EMPTY is proven in that fra
 
 The submaps' maps are proven each in its anchor's frame (from tight relative boxes); the mosaic
 that places them at their anchors' box centres is a picture. Here each scan whose global box is
-at most ``lidar.max_pose_width`` wide is mapped once more, into one map in the result's frame,
-with that box (the anchor's box ⊕ the relative box, met with the dead reckoning and smoothed):
-(``lidar.max_pose_width`` 0, "map every scan" in the submaps, means :data:`MAX_WIDTH_ANY` here:
-a box hundreds of metres wide proves nothing and would make the map span kilometres) with
-the same old/new test and map update (:mod:`.map_update`) as a run with given poses, the box's
-width eroding the free space it proves. A log-odds grid from the same scans at their box
+at most ``lidar.max_pose_width`` wide (:data:`MAX_WIDTH_ANY` when that key is 0, "map every
+scan" in the submaps: a box hundreds of metres wide proves nothing and would make the map span
+kilometres) is mapped once more, into one map in the result's frame, with that box (the anchor's
+box ⊕ the relative box, met with the dead reckoning and smoothed): the same old/new test and map
+update (:mod:`.map_update`) as a run with given poses, the box's width eroding the free space it
+proves. A log-odds grid from the same scans at their box
 centres, on the same geometry, is the probabilistic comparison (not guaranteed).
 
 Guarantee: if every global box holds its true pose (the tracker's and the anchor graph's

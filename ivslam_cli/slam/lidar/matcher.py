@@ -245,6 +245,8 @@ def _may_cover(px, py, cx, cy, c, f, a0, ii, ac, mi, ok):
     if not rho2 > _QUICK_RHO2:
         return True
     b = atan2_fast(dy, dx) - c
+    if not abs(b - ac) < 64.0:  # a heading far from the principal turns (or NaN): no shortcut
+        return True
     while b - ac >= math.pi:
         b -= TWO_PI
     while b - ac < -math.pi:
@@ -280,6 +282,7 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
         cc = math.cos(c)
         sc = math.sin(c)
         na = 0
+        # per sub-box, not per call: an extra array argument to this function costs more (measured)
         ref_q = np.empty((max(n_ref, 1), 5))
         for r in range(n_ref):
             ii, acr, mi, ok = _cover_setup(ref_f.shape[1], ref_a0[r], ref_inc[r])

@@ -83,3 +83,6 @@ def test_the_quick_rejection_rejects_points_beyond_the_free_ranges():
         assert not _may_cover(-3.0, 0.1, 0.0, 0.0, c, f, a0, ii, acn, mi, ok)  # behind: outside the span
         b = a0 + 100.3 * inc
         assert not _may_cover(2.0 * math.cos(b), 2.0 * math.sin(b), 0.0, 0.0, c, f, a0, ii, acn, mi, ok)
+    # a heading far from the principal turns, or NaN: no shortcut (the exact test decides)
+    for c in (1e6, -1e6, math.nan):
+        assert _may_cover(4.1, 0.0, 0.0, 0.0, c, f, a0, ii, acn, mi, ok)
