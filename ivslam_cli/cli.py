@@ -171,7 +171,19 @@ def cli(ctx: click.Context, debug: bool) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point."""
+    one_blas_thread()
     end(cli.main(args=argv, prog_name="ivslam", standalone_mode=False))
+
+
+def one_blas_thread() -> None:
+    """Ask OpenBLAS for one thread (unless ``OPENBLAS_NUM_THREADS`` says otherwise); NumPy,
+    which reads it when first imported, is not imported yet.
+
+    ivslam does no BLAS work (its kernels are numba loops), but NumPy's OpenBLAS starts a thread
+    per further core when it loads, and each spins for up to ~0.1 s of CPU before it sleeps: on a
+    machine whose other cores are busy (a batch of runs, a shared host), CPU taken from the run.
+    """
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
 def end(code: int) -> NoReturn:
