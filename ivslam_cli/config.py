@@ -29,11 +29,6 @@ from typing import Any
 
 from ivslam_cli.errors import ConfigError
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
-
 SECTIONS: dict[str, str] = {
     "bounds": "noise bounds shared by every mode (the kernels widen each by one ulp outward)",
     "robust": "robust handling of inconsistent data (q-relaxed intersection, strictness)",
@@ -240,6 +235,11 @@ def load_toml(path: str | Path) -> dict[str, Any]:
     """Parse a TOML config file; unreadable or invalid TOML is a one-line ConfigError."""
     from ivslam_cli import limits
     from ivslam_cli.inputs import check_input
+
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
 
     path = Path(path)
     if not os.path.lexists(path):

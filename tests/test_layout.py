@@ -1,11 +1,13 @@
 """The package's layout rules: data flows one way (no import cycle among module-level imports),
-no module over ~700 lines, the typed config read only by the ``from_config`` builders, tests
-mirroring the package."""
+no module over ~700 lines, no kernel loaded by an import, the typed config read only by the
+``from_config`` builders, tests mirroring the package."""
 
 from __future__ import annotations
 
 import ast
 import re
+import subprocess
+import sys
 
 from tests.helpers.paths import REPO
 
@@ -90,6 +92,30 @@ def test_no_module_over_the_line_limit():
     long = {str(p.relative_to(REPO)): n for p in PACKAGE.rglob("*.py")
             if (n := len(p.read_text().splitlines())) > MAX_LINES}
     assert not long, f"modules over {MAX_LINES} lines: {long}"
+
+
+_IMPORT_EVERY_MODULE = """
+import importlib, pkgutil, sys
+import ivslam_cli
+from numba.core.dispatcher import Dispatcher
+for m in pkgutil.walk_packages(ivslam_cli.__path__, "ivslam_cli."):
+    if m.name != "ivslam_cli.__main__":
+        importlib.import_module(m.name)
+ours = [m for n, m in list(sys.modules.items()) if n.startswith("ivslam_cli")]
+loaded = {f"{d.py_func.__module__}.{d.py_func.__name__}" for m in ours for d in vars(m).values()
+          if isinstance(d, Dispatcher) and d.overloads}
+print(len(ours), *sorted(loaded))
+"""
+
+
+def test_importing_a_module_loads_no_kernel():
+    """No module compiles or loads a numba kernel when imported: a command loads the kernels it
+    calls, when it calls them, and no others."""
+    out = subprocess.run([sys.executable, "-c", _IMPORT_EVERY_MODULE], capture_output=True, text=True,
+                         check=True, cwd=REPO)
+    count, *loaded = out.stdout.split()
+    assert int(count) == len([p for p in PACKAGE.rglob("*.py") if p.name != "__main__.py"]), "a module not imported"
+    assert not loaded, f"kernels loaded by importing their modules: {loaded}"
 
 
 def test_config_read_only_by_the_builders():

@@ -212,7 +212,11 @@ def _offsets(k0):
     return (k0, al, ah, bl, bh, cl, ch)
 
 
-OFFSETS_0 = _offsets(0.0)
+# ``_offsets(0.0)``, evaluated by Python instead of by loading a kernel at import: ``down`` and
+# ``up`` are plain float operations, so their Python functions give the kernels' doubles (checked
+# by tests/contractors/test_polar.py).
+OFFSETS_0 = (0.0, down.py_func(-TWO_PI_HI), up.py_func(-TWO_PI_LO), down.py_func(0.0), up.py_func(0.0),
+             down.py_func(TWO_PI_LO), up.py_func(TWO_PI_HI))
 
 
 @njit(cache=True, inline="always")

@@ -21,7 +21,6 @@ user-given bounds are widened by ``enclose`` before use.
 from __future__ import annotations
 
 import ctypes
-import ctypes.util
 import math
 
 import numpy as np
@@ -87,11 +86,25 @@ def enclose(value: float) -> tuple[float, float]:
 # Everything above assumes round-to-nearest. Other libraries may leave another mode behind
 # (importing Codac leaves round-upward), so every Python entry point calls this first.
 _FE_TONEAREST = 0  # glibc, x86-64 and aarch64
-try:
-    _LIBM = ctypes.CDLL(ctypes.util.find_library("m") or "libm.so.6")
+
+
+def _libm() -> ctypes.CDLL | None:
+    """The C maths library, or None if there is none to ask (then there is nothing to restore)."""
+    try:
+        return ctypes.CDLL("libm.so.6")  # glibc, by its soname: no ldconfig run by find_library
+    except OSError:  # pragma: no cover - not glibc
+        from ctypes.util import find_library
+
+        name = find_library("m")
+        try:
+            return ctypes.CDLL(name) if name else None
+        except OSError:
+            return None
+
+
+_LIBM = _libm()
+if _LIBM is not None:
     _LIBM.fegetround.restype = ctypes.c_int
-except OSError:  # pragma: no cover - no libm to ask: nothing to restore either
-    _LIBM = None
 
 
 def ensure_round_to_nearest() -> None:

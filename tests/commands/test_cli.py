@@ -43,6 +43,67 @@ def test_help_is_cold_fast_and_loads_no_kernel():
     assert float(seconds) < 0.5
 
 
+#: what ``ivslam run`` on a pairs log never needs: other commands, pipelines and readers, the
+#: batch executors, the optional plotting and cluster libraries
+NOT_FOR_A_PAIRS_RUN = ("matplotlib", "dask", "distributed", "ivslam_cli.report", "ivslam_cli.simulate",
+                       "ivslam_cli.slam.landmarks", "ivslam_cli.slam.lidar", "ivslam_cli.fleet.batch",
+                       "ivslam_cli.fleet.execute", "ivslam_cli.logs.ros_bag", "rosbags.rosbag1", "rosbags.rosbag2")
+#: and on a log in ivslam's own HDF5 format, the MCAP and ROS message libraries
+NOT_FOR_AN_H5_LOG = ("mcap", "rosbags", "ivslam_cli.logs.mcap_file")
+
+
+_RUN = """
+import os, sys
+import ivslam_cli.cli as cli
+
+
+def report(code):  # instead of ending the process, say what it holds
+    from numba.core.dispatcher import Dispatcher
+
+    assert code == 0, code
+    ours = [m for n, m in list(sys.modules.items()) if n.startswith("ivslam_cli")]
+    kernels = {d.py_func.__module__ for m in ours for d in vars(m).values() if isinstance(d, Dispatcher) and d.overloads}
+    print(*sorted(sys.modules))
+    print(*sorted(kernels))
+    print(len(os.listdir("/proc/self/task")) if os.path.isdir("/proc/self/task") else 1)
+    sys.stdout.flush()
+    os._exit(0)
+
+
+cli.end = report
+cli.main(["run", *sys.argv[1:], "--quiet"])
+"""
+
+
+def _imported_by_run(log, out) -> tuple[set[str], set[str], int]:
+    """What ``ivslam run LOG -o OUT`` holds at its end (a fresh process, through the console-script
+    entry point): the modules imported, those whose kernels were loaded, the number of threads."""
+    res = subprocess.run([sys.executable, "-c", _RUN, str(log), "-o", str(out)], capture_output=True, text=True,
+                         check=True, cwd=REPO)
+    modules, kernels, threads = res.stdout.splitlines()
+    return set(modules.split()), set(kernels.split()), int(threads)
+
+
+def _under(modules: set[str], roots: tuple[str, ...]) -> list[str]:
+    return sorted(m for m in modules if any(m == r or m.startswith(r + ".") for r in roots))
+
+
+def test_a_pairs_run_imports_and_loads_only_what_it_uses(cli_run, tmp_path, monkeypatch):
+    """``ivslam run`` pays only for its mode and its log's format: no other pipeline, reader or
+    command is imported, the kernels loaded are those of the pairs pipeline (and the interval
+    arithmetic it calls from Python), and no BLAS thread is started."""
+    for name in ("pairs.mcap", "pairs.h5"):
+        assert cli_run("simulate", "--scenario", "pairs", "--steps", "5", "-o", tmp_path / name).exit_code == 0
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    modules, kernels, threads = _imported_by_run(tmp_path / "pairs.mcap", tmp_path / "r1.h5")
+    assert "mcap" in modules and "ivslam_cli.slam.pairs" in modules  # the check sees what a run imports
+    assert not _under(modules, NOT_FOR_A_PAIRS_RUN)
+    assert kernels and all(k.startswith(("ivslam_cli.slam.pairs.", "ivslam_cli.interval.")) for k in kernels), kernels
+    assert threads == 1
+    modules, _, _ = _imported_by_run(tmp_path / "pairs.h5", tmp_path / "r2.h5")
+    assert not _under(modules, NOT_FOR_A_PAIRS_RUN + NOT_FOR_AN_H5_LOG)
+
+
 def test_unknown_command_fails_cleanly(cli_run):
     res = cli_run("frobnicate")
     assert res.exit_code != 0

@@ -258,6 +258,11 @@ def test_branch_offsets_are_shift_offsets(k):
         assert (o[1 + 2 * j], o[2 + 2 * j]) == arith.mul(kk, kk, cp.TWO_PI_LO, cp.TWO_PI_HI)
 
 
+def test_default_offsets_are_the_kernels_bit_for_bit():
+    """``OFFSETS_0``, computed by Python at import, is what the kernel ``_offsets(0.0)`` gives."""
+    assert np.array(cp.OFFSETS_0).view(np.int64).tolist() == np.array(cp._offsets(0.0)).view(np.int64).tolist()
+
+
 @FAST
 @given(p=st.one_of(st.just(0.0), st.just(-0.0), st.floats(-1.0, 2.0), st.just(cp.HALF_PI_LO)),
        q=st.one_of(st.just(0.0), st.just(-0.0), st.floats(-1e300, 1e300), st.just(math.inf),
