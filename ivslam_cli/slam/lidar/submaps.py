@@ -197,13 +197,16 @@ def _search_loops(j: int, scan: int, gb: np.ndarray, submaps, active, graph: L.A
     chain = graph.chain(h + 1)
     wx, wt = params.loop_window
     act = {s.index for s in active}
+    n_old = max(h - 1, 0)
+    priors = np.empty((n_old, 3, 2))
+    met = np.zeros(n_old, bool)
+    L.loop_priors(_anchor_boxes(submaps[:n_old]).reshape(-1, 3, 2), np.ascontiguousarray(gb, float).reshape(3, 2),
+                  chain, h, np.ascontiguousarray(r_h, float).reshape(3, 2), L.SLICES, max(wt, 1e-9) * 4, priors, met)
     cands = []
-    for s in submaps[: max(h - 1, 0)]:
-        if s.index in act or s.extent is None:
+    for s in submaps[:n_old]:
+        if s.index in act or s.extent is None or not met[s.index]:
             continue
-        prior = L.loop_prior(s.G, gb, chain, s.index, h, r_h, max(wt, 1e-9) * 4)
-        if prior is None:
-            continue
+        prior = priors[s.index].reshape(6).copy()
         narrow = L.width(prior) <= wx and L.heading(prior) <= wt
         if not (narrow or L.width(prior) <= params.loop_wide) or not L.near_free(prior, s.extent, 0.0):
             continue
