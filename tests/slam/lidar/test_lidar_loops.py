@@ -156,6 +156,22 @@ def test_a_loop_scan_is_met_with_the_old_anchor_and_its_loop_constraint():
     assert np.array_equal(out, far) and missed == [(7, 0, "loop")]
 
 
+def test_threads_give_the_same_result():
+    """lidar.threads: the submaps a scan is tracked in are matched and mapped in parallel; every
+    array of the result is what one thread gives (a loop log: scans in two submaps, loops)."""
+    log, params = _run(3, duration=12.0, overrides={"lidar.threads": 1})
+    one = run(log, params)
+    log, params = _run(3, duration=12.0, overrides={"lidar.threads": 3})
+    three = run(log, params)
+    assert one.stats["loops_found"] > 0 and len(one.submaps.member_row) > len(one.submaps)
+    pairs = [(one.poses.box, three.poses.box), (one.poses.relative, three.poses.relative),
+             (one.submaps.state, three.submaps.state), (one.submaps.member_box, three.submaps.member_box),
+             (one.loops.box, three.loops.box), (one.grid.state, three.grid.state),
+             (one.logodds.value, three.logodds.value), (one.global_map.state, three.global_map.state)]
+    for a, b in pairs:
+        assert a.shape == b.shape and np.array_equal(a, b, equal_nan=True)
+
+
 def _pose(p, q):
     """``p ⊕ q`` for poses (x, y, θ)."""
     c, s = np.cos(p[2]), np.sin(p[2])
