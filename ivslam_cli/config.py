@@ -140,6 +140,7 @@ KEYS: tuple[Key, ...] = (
     Key("lidar", "loop_candidates", 2, "int", "loop closure: at most this many older submaps are searched per scan (the narrowest priors first)", "", 1),
     Key("lidar", "loop_stride", 1, "int", "loop closure: every n-th beam of the scan, and of the old submap's anchor scan, is tested", "", 1),
     Key("lidar", "loop_boxes", 8000, "int", "loop closure: pose sub-boxes tested per loop search at most (a search out of budget keeps every pose it did not exclude)", "", 1),
+    Key("lidar", "threads", 0, "int", "tracking: a scan's submaps (the overlapping ones) are matched and mapped in this many threads, with the same results as in one; 0: the cores this process may run on (a batch's workers run one each)", "", 0, maximum=1024),
     Key("lidar", "poses_known", False, "bool", "guaranteed mapping only: the poses are given (known_poses) within pose_margin; no odometry needed"),
     Key("lidar", "known_poses", "auto", "str", "with poses_known, where the poses come from: truth (the log's ground truth), scan (poses recorded with each scan, e.g. CARMEN FLASER), odometry (odometry poses), or auto (the first of these the log has); interpolated at scan stamps between given poses"),
     Key("lidar", "pose_margin", (0.05, 0.05, 0.01), "float3", "with poses_known: half-widths of the pose box around each given pose (must cover their error and any interpolation)", "m, m, rad", 0.0),

@@ -16,6 +16,7 @@ worker lost under a job (killed, out of memory) makes that job an ``error`` reco
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -139,6 +140,8 @@ def run_dask(jobs: Sequence[Job], done: Done, client) -> None:
 def run_jobs(jobs: Sequence[Job], done: Done, *, workers: int, scheduler: str | None, client=None) -> str:
     """Run ``jobs`` (on ``client``'s cluster when ``scheduler`` is given); returns the executor's
     description (for the audit)."""
+    if scheduler is not None or (workers > 1 and len(jobs) > 1):
+        jobs = [dataclasses.replace(j, opts=j.opts.replace(threads=1)) for j in jobs]  # in parallel over the logs
     if scheduler is not None:
         run_dask(jobs, done, client if client is not None else connect(scheduler))
         return f"dask {scheduler}"

@@ -74,6 +74,8 @@ class RunOptions:
     poses_known: bool | None = None
     max_range: float | None = None
     tum: str | None = None
+    #: lidar.threads (not an option of ``ivslam run``: a batch's workers run one thread each)
+    threads: int | None = None
     #: options given for another mode are dropped instead of refused (a batch under --mode auto:
     #: each option applies to the logs whose mode it fits)
     lenient: bool = False
@@ -111,6 +113,7 @@ class RunOptions:
             "landmarks.initial_pose_from_truth": self.initial_pose_from_truth,
             "robust.q_landmark": self.q_landmark, "robust.q_pose": self.q_pose,
             "landmarks.max_iterations": self.max_iterations, "landmarks.tolerance": self.tolerance,
+            "lidar.threads": self.threads,
         }
 
 

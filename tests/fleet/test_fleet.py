@@ -221,3 +221,22 @@ def test_strict_batch_exits_3_and_records_where_it_stopped(logs, tmp_path):
     assert [r["status"] for r in recs] == ["ok", "inconsistent"]
     assert recs[1]["stopped"] and recs[1]["message"].startswith("stopped (--strict): ")
     assert recs[1]["empty_events"] >= 1 and recs[1]["empty_event_list"][0]["constraint"]
+
+
+def test_logs_run_in_parallel_track_with_one_thread_each(monkeypatch):
+    """A pool or a Dask cluster parallelises over the logs: each job runs lidar.threads = 1; one
+    after another, each log keeps the default (the cores)."""
+    from ivslam_cli.fleet import execute
+    from ivslam_cli.fleet.job import Job, RunOptions
+
+    seen: dict = {}
+    monkeypatch.setattr(execute, "run_pool", lambda jobs, done, workers: seen.setdefault("pool", jobs))
+    monkeypatch.setattr(execute, "run_dask", lambda jobs, done, client: seen.setdefault("dask", jobs))
+    monkeypatch.setattr(execute, "run_sequential", lambda jobs, done: seen.setdefault("sequential", jobs))
+    jobs = [Job(log=f"/logs/{i}.h5", out_dir="/out", name=str(i), opts=RunOptions(mode="lidar")) for i in range(2)]
+    execute.run_jobs(jobs, lambda i, r: None, workers=2, scheduler=None)
+    execute.run_jobs(jobs, lambda i, r: None, workers=2, scheduler="tcp://x:1", client=object())
+    execute.run_jobs(jobs, lambda i, r: None, workers=1, scheduler=None)
+    for kind in ("pool", "dask"):
+        assert [j.opts.overrides()["lidar.threads"] for j in seen[kind]] == [1, 1]
+    assert [j.opts.overrides()["lidar.threads"] for j in seen["sequential"]] == [None, None]

@@ -106,6 +106,33 @@ def chain_prior(E, i, h, r, slices, max_heading, out):
     return out[2, 1] - out[2, 0] <= max_heading
 
 
+@njit(cache=True)
+def loop_priors(G, gb, E, h, r, slices, max_heading, out, ok):
+    """``out[i]`` (3, 2): a scan's pose in old anchor ``i``'s frame (``i < out.shape[0]``) as
+    the two global boxes ``G[i]`` and ``gb`` allow, met with the chain from ``i`` to the scan's
+    home ``h`` composed with its relative box ``r`` (where the chain's heading stays within
+    ``max_heading``); ``ok[i]`` False where they miss (a contradiction: no search)."""
+    pg = np.empty((3, 2))
+    pc = np.empty((3, 2))
+    # the chain's heading width from i on is the sum of its edges' (rounded outward, so no
+    # less): where that sum is over max_heading, chain_prior returns False, not composed here
+    tail = np.empty(out.shape[0] + 1)
+    tail[out.shape[0]] = r[2, 1] - r[2, 0]
+    for k in range(min(h, E.shape[0]) - 1, out.shape[0] - 1, -1):
+        tail[out.shape[0]] += E[k, 2, 1] - E[k, 2, 0]
+    for i in range(out.shape[0] - 1, -1, -1):
+        tail[i] = tail[i + 1] + (E[i, 2, 1] - E[i, 2, 0] if i < h else 0.0)
+    for i in range(out.shape[0]):
+        relative(G[i], gb, slices, pg)
+        ok[i] = True
+        if h > i and not tail[i] > max_heading * (1.0 + 1e-9) + 1e-12 and chain_prior(E, i, h, r, slices,
+                                                                                       max_heading, pc):
+            if not meet(pg, pc, out[i]):
+                ok[i] = False
+        else:
+            out[i] = pg
+
+
 def free_extent(tmap) -> np.ndarray | None:
     """``(x0, x1, y0, y1)`` in the submap's frame of its proven-free cells (None: none)."""
     n = tmap.n
@@ -207,24 +234,6 @@ class AnchorGraph:
         self.contractions += 1
 
 
-def loop_prior(G_old: np.ndarray, gb: np.ndarray, chain: np.ndarray | None, i: int, h: int, r: np.ndarray,
-               max_heading: float) -> np.ndarray | None:
-    """The scan's pose in old anchor ``i``'s frame as the two global boxes allow, met with the
-    chain from ``i`` to its home ``h`` composed with its relative box ``r``. None when they miss
-    (a contradiction: no search)."""
-    pg = np.empty((3, 2))
-    relative(np.ascontiguousarray(G_old, float).reshape(3, 2), np.ascontiguousarray(gb, float).reshape(3, 2),
-             SLICES, pg)
-    if chain is not None and h > i:
-        pc = np.empty((3, 2))
-        if chain_prior(chain, i, h, np.ascontiguousarray(r, float).reshape(3, 2), SLICES, max_heading, pc):
-            out = np.empty((3, 2))
-            if not meet(pg, pc, out):
-                return None
-            pg = out
-    return pg.reshape(6).copy()
-
-
 def width(b: np.ndarray) -> float:
     return max(b[1] - b[0], b[3] - b[2])
 
@@ -257,5 +266,5 @@ def loops_record(graph: AnchorGraph, anchor_open: np.ndarray, n: int):
         anchor_box_open=np.asarray(anchor_open, float).reshape(-1, 3, 2), sweeps=int(graph.sweeps))
 
 
-__all__ = ["AnchorGraph", "LoopConstraint", "contract_graph", "chain_prior", "free_extent", "loop_prior",
-           "near_free", "width", "heading", "loops_record", "KIND_CHAIN", "KIND_LOOP", "math"]
+__all__ = ["AnchorGraph", "LoopConstraint", "contract_graph", "chain_prior", "free_extent",
+           "loop_priors", "near_free", "width", "heading", "loops_record", "KIND_CHAIN", "KIND_LOOP", "math"]

@@ -39,7 +39,7 @@ PAVE_BUDGET = 200_000
 PAVE_LEAVES = 4096
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def pave_kernel(prior, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_rel, r_alpha, cones, q, stride, W, n_w, S, m,
                 wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref, fine, reach, budget,
                 leaves):

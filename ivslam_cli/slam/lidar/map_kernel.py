@@ -494,7 +494,7 @@ def _traverse_grown(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_re
             cand_f = _grown(cand_f)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min, angle_inc,
                boxes, order, r_abs, r_rel, r_alpha, eps, exact, write, is_old, scan_stats, fill=True):
     """Process scans ``order`` (in that order) from sensor boxes ``boxes`` (S, 6): the same map,

@@ -104,7 +104,7 @@ def covered_free(f, a0, inc, bl, bh, rho_h):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def build_window(cells, coords, n, wx0, wy0, nx, ny, S):
     """Summed-area table ``S`` ((nx + 1) · (ny + 1), int32) of the cells *not* proven free over
     the window of cells ``[wx0, wx0 + nx) × [wy0, wy0 + ny)`` (cells of no tile are unknown):
@@ -165,7 +165,7 @@ def _rotated_region(ccx, ccy, cc, sc, ca, sa, rl, rh, d):
     return ccx + am * ux, ccy + am * uy, ux, uy, ah, ac, hx, hy
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def witness_segments(ranges, valid, a0, inc, box, mx, my, myaw, r_abs, r_rel, r_alpha, stride, out):
     """Rectangles ``out`` (k, 6: centre x, y, axis x, y, half-length, half-width) holding the end
     points of the valid beams (every ``stride``-th) of a scan taken from robot box ``box`` (6,)
@@ -454,7 +454,7 @@ def beam_table(ranges, valid, a0, inc, r_abs, r_rel, stride):
     return beam_rl, beam_rh, beam_ca, beam_sa, free, n_beams
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def bound_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_rel, r_alpha, cones, q, stride,
                  W, n_w, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref, fine,
                  reach, max_nodes, max_slices, kept):

@@ -9,6 +9,7 @@ guarantees are per submap (P_EMPTY proven in the anchor's frame) and per global 
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from ivslam_cli.logs.model import Scans
 from ivslam_cli.results.model import CELL_EMPTY, CELL_OBSTACLE, CELL_UNKNOWN, GRID_MOSAIC, LogOddsGrid, MapGrid, Submaps
@@ -52,47 +53,84 @@ def _centre_transform(box: np.ndarray) -> tuple[float, float, float, float]:
     return float(c[0]), float(c[1]), float(np.cos(c[2])), float(np.sin(c[2]))
 
 
+@njit(cache=True, inline="always")
+def _cell(st, v, use_values, unknown):
+    return st != unknown or (use_values and v != 0)
+
+
+@njit(cache=True)
+def _extent(state, values, use_values, origin, centre, eps, unknown, ext):
+    """``ext`` (i0, i1, j0, j1) grown by the cells of one submap (``state``, ``values``: its grids)
+    that are not ``unknown`` (or, with ``use_values``, have a log-odds value), placed at its
+    anchor's box centre ``centre`` (x, y, cos θ, sin θ; nearest cell)."""
+    ax, ay, co, si = centre[0], centre[1], centre[2], centre[3]
+    for r in range(state.shape[0]):
+        y = origin[1] + (r + 0.5) * eps
+        for c in range(state.shape[1]):
+            if _cell(state[r, c], values[r, c] if use_values else 0.0, use_values, unknown):
+                x = origin[0] + (c + 0.5) * eps
+                i = np.int64(np.floor((ax + co * x - si * y) / eps))
+                j = np.int64(np.floor((ay + si * x + co * y) / eps))
+                ext[0], ext[1], ext[2], ext[3] = min(ext[0], i), max(ext[1], i), min(ext[2], j), max(ext[3], j)
+
+
+@njit(cache=True)
+def _accumulate(state, values, use_values, origin, centre, eps, unknown, empty, obstacle, i0, j0, n_free, n_obst,
+                value):
+    """The cells :func:`_extent` places, counted into the mosaic (origin cell ``i0``, ``j0``):
+    free and obstacle states, and the sum of the log-odds values."""
+    ax, ay, co, si = centre[0], centre[1], centre[2], centre[3]
+    for r in range(state.shape[0]):
+        y = origin[1] + (r + 0.5) * eps
+        for c in range(state.shape[1]):
+            st = state[r, c]
+            if _cell(st, values[r, c] if use_values else 0.0, use_values, unknown):
+                x = origin[0] + (c + 0.5) * eps
+                i = np.int64(np.floor((ax + co * x - si * y) / eps)) - i0
+                j = np.int64(np.floor((ay + si * x + co * y) / eps)) - j0
+                if st == empty:
+                    n_free[j, i] += 1
+                elif st == obstacle:
+                    n_obst[j, i] += 1
+                if use_values:
+                    value[j, i] += np.float64(values[r, c])
+
+
 def mosaic(sm: Submaps, logodds: list[LogOddsGrid] | None = None) -> tuple[MapGrid, LogOddsGrid | None]:
     """The mosaic of the submaps' states (and of their log-odds values, summed where submaps
     overlap) on one grid of the submaps' resolution; where submaps disagree on a cell, the state
     most of them give is drawn (obstacle on a tie)."""
     eps = float(sm.resolution)
-    pts, states, vals = [], [], []
+    use = logodds is not None
+    none = np.zeros((1, 1), np.float32)
+    subs = []
+    ext = np.array([np.iinfo(np.int64).max, np.iinfo(np.int64).min] * 2, np.int64)
     for m in range(len(sm)):
         g = sm.grid(m)
-        h, w = g.shape
-        if h == 0 or w == 0:
+        if g.state.size == 0:
             continue
-        r, c = np.nonzero(g.state != CELL_UNKNOWN) if logodds is None else np.nonzero(
-            (g.state != CELL_UNKNOWN) | (logodds[m].value != 0))
-        x = g.origin[0] + (c + 0.5) * eps
-        y = g.origin[1] + (r + 0.5) * eps
-        ax, ay, co, si = _centre_transform(sm.anchor_box[m])
-        pts.append(np.column_stack([ax + co * x - si * y, ay + si * x + co * y]))
-        states.append(g.state[r, c])
-        if logodds is not None:
-            vals.append(logodds[m].value[r, c])
-    if not pts:
+        v = logodds[m].value if use else none
+        c = np.array(_centre_transform(sm.anchor_box[m]), float)
+        o = np.ascontiguousarray(g.origin, float)
+        subs.append((g.state, v, o, c))
+        _extent(g.state, v, use, o, c, eps, CELL_UNKNOWN, ext)
+    i0, i1, j0, j1 = (int(x) for x in ext)
+    if i0 > i1:
         empty = MapGrid(origin=np.zeros(2), resolution=eps, state=np.zeros((0, 0), np.uint8), frame=GRID_MOSAIC)
         lo = None if logodds is None else LogOddsGrid(np.zeros((0, 0), np.float32), *_params(logodds))
         return empty, lo
-    p = np.concatenate(pts)
-    st = np.concatenate(states)
-    ij = np.floor(p / eps).astype(np.int64)
-    i0, j0 = ij.min(axis=0)
-    i1, j1 = ij.max(axis=0)
-    shape = (int(j1 - j0 + 1), int(i1 - i0 + 1))
+    shape = (j1 - j0 + 1, i1 - i0 + 1)
+    n_free = np.zeros(shape, np.int64)
+    n_obst = np.zeros(shape, np.int64)
+    v = np.zeros(shape)
+    for st, val, o, c in subs:
+        _accumulate(st, val, use, o, c, eps, CELL_UNKNOWN, CELL_EMPTY, CELL_OBSTACLE, i0, j0, n_free, n_obst, v)
     state = np.zeros(shape, np.uint8)
-    flat = (ij[:, 1] - j0) * shape[1] + (ij[:, 0] - i0)
-    n_cells = shape[0] * shape[1]
-    n_free = np.bincount(flat[st == CELL_EMPTY], minlength=n_cells).reshape(shape)
-    n_obst = np.bincount(flat[st == CELL_OBSTACLE], minlength=n_cells).reshape(shape)
     state[n_free > 0] = CELL_EMPTY  # where the submaps disagree, the majority is drawn
     state[(n_obst > 0) & (n_obst >= n_free)] = CELL_OBSTACLE
     grid = MapGrid(origin=np.array([i0 * eps, j0 * eps], float), resolution=eps, state=state, frame=GRID_MOSAIC)
     if logodds is None:
         return grid, None
-    v = np.bincount(flat, weights=np.concatenate(vals).astype(np.float64), minlength=n_cells).reshape(shape)
     l_occ, l_free, l_min, l_max = _params(logodds)[:4]
     lo = LogOddsGrid(value=np.clip(v, l_min, l_max).astype(np.float32), l_occ=l_occ, l_free=l_free, l_min=l_min,
                      l_max=l_max, scans=int(sum(x.scans for x in logodds)), beams=int(sum(x.beams for x in logodds)))

@@ -70,6 +70,7 @@ class Params:
     loop_candidates: int = 2
     loop_boxes: int = 8000
     loop_stride: int = 1
+    threads: int = 0
 
     @property
     def tracking(self) -> bool:
@@ -104,5 +105,5 @@ class Params:
             loop_window=tuple(float(v) for v in cfg["lidar.loop_window"]),
             loop_wide=float(cfg["lidar.loop_wide"]),
             loop_candidates=int(cfg["lidar.loop_candidates"]), loop_boxes=int(cfg["lidar.loop_boxes"]),
-            loop_stride=int(cfg["lidar.loop_stride"]),
+            loop_stride=int(cfg["lidar.loop_stride"]), threads=int(cfg["lidar.threads"]),
         )

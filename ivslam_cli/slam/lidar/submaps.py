@@ -34,6 +34,9 @@ global box the true pose, and each submap's P_EMPTY is free in its anchor's fram
 from __future__ import annotations
 
 import math
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -187,80 +190,220 @@ def _open_chain(graph: L.AnchorGraph, submaps, predicted: np.ndarray) -> np.ndar
     return out
 
 
-def _search_loops(j: int, scan: int, gb: np.ndarray, submaps, active, graph: L.AnchorGraph, matcher, params,
+def _search_loops(j: int, scan: int, gb: np.ndarray, submaps, active, graph: L.AnchorGraph, track, params,
                   reach: float) -> bool:
-    """Match scan row ``j`` (global box ``gb``) against the older submaps it may be in; add the
-    loop edges found. Returns True when an edge was added."""
+    """Match scan row ``j`` (global box ``gb``) against the older submaps it may be in (in
+    parallel on ``track``'s threads); add the loop edges found, in the order of the candidates.
+    Returns True when an edge was added."""
     newest = active[-1]
     h = newest.index
     r_h = newest.rel[-1]
     chain = graph.chain(h + 1)
     wx, wt = params.loop_window
     act = {s.index for s in active}
+    n_old = max(h - 1, 0)
+    priors = np.empty((n_old, 3, 2))
+    met = np.zeros(n_old, bool)
+    L.loop_priors(_anchor_boxes(submaps[:n_old]).reshape(-1, 3, 2), np.ascontiguousarray(gb, float).reshape(3, 2),
+                  chain, h, np.ascontiguousarray(r_h, float).reshape(3, 2), L.SLICES, max(wt, 1e-9) * 4, priors, met)
     cands = []
-    for s in submaps[: max(h - 1, 0)]:
-        if s.index in act or s.extent is None:
+    for s in submaps[:n_old]:
+        if s.index in act or s.extent is None or not met[s.index]:
             continue
-        prior = L.loop_prior(s.G, gb, chain, s.index, h, r_h, max(wt, 1e-9) * 4)
-        if prior is None:
-            continue
+        prior = priors[s.index].reshape(6).copy()
         narrow = L.width(prior) <= wx and L.heading(prior) <= wt
         if not (narrow or L.width(prior) <= params.loop_wide) or not L.near_free(prior, s.extent, 0.0):
             continue
         cands.append((-(h - s.index), L.width(prior) + reach * L.heading(prior), s, prior, narrow))
     cands.sort(key=lambda c: (c[0], c[1]))  # the longest chain first: where a loop tells the most
     added = False
-    refs_of = lambda s: [(s.anchor_scan, np.zeros(6))]  # noqa: E731
-    for _, _, s, prior, narrow in cands[: params.loop_candidates]:
-        roots = prior[None, :]
-        nt = 0
-        if not narrow:  # a wide prior: pave it on every n-th beam first, the kept leaves are the roots
-            roots, nt = pave(matcher, scan, prior, s.tmap, refs_of(s), PAVE_STRIDE, PAVE_LEAF, PAVE_BUDGET,
-                             PAVE_LEAVES)
+    for (_, _, s, prior, narrow), (paved, pave_nt, roots, box, nb, nt) in zip(
+            cands[: params.loop_candidates],
+            track.map(lambda c: _loop_match(track.matcher(), scan, c[2], c[3], c[4], params, reach),
+                      cands[: params.loop_candidates])):
+        if paved:
             graph.paved += 1
-            graph.pave_tests += nt
-            if roots is None:
-                graph.pave_incomplete += 1
-                continue
-            if roots.shape[0] == 0:
-                graph.loops.append(L.LoopConstraint(j, s.index, h, prior, np.full(6, np.nan),
-                                                    matcher.last_beams, nt, True))
-                continue
-        union, ok, nt2 = matcher.match(scan, roots, s.tmap, refs_of(s), budget=params.loop_boxes,
-                                       stride=params.loop_stride)
-        nt += nt2
-        nb = matcher.last_beams
-        # the kept set is a sound prior for the same search: repeat while it shrinks
-        for _ in range(3):
-            if not ok:
-                break
-            w0 = L.width(hull(union)) + reach * L.heading(hull(union))
-            u2, ok2, nt2 = matcher.match(scan, union, s.tmap, refs_of(s), budget=params.loop_boxes,
-                                      stride=params.loop_stride)
-            nt += nt2
-            if not ok2:
-                ok = False
-                break
-            w1 = L.width(hull(u2)) + reach * L.heading(hull(u2))
-            union = u2
-            if not w1 < 0.8 * w0:
-                break
-        if not ok:
-            graph.loops.append(L.LoopConstraint(j, s.index, h, prior, np.full(6, np.nan), nb, nt, True))
+            graph.pave_tests += pave_nt
+        if roots is None:
+            graph.pave_incomplete += 1
             continue
-        hl = hull(union)
-        lo = np.maximum(hl[0::2], prior[0::2])
-        hi = np.minimum(hl[1::2], prior[1::2])
-        if not np.all(lo <= hi):
-            graph.loops.append(L.LoopConstraint(j, s.index, h, prior, np.full(6, np.nan), nb, nt, True))
+        empty = box is None
+        graph.loops.append(L.LoopConstraint(j, s.index, h, prior, np.full(6, np.nan) if empty else box, nb, nt,
+                                            empty))
+        if empty:
             continue
-        box = np.column_stack([lo, hi]).reshape(6)
-        graph.loops.append(L.LoopConstraint(j, s.index, h, prior, box, nb, nt, False))
         for t in active:
             if t.rows and t.rows[-1] == j:
                 graph.add_member_pair(s.index, box, t.index, t.rel[-1], L.KIND_LOOP)
         added = True
     return added
+
+
+def _loop_match(matcher, scan: int, s: Submap, prior: np.ndarray, narrow: bool, params: Params, reach: float):
+    """Scan ``scan`` matched against old submap ``s`` over ``prior`` (a wide prior paved first):
+    ``(paved, paving_tests, roots, box, beams, tested)`` — ``roots`` None when the paving ran out
+    of budget (no constraint), ``box`` None when no pose of the prior agrees (an empty
+    constraint); ``tested`` counts the paving's tests too."""
+    refs = [(s.anchor_scan, np.zeros(6))]
+    roots = prior[None, :]
+    nt = 0
+    if not narrow:  # a wide prior: pave it on every n-th beam first, the kept leaves are the roots
+        roots, nt = pave(matcher, scan, prior, s.tmap, refs, PAVE_STRIDE, PAVE_LEAF, PAVE_BUDGET, PAVE_LEAVES)
+        if roots is None or roots.shape[0] == 0:
+            return True, nt, roots, None, matcher.last_beams, nt
+    pave_nt = nt
+    union, ok, nt2 = matcher.match(scan, roots, s.tmap, refs, budget=params.loop_boxes, stride=params.loop_stride)
+    nt += nt2
+    nb = matcher.last_beams
+    # the kept set is a sound prior for the same search: repeat while it shrinks
+    for _ in range(3):
+        if not ok:
+            break
+        w0 = L.width(hull(union)) + reach * L.heading(hull(union))
+        u2, ok2, nt2 = matcher.match(scan, union, s.tmap, refs, budget=params.loop_boxes, stride=params.loop_stride)
+        nt += nt2
+        if not ok2:
+            ok = False
+            break
+        w1 = L.width(hull(u2)) + reach * L.heading(hull(u2))
+        union = u2
+        if not w1 < 0.8 * w0:
+            break
+    if not ok:
+        return not narrow, pave_nt, roots, None, nb, nt
+    hl = hull(union)
+    lo = np.maximum(hl[0::2], prior[0::2])
+    hi = np.minimum(hl[1::2], prior[1::2])
+    if not np.all(lo <= hi):
+        return not narrow, pave_nt, roots, None, nb, nt
+    return not narrow, pave_nt, roots, np.column_stack([lo, hi]).reshape(6), nb, nt
+
+
+@dataclass
+class _Tracked:
+    """What tracking one scan in one submap found (the caller records it, in submap order)."""
+
+    tested: int = 0
+    q_relaxed: bool = False
+    relocalised: bool = False
+    contradicted: bool = False
+    contracted: bool = False
+    res: object = None  # the map update's result when the scan was mapped into the submap
+
+
+class _Track:
+    """The per-scan work in each active submap — dead reckoning in its frame, the match against
+    it, the map update — which touches nothing but that submap: the submaps of a scan are
+    tracked in parallel threads (the kernels release the GIL), with the same results as one
+    after the other. Each thread keeps its own matcher and buffers."""
+
+    def __init__(self, params: Params, scans: Scans, m, used: np.ndarray, extent, path, threads: int) -> None:
+        self.p, self.scans, self.m, self.used, self.extent, self.path = params, scans, m, used, extent, path
+        self.local = threading.local()
+        self.pool = ThreadPoolExecutor(max_workers=threads) if threads > 1 else None
+
+    def close(self) -> None:
+        if self.pool is not None:
+            self.pool.shutdown()
+
+    def _buffers(self):
+        b = getattr(self.local, "b", None)
+        if b is None:
+            b = self.local.b = (Matcher(self.p, self.scans), np.zeros((len(self.scans), 6)), np.zeros(1, np.int64))
+        return b
+
+    def matcher(self) -> Matcher:
+        """This thread's matcher."""
+        return self._buffers()[0]
+
+    def map(self, f, items: list) -> list:
+        """``[f(x) for x in items]``, in parallel when it can."""
+        if self.pool is None or len(items) < 2:
+            return [f(x) for x in items]
+        return list(self.pool.map(f, items))
+
+    def one(self, s: Submap, j: int, k: int, scan: int, rp: float, rt: float) -> tuple[np.ndarray, _Tracked]:
+        """Scan row ``j`` (node ``k``) in submap ``s``: its relative box and what was found."""
+        params, m, used = self.p, self.m, self.used
+        matcher, all_boxes, one = self._buffers()
+        out = _Tracked()
+        if s.anchor_row == j:
+            r = np.zeros(6)  # the frame is the anchor's pose
+        else:
+            r = _relative_box(s, m, j, k)
+            if params.contract and np.all(np.isfinite(r)):
+                roots = r[None, :]
+                if s.union is not None and s.union_row >= 0:
+                    jp = s.union_row
+                    kp = int(m.node[jp])
+                    prop = np.empty_like(s.union)
+                    ok = propagate_boxes(s.P[kp - s.k0], s.union, m.reach[jp], m.kind[s.k0:], m.U[s.k0:],
+                                         kp - s.k0, k - s.k0, m.reach[j], prop)
+                    prop = prop[ok]
+                    if prop.shape[0]:
+                        lo = np.maximum(prop[:, 0::2], r[0::2])
+                        hi = np.minimum(prop[:, 1::2], r[1::2])
+                        good = np.all(lo <= hi, axis=1)
+                        if good.any():
+                            roots = np.empty((int(good.sum()), 6))
+                            roots[:, 0::2], roots[:, 1::2] = lo[good], hi[good]
+                refs = [(s.anchor_scan, np.zeros(6))]
+                if s.last_row >= 0 and s.last_row != s.anchor_row:
+                    refs.append((int(used[s.last_row]), s.last_box))
+                union, ok, nt = matcher.match(scan, roots, s.tmap, refs)
+                out.tested += nt
+                reloc = False
+                if not ok and params.q_retry > params.q_beams:
+                    # more than q beams contradict every predicted pose: people, glass, mixed
+                    # returns? match again allowing q_retry beams before doubting the motion
+                    union, ok, nt = matcher.match(scan, roots, s.tmap, refs, q=params.q_retry)
+                    out.tested += nt
+                    out.q_relaxed = bool(ok)
+                if not ok and params.relocalise[0] > 0:
+                    # no pose of the prediction agrees with the submap: the motion step broke
+                    # its bounds (an odometry jump)? search the relocalisation window around it
+                    wx, wt = params.relocalise
+                    wide = r + np.array([-wx, wx, -wx, wx, -wt, wt])
+                    union, ok, nt = matcher.match(scan, wide[None, :], s.tmap, refs)
+                    out.tested += nt
+                    if ok:
+                        reloc = out.relocalised = True
+                        r = wide
+                if not ok:
+                    out.contradicted = True
+                    s.union = r[None, :].copy()
+                else:
+                    s.union = union
+                    h = hull(union)
+                    lo = np.maximum(h[0::2], r[0::2])
+                    hi = np.minimum(h[1::2], r[1::2])
+                    if np.all(lo <= hi) and not np.array_equal(np.column_stack([lo, hi]).reshape(6), r):
+                        r = np.column_stack([lo, hi]).reshape(6)
+                        out.contracted = True
+                        if reloc:  # the trajectory restarts from the relocalised box
+                            _reset_node(s.P, k - s.k0, r, rp, rt)
+                        else:
+                            meet_node(s.P, k - s.k0, r, rp, rt)
+                s.union_row = j
+        # map the scan into the submap
+        if params.max_pose_width <= 0 or _width(r) <= params.max_pose_width:
+            check_extent(r, used[j:j + 1], self.extent, self.path)
+            all_boxes[scan] = r
+            one[0] = scan
+            out.res = update_map(s.tmap, self.scans, all_boxes, params.beams, order=one)
+            s.mapped.append(j)
+            s.last_row = j
+            s.last_box = r.copy()
+        return r, out
+
+
+def _threads(params: Params) -> int:
+    if params.threads > 0:
+        return params.threads
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
 
 
 def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> SubmapTracking:
@@ -287,7 +430,7 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
     is_old = np.zeros(scans.ranges.shape[0], bool)
     all_boxes = np.zeros((len(scans), 6))
     one = np.zeros(1, np.int64)
-    matcher = Matcher(params, scans)
+    track = _Track(params, scans, m, used, extent, path, _threads(params))
     g = np.empty(6)
     met = np.empty(6)
     tested = 0
@@ -299,173 +442,117 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
     graph = L.AnchorGraph()
     Pdr = Pg.copy()  # the dead reckoning alone (no contraction reaches it): the open-loop reference
     loops_on = bool(params.loop_closure and params.contract)
-    for j in range(S):
-        if progress is not None:
-            progress(j / S, f"scan {j}/{S}")
-        k = int(m.node[j])
-        scan = int(used[j])
-        rp, rt = float(m.reach[j, 0]), float(m.reach[j, 1])
-        # the global dead-reckoned box
-        propagate(Pg, m.kind, m.U, events, kg_prev, k)
-        kg_prev = k
-        gb = np.empty((1, 6))
-        widen_boxes(Pg, m.node[j:j + 1], m.reach[j:j + 1], gb)
-        gb = gb[0]
-        predicted[j] = gb
-        if not submaps:  # the first scan anchors the first submap: its frame is the first pose's
-            s0 = _new_submap(0, j, scan, k, gb, n_nodes, m.reach[j], params.eps)
-            submaps.append(s0)
-            active.append(s0)
-        for s in list(active):
-            if s.anchor_row == j:
-                r = np.zeros(6)  # the frame is the anchor's pose
+    try:
+        for j in range(S):
+            if progress is not None:
+                progress(j / S, f"scan {j}/{S}")
+            k = int(m.node[j])
+            scan = int(used[j])
+            rp, rt = float(m.reach[j, 0]), float(m.reach[j, 1])
+            # the global dead-reckoned box
+            propagate(Pg, m.kind, m.U, events, kg_prev, k)
+            kg_prev = k
+            gb = np.empty((1, 6))
+            widen_boxes(Pg, m.node[j:j + 1], m.reach[j:j + 1], gb)
+            gb = gb[0]
+            predicted[j] = gb
+            if not submaps:  # the first scan anchors the first submap: its frame is the first pose's
+                s0 = _new_submap(0, j, scan, k, gb, n_nodes, m.reach[j], params.eps)
+                submaps.append(s0)
+                active.append(s0)
+            for s, (r, out) in zip(active, track.map(lambda s: track.one(s, j, k, scan, rp, rt), list(active))):
+                tested += out.tested
+                if out.q_relaxed:
+                    q_relaxed.append((j, s.index))
+                if out.relocalised:
+                    relocalised.append((j, s.index))
+                if out.contradicted:
+                    contradicted.append((j, s.index, "submap_match"))
+                if out.contracted:
+                    contracted[j] = True
+                s.rows.append(j)
+                s.rel.append(r.copy())
+                # global: anchor box ⊕ relative box, met with the global box
+                compose(s.G.reshape(3, 2), r.reshape(3, 2), 1, g.reshape(3, 2))
+                if meet(gb.reshape(3, 2), g.reshape(3, 2), met.reshape(3, 2)):
+                    gb = met.copy()
+                elif relocalised and relocalised[-1][0] == j:
+                    gb = g.copy()  # the global dead reckoning broke with the relocalised motion step
+                    broken_global = True
+                else:
+                    compose_empty.append((j, s.index, "relative"))
+                if out.res is not None:
+                    mapped[j] = True
+                    if s is active[-1]:
+                        is_old[scans.offsets[scan]:scans.offsets[scan + 1]] = out.res.is_old[scans.offsets[scan]:
+                                                                                            scans.offsets[scan + 1]]
+                        stats[scan] = out.res.stats[scan]
+            newest = active[-1]
+            home[j] = newest.index
+            relative[j] = newest.rel[-1]
+            # the scan in two submaps: an edge between their anchors
+            both = [t for t in active if t.rows and t.rows[-1] == j]
+            for a in range(len(both) - 1):
+                for b in range(a + 1, len(both)):
+                    graph.add_member_pair(both[a].index, both[a].rel[-1], both[b].index, both[b].rel[-1])
+            if loops_on and j % params.loop_every == 0 and len(submaps) > 2 and np.all(np.isfinite(gb)):
+                reach_j = float(np.median(scans.ranges[scans.offsets[scan]:scans.offsets[scan + 1]]))
+                n_loops = len(graph.loops)
+                if _search_loops(j, scan, gb, submaps, active, graph, track, params, reach_j):
+                    G = _anchor_boxes(submaps)
+                    graph.contract(G)
+                    _set_anchor_boxes(submaps, G)
+                    for t in both:
+                        compose(t.G.reshape(3, 2), t.rel[-1].reshape(3, 2), 1, g.reshape(3, 2))
+                        if meet(gb.reshape(3, 2), g.reshape(3, 2), met.reshape(3, 2)):
+                            gb = met.copy()
+                        else:
+                            compose_empty.append((j, t.index, "relative"))
+                    # the scan's own loop constraints, from the old anchors directly (not through the
+                    # anchor edge, which composes its relative box twice)
+                    gb = _meet_loops(graph.loops[n_loops:], submaps, gb, compose_empty)
+            if broken_global:
+                _reset_node(Pg, k, gb, rp, rt)
+                broken_global = False
             else:
-                r = _relative_box(s, m, j, k)
-                if params.contract and np.all(np.isfinite(r)):
-                    roots = r[None, :]
-                    if s.union is not None and s.union_row >= 0:
-                        jp = s.union_row
-                        kp = int(m.node[jp])
-                        prop = np.empty_like(s.union)
-                        ok = propagate_boxes(s.P[kp - s.k0], s.union, m.reach[jp], m.kind[s.k0:], m.U[s.k0:],
-                                             kp - s.k0, k - s.k0, m.reach[j], prop)
-                        prop = prop[ok]
-                        if prop.shape[0]:
-                            lo = np.maximum(prop[:, 0::2], r[0::2])
-                            hi = np.minimum(prop[:, 1::2], r[1::2])
-                            good = np.all(lo <= hi, axis=1)
-                            if good.any():
-                                roots = np.empty((int(good.sum()), 6))
-                                roots[:, 0::2], roots[:, 1::2] = lo[good], hi[good]
-                    refs = [(s.anchor_scan, np.zeros(6))]
-                    if s.last_row >= 0 and s.last_row != s.anchor_row:
-                        refs.append((int(used[s.last_row]), s.last_box))
-                    union, ok, nt = matcher.match(scan, roots, s.tmap, refs)
-                    tested += nt
-                    reloc = False
-                    if not ok and params.q_retry > params.q_beams:
-                        # more than q beams contradict every predicted pose: people, glass, mixed
-                        # returns? match again allowing q_retry beams before doubting the motion
-                        union, ok, nt = matcher.match(scan, roots, s.tmap, refs, q=params.q_retry)
-                        tested += nt
-                        if ok:
-                            q_relaxed.append((j, s.index))
-                    if not ok and params.relocalise[0] > 0:
-                        # no pose of the prediction agrees with the submap: the motion step broke
-                        # its bounds (an odometry jump)? search the relocalisation window around it
-                        wx, wt = params.relocalise
-                        wide = r + np.array([-wx, wx, -wx, wx, -wt, wt])
-                        union, ok, nt = matcher.match(scan, wide[None, :], s.tmap, refs)
-                        tested += nt
-                        if ok:
-                            reloc = True
-                            relocalised.append((j, s.index))
-                            r = wide
-                    if not ok:
-                        contradicted.append((j, s.index, "submap_match"))
-                        s.union = r[None, :].copy()
-                    else:
-                        s.union = union
-                        h = hull(union)
-                        lo = np.maximum(h[0::2], r[0::2])
-                        hi = np.minimum(h[1::2], r[1::2])
-                        if np.all(lo <= hi) and not np.array_equal(np.column_stack([lo, hi]).reshape(6), r):
-                            r = np.column_stack([lo, hi]).reshape(6)
-                            contracted[j] = True
-                            if reloc:  # the trajectory restarts from the relocalised box
-                                _reset_node(s.P, k - s.k0, r, rp, rt)
-                            else:
-                                meet_node(s.P, k - s.k0, r, rp, rt)
-                    s.union_row = j
-            s.rows.append(j)
-            s.rel.append(r.copy())
-            # global: anchor box ⊕ relative box, met with the global box
-            compose(s.G.reshape(3, 2), r.reshape(3, 2), 1, g.reshape(3, 2))
-            if meet(gb.reshape(3, 2), g.reshape(3, 2), met.reshape(3, 2)):
-                gb = met.copy()
-            elif relocalised and relocalised[-1][0] == j:
-                gb = g.copy()  # the global dead reckoning broke with the relocalised motion step
-                broken_global = True
-            else:
-                compose_empty.append((j, s.index, "relative"))
-            # map the scan into the submap
-            if params.max_pose_width <= 0 or _width(r) <= params.max_pose_width:
-                check_extent(r, used[j:j + 1], extent, path)
-                all_boxes[scan] = r
+                meet_node(Pg, k, gb, rp, rt)
+            glob[j] = gb
+            # travel along the newest submap's relative centres (for the overlap)
+            c = _centre(relative[j])
+            if last is not None and np.all(np.isfinite(c)):
+                travel += math.hypot(c[0] - last[0], c[1] - last[1])
+            last = c if newest.anchor_row != j else (0.0, 0.0, 0.0)
+            # overlap ends
+            for s in list(active[:-1]):
+                if travel >= s.closes_at:
+                    active.remove(s)
+                    s.closed = True
+                    if loops_on:
+                        s.extent = L.free_extent(s.tmap)
+            # a new submap?
+            r = relative[j]
+            if j + 1 < S and newest.anchor_row != j and np.all(np.isfinite(r)) and np.all(np.isfinite(gb)) and (
+                    math.hypot(c[0], c[1]) >= params.submap_distance or abs(c[2]) >= params.submap_turn
+                    or _width(r) >= params.submap_width):
+                newest.closes_at = travel + params.submap_overlap
+                s_new = _new_submap(len(submaps), j, scan, k, gb, n_nodes, m.reach[j], params.eps)
+                # the new anchor is mapped into its own submap at once (exact pose in its frame)
+                all_boxes[scan] = 0.0
                 one[0] = scan
-                res = update_map(s.tmap, scans, all_boxes, bounds, order=one)
-                s.mapped.append(j)
-                s.last_row = j
-                s.last_box = r.copy()
-                mapped[j] = True
-                if s is active[-1]:
-                    is_old[scans.offsets[scan]:scans.offsets[scan + 1]] = res.is_old[scans.offsets[scan]:
-                                                                                    scans.offsets[scan + 1]]
-                    stats[scan] = res.stats[scan]
-        newest = active[-1]
-        home[j] = newest.index
-        relative[j] = newest.rel[-1]
-        # the scan in two submaps: an edge between their anchors
-        both = [t for t in active if t.rows and t.rows[-1] == j]
-        for a in range(len(both) - 1):
-            for b in range(a + 1, len(both)):
-                graph.add_member_pair(both[a].index, both[a].rel[-1], both[b].index, both[b].rel[-1])
-        if loops_on and j % params.loop_every == 0 and len(submaps) > 2 and np.all(np.isfinite(gb)):
-            reach_j = float(np.median(scans.ranges[scans.offsets[scan]:scans.offsets[scan + 1]]))
-            n_loops = len(graph.loops)
-            if _search_loops(j, scan, gb, submaps, active, graph, matcher, params, reach_j):
-                G = _anchor_boxes(submaps)
-                graph.contract(G)
-                _set_anchor_boxes(submaps, G)
-                for t in both:
-                    compose(t.G.reshape(3, 2), t.rel[-1].reshape(3, 2), 1, g.reshape(3, 2))
-                    if meet(gb.reshape(3, 2), g.reshape(3, 2), met.reshape(3, 2)):
-                        gb = met.copy()
-                    else:
-                        compose_empty.append((j, t.index, "relative"))
-                # the scan's own loop constraints, from the old anchors directly (not through the
-                # anchor edge, which composes its relative box twice)
-                gb = _meet_loops(graph.loops[n_loops:], submaps, gb, compose_empty)
-        if broken_global:
-            _reset_node(Pg, k, gb, rp, rt)
-            broken_global = False
-        else:
-            meet_node(Pg, k, gb, rp, rt)
-        glob[j] = gb
-        # travel along the newest submap's relative centres (for the overlap)
-        c = _centre(relative[j])
-        if last is not None and np.all(np.isfinite(c)):
-            travel += math.hypot(c[0] - last[0], c[1] - last[1])
-        last = c if newest.anchor_row != j else (0.0, 0.0, 0.0)
-        # overlap ends
-        for s in list(active[:-1]):
-            if travel >= s.closes_at:
-                active.remove(s)
-                s.closed = True
-                if loops_on:
-                    s.extent = L.free_extent(s.tmap)
-        # a new submap?
-        r = relative[j]
-        if j + 1 < S and newest.anchor_row != j and np.all(np.isfinite(r)) and np.all(np.isfinite(gb)) and (
-                math.hypot(c[0], c[1]) >= params.submap_distance or abs(c[2]) >= params.submap_turn
-                or _width(r) >= params.submap_width):
-            newest.closes_at = travel + params.submap_overlap
-            s_new = _new_submap(len(submaps), j, scan, k, gb, n_nodes, m.reach[j], params.eps)
-            # the new anchor is mapped into its own submap at once (exact pose in its frame)
-            all_boxes[scan] = 0.0
-            one[0] = scan
-            update_map(s_new.tmap, scans, all_boxes, bounds, order=one)
-            s_new.rows.append(j)
-            s_new.rel.append(np.zeros(6))
-            s_new.mapped.append(j)
-            s_new.last_row = j
-            s_new.last_box = np.zeros(6)
-            for t in active:
-                if t.rows and t.rows[-1] == j:
-                    graph.add_member_pair(t.index, t.rel[-1], s_new.index, np.zeros(6))
-            submaps.append(s_new)
-            active.append(s_new)
-            last = (0.0, 0.0, 0.0)
+                update_map(s_new.tmap, scans, all_boxes, bounds, order=one)
+                s_new.rows.append(j)
+                s_new.rel.append(np.zeros(6))
+                s_new.mapped.append(j)
+                s_new.last_row = j
+                s_new.last_box = np.zeros(6)
+                for t in active:
+                    if t.rows and t.rows[-1] == j:
+                        graph.add_member_pair(t.index, t.rel[-1], s_new.index, np.zeros(6))
+                submaps.append(s_new)
+                active.append(s_new)
+                last = (0.0, 0.0, 0.0)
+    finally:
+        track.close()
     forward = glob.copy()
     # backward passes: in every submap's frame, then globally
     for s in submaps:

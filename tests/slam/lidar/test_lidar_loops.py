@@ -154,3 +154,109 @@ def test_a_loop_scan_is_met_with_the_old_anchor_and_its_loop_constraint():
     out = _meet_loops([LoopConstraint(7, 0, 1, wide, L, 100, 10, False),
                        LoopConstraint(8, 0, 1, wide, np.full(6, np.nan), 100, 10, True)], subs, far.copy(), missed)
     assert np.array_equal(out, far) and missed == [(7, 0, "loop")]
+
+
+def test_threads_give_the_same_result():
+    """lidar.threads: the submaps a scan is tracked in are matched and mapped in parallel; every
+    array of the result is what one thread gives (a loop log: scans in two submaps, loops)."""
+    log, params = _run(3, duration=12.0, overrides={"lidar.threads": 1})
+    one = run(log, params)
+    log, params = _run(3, duration=12.0, overrides={"lidar.threads": 3})
+    three = run(log, params)
+    assert one.stats["loops_found"] > 0 and len(one.submaps.member_row) > len(one.submaps)
+    pairs = [(one.poses.box, three.poses.box), (one.poses.relative, three.poses.relative),
+             (one.submaps.state, three.submaps.state), (one.submaps.member_box, three.submaps.member_box),
+             (one.loops.box, three.loops.box), (one.grid.state, three.grid.state),
+             (one.logodds.value, three.logodds.value), (one.global_map.state, three.global_map.state)]
+    for a, b in pairs:
+        assert a.shape == b.shape and np.array_equal(a, b, equal_nan=True)
+
+
+def _pose(p, q):
+    """``p ⊕ q`` for poses (x, y, θ)."""
+    c, s = np.cos(p[2]), np.sin(p[2])
+    return np.array([p[0] + c * q[0] - s * q[1], p[1] + s * q[0] + c * q[1], p[2] + q[2]])
+
+
+def _inv(p):
+    c, s = np.cos(p[2]), np.sin(p[2])
+    return np.array([-c * p[0] - s * p[1], s * p[0] - c * p[1], -p[2]])
+
+
+def _around(rng, p, w):
+    """A box around ``p``, each side ``w / 10`` to ``w`` from it (far above rounding)."""
+    return np.column_stack([p - rng.uniform(w / 10, w, 3), p + rng.uniform(w / 10, w, 3)])
+
+
+def _in(b, p):
+    t = (p[2] - b[2, 0]) % (2 * np.pi) + b[2, 0]
+    return b[0, 0] <= p[0] <= b[0, 1] and b[1, 0] <= p[1] <= b[1, 1] and t <= b[2, 1]
+
+
+def test_loop_priors_hold_the_true_pose_in_every_old_anchor_frame():
+    """Random anchor chains, boxes around the true poses: each prior holds the scan's true pose in
+    that old anchor's frame, and none is a miss (the truth is in both boxes it meets)."""
+    from ivslam_cli.slam.lidar.loops import SLICES, loop_priors
+
+    rng = np.random.default_rng(7)
+    for _ in range(300):
+        n = int(rng.integers(2, 9))
+        steps = [np.array([rng.uniform(-2, 2), rng.uniform(-2, 2), rng.uniform(-np.pi, np.pi)]) for _ in range(n)]
+        A = [np.array([rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-np.pi, np.pi)])]
+        for k in range(n - 1):
+            A.append(_pose(A[-1], steps[k]))
+        rel = steps[-1]  # the scan in its home anchor h = n - 1
+        scan = _pose(A[-1], rel)
+        w = rng.choice([1e-6, 0.05, 0.5, 3.0])
+        G = np.array([_around(rng, a, w) for a in A])
+        E = np.array([_around(rng, steps[k], w) for k in range(n - 1)])
+        out = np.empty((n - 1, 3, 2))
+        ok = np.zeros(n - 1, bool)
+        loop_priors(G, _around(rng, scan, w), E, n - 1, _around(rng, rel, w), SLICES, float(rng.choice([0.5, 7.0])),
+                    out, ok)
+        assert ok.all()
+        for i in range(n - 1):
+            assert _in(out[i], _pose(_inv(A[i]), scan)), (i, out[i])
+
+
+def test_the_mosaic_places_every_cell_at_its_anchor_box_centre():
+    """The mosaic against its definition, computed cell by cell here: nearest cell of each known
+    cell of each submap moved by its anchor's box centre; majority state, summed log-odds."""
+    from ivslam_cli.results.model import CELL_EMPTY, CELL_OBSTACLE, CELL_UNKNOWN, LogOddsGrid, Submaps
+    from ivslam_cli.slam.lidar.mosaic import mosaic
+
+    rng = np.random.default_rng(3)
+    eps, shapes = 0.05, [(7, 5), (0, 0), (4, 9), (6, 6)]
+    states = [rng.choice([CELL_UNKNOWN, CELL_EMPTY, CELL_OBSTACLE], size=s).astype(np.uint8) for s in shapes]
+    origin = rng.uniform(-1, 1, (len(shapes), 2))
+    ab = np.array([_around(rng, np.array([rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-3, 3)]), 0.2)
+                   for _ in shapes])
+    sm = Submaps(anchor=np.arange(len(shapes)), anchor_box=ab, resolution=eps, origin=origin,
+                 shape=np.array(shapes, np.int64), state=np.concatenate([s.reshape(-1) for s in states]),
+                 member_offsets=np.zeros(len(shapes) + 1, np.int64), member_row=np.zeros(0, np.int64),
+                 member_box=np.zeros((0, 3, 2)), member_mapped=np.zeros(0, bool))
+    vals = [rng.choice([0.0, -0.4, 0.85], size=s).astype(np.float32) for s in shapes]
+    lo = [LogOddsGrid(value=v, l_occ=0.85, l_free=-0.4, l_min=-5.0, l_max=5.0, scans=1, beams=1) for v in vals]
+    grid, lgrid = mosaic(sm, lo)
+    free, obst, val = {}, {}, {}
+    for m, (st, v) in enumerate(zip(states, vals)):
+        c = 0.5 * (ab[m, :, 0] + ab[m, :, 1])
+        for r in range(st.shape[0]):
+            for col in range(st.shape[1]):
+                if st[r, col] == CELL_UNKNOWN and v[r, col] == 0:
+                    continue
+                x, y = origin[m, 0] + (col + 0.5) * eps, origin[m, 1] + (r + 0.5) * eps
+                key = (int(np.floor((c[0] + np.cos(c[2]) * x - np.sin(c[2]) * y) / eps)),
+                       int(np.floor((c[1] + np.sin(c[2]) * x + np.cos(c[2]) * y) / eps)))
+                free[key] = free.get(key, 0) + (st[r, col] == CELL_EMPTY)
+                obst[key] = obst.get(key, 0) + (st[r, col] == CELL_OBSTACLE)
+                val[key] = val.get(key, 0.0) + float(v[r, col])
+    i0, j0 = min(k[0] for k in free), min(k[1] for k in free)
+    assert np.allclose(grid.origin, [i0 * eps, j0 * eps])
+    assert grid.state.shape == (max(k[1] for k in free) - j0 + 1, max(k[0] for k in free) - i0 + 1)
+    for (i, j), nf in free.items():
+        want = CELL_OBSTACLE if obst[(i, j)] > 0 and obst[(i, j)] >= nf else (CELL_EMPTY if nf > 0 else CELL_UNKNOWN)
+        assert grid.state[j - j0, i - i0] == want
+        assert lgrid.value[j - j0, i - i0] == np.float32(np.clip(val[(i, j)], -5, 5))
+    assert np.count_nonzero(grid.state != CELL_UNKNOWN) == sum(
+        1 for k in free if free[k] > 0 or obst[k] > 0)
