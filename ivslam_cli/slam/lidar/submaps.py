@@ -83,6 +83,7 @@ class Submap:
     union_row: int = -1  # ... of which row
     extent: np.ndarray | None = None  # (4,) its proven-free cells' extent once closed (loop candidates)
     closed: bool = False  # no longer tracking
+    pending: object = None  # the anchor's map update, running (a future), until the next scan tracks here
 
 
 @dataclass
@@ -322,9 +323,31 @@ class _Track:
             return [f(x) for x in items]
         return list(self.pool.map(f, items))
 
+    def submit(self, f, *args):
+        """``f(*args)`` on the pool (a future), or at once (None) without one."""
+        if self.pool is None:
+            f(*args)
+            return None
+        return self.pool.submit(f, *args)
+
+    def map_anchor(self, s: Submap) -> None:
+        """The anchor scan mapped into its own submap, at the frame's origin."""
+        _, all_boxes, one = self._buffers()
+        all_boxes[s.anchor_scan] = 0.0
+        one[0] = s.anchor_scan
+        update_map(s.tmap, self.scans, all_boxes, self.p.beams, order=one)
+
+    @staticmethod
+    def settle(s: Submap) -> None:
+        """Wait for ``s``'s pending map update (its errors are raised here)."""
+        if s.pending is not None:
+            s.pending.result()
+            s.pending = None
+
     def one(self, s: Submap, j: int, k: int, scan: int, rp: float, rt: float) -> tuple[np.ndarray, _Tracked]:
         """Scan row ``j`` (node ``k``) in submap ``s``: its relative box and what was found."""
         params, m, used = self.p, self.m, self.used
+        self.settle(s)
         matcher, all_boxes, one = self._buffers()
         out = _Tracked()
         if s.anchor_row == j:
@@ -428,8 +451,6 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
     broken_global = False
     stats = np.zeros((len(scans), 6), np.int64)
     is_old = np.zeros(scans.ranges.shape[0], bool)
-    all_boxes = np.zeros((len(scans), 6))
-    one = np.zeros(1, np.int64)
     track = _Track(params, scans, m, used, extent, path, _threads(params))
     g = np.empty(6)
     met = np.empty(6)
@@ -536,10 +557,9 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                     or _width(r) >= params.submap_width):
                 newest.closes_at = travel + params.submap_overlap
                 s_new = _new_submap(len(submaps), j, scan, k, gb, n_nodes, m.reach[j], params.eps)
-                # the new anchor is mapped into its own submap at once (exact pose in its frame)
-                all_boxes[scan] = 0.0
-                one[0] = scan
-                update_map(s_new.tmap, scans, all_boxes, bounds, order=one)
+                # the new anchor is mapped into its own submap (exact pose in its frame) while the
+                # next scan's other submaps are tracked
+                s_new.pending = track.submit(track.map_anchor, s_new)
                 s_new.rows.append(j)
                 s_new.rel.append(np.zeros(6))
                 s_new.mapped.append(j)
@@ -552,6 +572,8 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                 active.append(s_new)
                 last = (0.0, 0.0, 0.0)
     finally:
+        for s in submaps:
+            track.settle(s)
         track.close()
     forward = glob.copy()
     # backward passes: in every submap's frame, then globally
