@@ -53,7 +53,11 @@ from ivslam_cli.interval.rounding import (
     TWO_PI_HI,
     TWO_PI_LO,
     down,
+    down_pos,
+    down_raw,
     up,
+    up_pos,
+    up_raw,
 )
 
 CHUNK = 256
@@ -79,16 +83,24 @@ def _shrunk(ol, oh, nl, nh):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _dnf(c):
-    """A lower bound of a nonnegative quotient or product rounded to ``c``: ``down(c)``, except
-    that an overflow (``c = +inf``, the real value above ``MAX_FLOAT``) gives ``MAX_FLOAT``
-    (``down`` would give ``-inf``: nothing; this keeps ``t = v / u`` huge when ``u`` is a few
-    subnormals, i.e. ``psi`` at pi/2)."""
-    return MAX_FLOAT if c == INF else down(c)
+    """A lower bound of a nonnegative quotient or product rounded to ``c``, to be taken by
+    ``_mx`` (NaN is ignored there): ``down_pos(c)``, except that an overflow (``c = +inf``, the
+    real value above ``MAX_FLOAT``) gives ``MAX_FLOAT`` (``down`` would give ``-inf``: nothing;
+    this keeps ``t = v / u`` huge when ``u`` is a few subnormals, i.e. ``psi`` at pi/2)."""
+    return MAX_FLOAT if c == INF else down_pos(c)
 
 
 @njit(cache=True, error_model="numpy")
 def _passes(n, L):
-    """One pass over lanes ``0..n-1`` (straight-line code: a SIMD loop)."""
+    """One pass over lanes ``0..n-1`` (straight-line code: a SIMD loop).
+
+    In a lane that stays non-empty every bound of ``u, v, rho, t`` is ``>= 0`` throughout the
+    pass (lower bounds start ``>= 0`` and only grow, an upper bound below its lower bound
+    empties the lane), so the products, quotients and square roots of them are rounded with
+    ``down_pos`` / ``up_pos``; a bound that only enters ``_mx`` / ``_mn`` as the argument whose
+    NaN is ignored takes no NaN guard (``down_raw`` / ``up_raw``, ``_pos`` likewise). The
+    results are those of ``down`` / ``up`` everywhere, bit for bit; an emptied lane's values
+    are never used."""
     C = CHUNK
     for i in range(n):
         a0, b0, c0, d0 = L[UL * C + i], L[UH * C + i], L[VL * C + i], L[VH * C + i]
@@ -97,56 +109,56 @@ def _passes(n, L):
         w0, x0, y0, z0 = L[SYL * C + i], L[SYH * C + i], L[MYL * C + i], L[MYH * C + i]
         sxl, sxh, mxl, mxh, syl, syh, myl, myh = p0, q0, r0, s0, w0, x0, y0, z0
         # u = mx - sx, v = my - sy (frame: both >= 0)
-        a = _mx(a0, down(mxl - sxh))
-        b = _mn(b0, up(mxh - sxl))
-        c = _mx(c0, down(myl - syh))
-        d = _mn(d0, up(myh - syl))
+        a = _mx(a0, down_raw(mxl - sxh))
+        b = _mn(b0, up_raw(mxh - sxl))
+        c = _mx(c0, down_raw(myl - syh))
+        d = _mn(d0, up_raw(myh - syl))
         e, f, g, h = e0, f0, g0, h0
         # v = u t (u, v >= 0, t >= 0; t may be +inf above; 0 / 0 and 0 * inf are NaN: ignored)
         a = _mx(a, _dnf(c / h))
-        b = _mn(b, up(d / g))
+        b = _mn(b, up_pos(d / g))
         g = _mx(g, _dnf(c / b))
-        h = _mn(h, up(d / a))
+        h = _mn(h, up_pos(d / a))
         c = _mx(c, _dnf(a * g))
-        d = _mn(d, up(b * h))
-        # rho^2 = u^2 + v^2
-        u2l, u2h = down(a * a), up(b * b)
-        v2l, v2h = down(c * c), up(d * d)
-        sl = _mx(_mx(down(u2l + v2l), down(e * e)), 0.0)
-        sh = _mn(up(u2h + v2h), up(f * f))
-        e = _mx(e, down(np.sqrt(sl)))
-        f = _mn(f, up(np.sqrt(_mx(sh, 0.0))))
-        u2l = _mx(u2l, down(sl - v2h))
-        u2h = _mn(u2h, up(sh - v2l))
-        v2l = _mx(v2l, down(sl - u2h))
-        v2h = _mn(v2h, up(sh - u2l))
-        a = _mx(a, down(np.sqrt(_mx(u2l, 0.0))))
-        b = _mn(b, up(np.sqrt(_mx(u2h, 0.0))))
-        c = _mx(c, down(np.sqrt(_mx(v2l, 0.0))))
-        d = _mn(d, up(np.sqrt(_mx(v2h, 0.0))))
+        d = _mn(d, up_pos(b * h))
+        # rho^2 = u^2 + v^2 (u2l, v2l and their sum enter _mx first: guarded)
+        u2l, u2h = down(a * a), up_pos(b * b)
+        v2l, v2h = down(c * c), up_pos(d * d)
+        sl = _mx(_mx(down(u2l + v2l), down_pos(e * e)), 0.0)
+        sh = _mn(up_pos(u2h + v2h), up_pos(f * f))
+        e = _mx(e, down_pos(np.sqrt(sl)))
+        f = _mn(f, up_pos(np.sqrt(_mx(sh, 0.0))))
+        u2l = _mx(u2l, down_raw(sl - v2h))
+        u2h = _mn(u2h, up_raw(sh - v2l))
+        v2l = _mx(v2l, down_raw(sl - u2h))
+        v2h = _mn(v2h, up_raw(sh - u2l))
+        a = _mx(a, down_pos(np.sqrt(_mx(u2l, 0.0))))
+        b = _mn(b, up_pos(np.sqrt(_mx(u2h, 0.0))))
+        c = _mx(c, down_pos(np.sqrt(_mx(v2l, 0.0))))
+        d = _mn(d, up_pos(np.sqrt(_mx(v2h, 0.0))))
         # u ∩= rho cos(psi), v ∩= rho sin(psi), cos and sin from t = tan(psi)
         big = h > BIG
         hb = _mn(h, BIG)
         gb = _mn(g, BIG)
-        cos_l = _mx(0.0, down(1.0 / up(np.sqrt(up(1.0 + up(hb * hb))))))
-        sin_h = _mn(1.0, up(hb / down(np.sqrt(down(1.0 + down(hb * hb))))))
+        cos_l = _mx(0.0, down_pos(1.0 / up_pos(np.sqrt(up_pos(1.0 + up_pos(hb * hb))))))
+        sin_h = _mn(1.0, up_pos(hb / down_pos(np.sqrt(down_pos(1.0 + down_pos(hb * hb))))))
         cos_l = 0.0 if big else cos_l
         sin_h = 1.0 if big else sin_h
-        cos_h = _mn(1.0, up(1.0 / down(np.sqrt(down(1.0 + down(gb * gb))))))
-        sin_l = _mx(0.0, down(gb / up(np.sqrt(up(1.0 + up(gb * gb))))))
-        a = _mx(a, down(e * cos_l))
-        b = _mn(b, up(f * cos_h))
-        c = _mx(c, down(e * sin_l))
-        d = _mn(d, up(f * sin_h))
+        cos_h = _mn(1.0, up_pos(1.0 / down_pos(np.sqrt(down_pos(1.0 + down_pos(gb * gb))))))
+        sin_l = _mx(0.0, down_pos(gb / up_pos(np.sqrt(up_pos(1.0 + up_pos(gb * gb))))))
+        a = _mx(a, down_pos(e * cos_l))
+        b = _mn(b, up_pos(f * cos_h))
+        c = _mx(c, down_pos(e * sin_l))
+        d = _mn(d, up_pos(f * sin_h))
         # back to the differences: mx ∩= u + sx, sx ∩= mx - u (y likewise)
-        mxl = _mx(mxl, down(a + sxl))
-        mxh = _mn(mxh, up(b + sxh))
-        sxl = _mx(sxl, down(mxl - b))
-        sxh = _mn(sxh, up(mxh - a))
-        myl = _mx(myl, down(c + syl))
-        myh = _mn(myh, up(d + syh))
-        syl = _mx(syl, down(myl - d))
-        syh = _mn(syh, up(myh - c))
+        mxl = _mx(mxl, down_raw(a + sxl))
+        mxh = _mn(mxh, up_raw(b + sxh))
+        sxl = _mx(sxl, down_raw(mxl - b))
+        sxh = _mn(sxh, up_raw(mxh - a))
+        myl = _mx(myl, down_raw(c + syl))
+        myh = _mn(myh, up_raw(d + syh))
+        syl = _mx(syl, down_raw(myl - d))
+        syh = _mn(syh, up_raw(myh - c))
         L[UL * C + i], L[UH * C + i], L[VL * C + i], L[VH * C + i] = a, b, c, d
         L[RL * C + i], L[RH * C + i], L[TL * C + i], L[TH * C + i] = e, f, g, h
         L[SXL * C + i], L[SXH * C + i], L[MXL * C + i], L[MXH * C + i] = sxl, sxh, mxl, mxh
