@@ -102,11 +102,13 @@ def _dnf(c):
 def _passes(n, L):
     """One pass over lanes ``0..n-1`` (straight-line code: a SIMD loop).
 
-    In a lane that stays non-empty every bound of ``u, v, rho, t`` is ``>= 0`` throughout the
-    pass (lower bounds start ``>= 0`` and only grow, an upper bound below its lower bound
-    empties the lane), so the products, quotients and square roots of them are rounded with
-    ``down_pos`` / ``up_pos``; a bound that only enters ``_mx`` / ``_mn`` as the argument whose
-    NaN is ignored takes no NaN guard (``down_raw`` / ``up_raw``, ``_pos`` likewise). The
+    In a lane that stays non-empty every bound of ``u, v, rho, t`` is ``>= 0`` or ``-0``
+    throughout the pass (lower bounds start so and only grow, an upper bound below its lower
+    bound empties the lane), so their products, sums and square roots are ``>= 0`` or ``±0``
+    and rounded with ``down_pos`` / ``up_pos``. A quotient by ``-0`` is ``-inf``: the upper
+    bounds of quotients keep the ``abs`` (``up_raw``: NaN, ignored, where ``up`` gives
+    ``+inf``); their lower bounds (``_dnf``) give NaN there, ignored too. A bound that only
+    enters ``_mx`` / ``_mn`` as the argument whose NaN is ignored takes no NaN guard. The
     results are those of ``down`` / ``up`` everywhere, bit for bit; an emptied lane's values
     are never used."""
     C = CHUNK
@@ -124,9 +126,9 @@ def _passes(n, L):
         e, f, g, h = e0, f0, g0, h0
         # v = u t (u, v >= 0, t >= 0; t may be +inf above; 0 / 0 and 0 * inf are NaN: ignored)
         a = _mx(a, _dnf(c / h))
-        b = _mn(b, up_pos(d / g))
+        b = _mn(b, up_raw(d / g))
         g = _mx(g, _dnf(c / b))
-        h = _mn(h, up_pos(d / a))
+        h = _mn(h, up_raw(d / a))
         c = _mx(c, _dnf(a * g))
         d = _mn(d, up_pos(b * h))
         # rho^2 = u^2 + v^2 (u2l, v2l and their sum enter _mx first: guarded)
