@@ -79,7 +79,8 @@ UL, UH, VL, VH, RL, RH, TL, TH = 0, 1, 2, 3, 4, 5, 6, 7
 SXL, SXH, MXL, MXH, SYL, SYH, MYL, MYH = 8, 9, 10, 11, 12, 13, 14, 15
 OK = 16  # 1.0 while the lane is non-empty
 PROG = 17  # 1.0 if the last pass shrank some width by RELATIVE_STOP
-ROWS = 18
+ACT = 18  # 1.0 while the lane takes passes (the passes of _passes_live leave the others)
+ROWS = 19
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -98,9 +99,10 @@ def _dnf(c):
     return MAX_FLOAT if c == INF else down_pos(c)
 
 
-@njit(cache=True, error_model="numpy")
-def _passes(n, L):
-    """One pass over lanes ``0..n-1`` (straight-line code: a SIMD loop).
+@njit(cache=True, inline="always", error_model="numpy")
+def _lane_pass(L, i):
+    """One pass of lane ``i``: its 16 new bounds, whether it stays non-empty, whether it shrank
+    some width by ``RELATIVE_STOP``.
 
     In a lane that stays non-empty every bound of ``u, v, rho, t`` is ``>= 0`` or ``-0``
     throughout the pass (lower bounds start so and only grow, an upper bound below its lower
@@ -112,74 +114,122 @@ def _passes(n, L):
     results are those of ``down`` / ``up`` everywhere, bit for bit; an emptied lane's values
     are never used."""
     C = CHUNK
+    a0, b0, c0, d0 = L[UL * C + i], L[UH * C + i], L[VL * C + i], L[VH * C + i]
+    e0, f0, g0, h0 = L[RL * C + i], L[RH * C + i], L[TL * C + i], L[TH * C + i]
+    p0, q0, r0, s0 = L[SXL * C + i], L[SXH * C + i], L[MXL * C + i], L[MXH * C + i]
+    w0, x0, y0, z0 = L[SYL * C + i], L[SYH * C + i], L[MYL * C + i], L[MYH * C + i]
+    sxl, sxh, mxl, mxh, syl, syh, myl, myh = p0, q0, r0, s0, w0, x0, y0, z0
+    # u = mx - sx, v = my - sy (frame: both >= 0)
+    a = _mx(a0, down_raw(mxl - sxh))
+    b = _mn(b0, up_raw(mxh - sxl))
+    c = _mx(c0, down_raw(myl - syh))
+    d = _mn(d0, up_raw(myh - syl))
+    e, f, g, h = e0, f0, g0, h0
+    # v = u t (u, v >= 0, t >= 0; t may be +inf above; 0 / 0 and 0 * inf are NaN: ignored)
+    a = _mx(a, _dnf(c / h))
+    b = _mn(b, up_raw(d / g))
+    g = _mx(g, _dnf(c / b))
+    h = _mn(h, up_raw(d / a))
+    c = _mx(c, _dnf(a * g))
+    d = _mn(d, up_pos(b * h))
+    # rho^2 = u^2 + v^2 (u2l, v2l and their sum enter _mx first: guarded)
+    u2l, u2h = down(a * a), up_pos(b * b)
+    v2l, v2h = down(c * c), up_pos(d * d)
+    sl = _mx(_mx(down(u2l + v2l), down_pos(e * e)), 0.0)
+    sh = _mn(up_pos(u2h + v2h), up_pos(f * f))
+    e = _mx(e, down_pos(np.sqrt(sl)))
+    f = _mn(f, up_pos(np.sqrt(_mx(sh, 0.0))))
+    u2l = _mx(u2l, down_raw(sl - v2h))
+    u2h = _mn(u2h, up_raw(sh - v2l))
+    v2l = _mx(v2l, down_raw(sl - u2h))
+    v2h = _mn(v2h, up_raw(sh - u2l))
+    a = _mx(a, down_pos(np.sqrt(_mx(u2l, 0.0))))
+    b = _mn(b, up_pos(np.sqrt(_mx(u2h, 0.0))))
+    c = _mx(c, down_pos(np.sqrt(_mx(v2l, 0.0))))
+    d = _mn(d, up_pos(np.sqrt(_mx(v2h, 0.0))))
+    # u ∩= rho cos(psi), v ∩= rho sin(psi), cos and sin from t = tan(psi)
+    big = h > BIG
+    hb = _mn(h, BIG)
+    gb = _mn(g, BIG)
+    cos_l = _mx(0.0, down_pos(1.0 / up_pos(np.sqrt(up_pos(1.0 + up_pos(hb * hb))))))
+    sin_h = _mn(1.0, up_pos(hb / down_pos(np.sqrt(down_pos(1.0 + down_pos(hb * hb))))))
+    cos_l = 0.0 if big else cos_l
+    sin_h = 1.0 if big else sin_h
+    cos_h = _mn(1.0, up_pos(1.0 / down_pos(np.sqrt(down_pos(1.0 + down_pos(gb * gb))))))
+    sin_l = _mx(0.0, down_pos(gb / up_pos(np.sqrt(up_pos(1.0 + up_pos(gb * gb))))))
+    a = _mx(a, down_pos(e * cos_l))
+    b = _mn(b, up_pos(f * cos_h))
+    c = _mx(c, down_pos(e * sin_l))
+    d = _mn(d, up_pos(f * sin_h))
+    # back to the differences: mx ∩= u + sx, sx ∩= mx - u (y likewise)
+    mxl = _mx(mxl, down_raw(a + sxl))
+    mxh = _mn(mxh, up_raw(b + sxh))
+    sxl = _mx(sxl, down_raw(mxl - b))
+    sxh = _mn(sxh, up_raw(mxh - a))
+    myl = _mx(myl, down_raw(c + syl))
+    myh = _mn(myh, up_raw(d + syh))
+    syl = _mx(syl, down_raw(myl - d))
+    syh = _mn(syh, up_raw(myh - c))
+    good = ((a <= b) & (c <= d) & (e <= f) & (g <= h) & (sl <= sh) & (u2l <= u2h)
+            & (v2l <= v2h) & (sxl <= sxh) & (mxl <= mxh) & (syl <= syh) & (myl <= myh))
+    prog = (_shrunk(a0, b0, a, b) | _shrunk(c0, d0, c, d) | _shrunk(e0, f0, e, f)
+            | _shrunk(g0, h0, g, h) | _shrunk(p0, q0, sxl, sxh) | _shrunk(r0, s0, mxl, mxh)
+            | _shrunk(w0, x0, syl, syh) | _shrunk(y0, z0, myl, myh))
+    return (a, b, c, d, e, f, g, h, sxl, sxh, mxl, mxh, syl, syh, myl, myh, good, prog)
+
+
+@njit(cache=True, error_model="numpy")
+def _passes(n, L):
+    """One pass over lanes ``0..n-1`` (straight-line code: a SIMD loop)."""
+    C = CHUNK
     for i in range(n):
-        a0, b0, c0, d0 = L[UL * C + i], L[UH * C + i], L[VL * C + i], L[VH * C + i]
-        e0, f0, g0, h0 = L[RL * C + i], L[RH * C + i], L[TL * C + i], L[TH * C + i]
-        p0, q0, r0, s0 = L[SXL * C + i], L[SXH * C + i], L[MXL * C + i], L[MXH * C + i]
-        w0, x0, y0, z0 = L[SYL * C + i], L[SYH * C + i], L[MYL * C + i], L[MYH * C + i]
-        sxl, sxh, mxl, mxh, syl, syh, myl, myh = p0, q0, r0, s0, w0, x0, y0, z0
-        # u = mx - sx, v = my - sy (frame: both >= 0)
-        a = _mx(a0, down_raw(mxl - sxh))
-        b = _mn(b0, up_raw(mxh - sxl))
-        c = _mx(c0, down_raw(myl - syh))
-        d = _mn(d0, up_raw(myh - syl))
-        e, f, g, h = e0, f0, g0, h0
-        # v = u t (u, v >= 0, t >= 0; t may be +inf above; 0 / 0 and 0 * inf are NaN: ignored)
-        a = _mx(a, _dnf(c / h))
-        b = _mn(b, up_raw(d / g))
-        g = _mx(g, _dnf(c / b))
-        h = _mn(h, up_raw(d / a))
-        c = _mx(c, _dnf(a * g))
-        d = _mn(d, up_pos(b * h))
-        # rho^2 = u^2 + v^2 (u2l, v2l and their sum enter _mx first: guarded)
-        u2l, u2h = down(a * a), up_pos(b * b)
-        v2l, v2h = down(c * c), up_pos(d * d)
-        sl = _mx(_mx(down(u2l + v2l), down_pos(e * e)), 0.0)
-        sh = _mn(up_pos(u2h + v2h), up_pos(f * f))
-        e = _mx(e, down_pos(np.sqrt(sl)))
-        f = _mn(f, up_pos(np.sqrt(_mx(sh, 0.0))))
-        u2l = _mx(u2l, down_raw(sl - v2h))
-        u2h = _mn(u2h, up_raw(sh - v2l))
-        v2l = _mx(v2l, down_raw(sl - u2h))
-        v2h = _mn(v2h, up_raw(sh - u2l))
-        a = _mx(a, down_pos(np.sqrt(_mx(u2l, 0.0))))
-        b = _mn(b, up_pos(np.sqrt(_mx(u2h, 0.0))))
-        c = _mx(c, down_pos(np.sqrt(_mx(v2l, 0.0))))
-        d = _mn(d, up_pos(np.sqrt(_mx(v2h, 0.0))))
-        # u ∩= rho cos(psi), v ∩= rho sin(psi), cos and sin from t = tan(psi)
-        big = h > BIG
-        hb = _mn(h, BIG)
-        gb = _mn(g, BIG)
-        cos_l = _mx(0.0, down_pos(1.0 / up_pos(np.sqrt(up_pos(1.0 + up_pos(hb * hb))))))
-        sin_h = _mn(1.0, up_pos(hb / down_pos(np.sqrt(down_pos(1.0 + down_pos(hb * hb))))))
-        cos_l = 0.0 if big else cos_l
-        sin_h = 1.0 if big else sin_h
-        cos_h = _mn(1.0, up_pos(1.0 / down_pos(np.sqrt(down_pos(1.0 + down_pos(gb * gb))))))
-        sin_l = _mx(0.0, down_pos(gb / up_pos(np.sqrt(up_pos(1.0 + up_pos(gb * gb))))))
-        a = _mx(a, down_pos(e * cos_l))
-        b = _mn(b, up_pos(f * cos_h))
-        c = _mx(c, down_pos(e * sin_l))
-        d = _mn(d, up_pos(f * sin_h))
-        # back to the differences: mx ∩= u + sx, sx ∩= mx - u (y likewise)
-        mxl = _mx(mxl, down_raw(a + sxl))
-        mxh = _mn(mxh, up_raw(b + sxh))
-        sxl = _mx(sxl, down_raw(mxl - b))
-        sxh = _mn(sxh, up_raw(mxh - a))
-        myl = _mx(myl, down_raw(c + syl))
-        myh = _mn(myh, up_raw(d + syh))
-        syl = _mx(syl, down_raw(myl - d))
-        syh = _mn(syh, up_raw(myh - c))
-        L[UL * C + i], L[UH * C + i], L[VL * C + i], L[VH * C + i] = a, b, c, d
-        L[RL * C + i], L[RH * C + i], L[TL * C + i], L[TH * C + i] = e, f, g, h
-        L[SXL * C + i], L[SXH * C + i], L[MXL * C + i], L[MXH * C + i] = sxl, sxh, mxl, mxh
-        L[SYL * C + i], L[SYH * C + i], L[MYL * C + i], L[MYH * C + i] = syl, syh, myl, myh
-        good = ((a <= b) & (c <= d) & (e <= f) & (g <= h) & (sl <= sh) & (u2l <= u2h)
-                & (v2l <= v2h) & (sxl <= sxh) & (mxl <= mxh) & (syl <= syh) & (myl <= myh))
-        L[OK * C + i] = L[OK * C + i] if good else 0.0
-        prog = (_shrunk(a0, b0, a, b) | _shrunk(c0, d0, c, d) | _shrunk(e0, f0, e, f)
-                | _shrunk(g0, h0, g, h) | _shrunk(p0, q0, sxl, sxh) | _shrunk(r0, s0, mxl, mxh)
-                | _shrunk(w0, x0, syl, syh) | _shrunk(y0, z0, myl, myh))
-        L[PROG * C + i] = 1.0 if prog else 0.0
+        r = _lane_pass(L, i)
+        L[UL * C + i] = r[0]
+        L[UH * C + i] = r[1]
+        L[VL * C + i] = r[2]
+        L[VH * C + i] = r[3]
+        L[RL * C + i] = r[4]
+        L[RH * C + i] = r[5]
+        L[TL * C + i] = r[6]
+        L[TH * C + i] = r[7]
+        L[SXL * C + i] = r[8]
+        L[SXH * C + i] = r[9]
+        L[MXL * C + i] = r[10]
+        L[MXH * C + i] = r[11]
+        L[SYL * C + i] = r[12]
+        L[SYH * C + i] = r[13]
+        L[MYL * C + i] = r[14]
+        L[MYH * C + i] = r[15]
+        L[OK * C + i] = L[OK * C + i] if r[16] else 0.0
+        L[PROG * C + i] = 1.0 if r[17] else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _passes_live(n, L):
+    """:func:`_passes` on the lanes with ``L[ACT]`` set; the others keep their state (selects:
+    a SIMD loop)."""
+    C = CHUNK
+    for i in range(n):
+        r = _lane_pass(L, i)
+        act = L[ACT * C + i] > 0.5
+        L[UL * C + i] = r[0] if act else L[UL * C + i]
+        L[UH * C + i] = r[1] if act else L[UH * C + i]
+        L[VL * C + i] = r[2] if act else L[VL * C + i]
+        L[VH * C + i] = r[3] if act else L[VH * C + i]
+        L[RL * C + i] = r[4] if act else L[RL * C + i]
+        L[RH * C + i] = r[5] if act else L[RH * C + i]
+        L[TL * C + i] = r[6] if act else L[TL * C + i]
+        L[TH * C + i] = r[7] if act else L[TH * C + i]
+        L[SXL * C + i] = r[8] if act else L[SXL * C + i]
+        L[SXH * C + i] = r[9] if act else L[SXH * C + i]
+        L[MXL * C + i] = r[10] if act else L[MXL * C + i]
+        L[MXH * C + i] = r[11] if act else L[MXH * C + i]
+        L[SYL * C + i] = r[12] if act else L[SYL * C + i]
+        L[SYH * C + i] = r[13] if act else L[SYH * C + i]
+        L[MYL * C + i] = r[14] if act else L[MYL * C + i]
+        L[MYH * C + i] = r[15] if act else L[MYH * C + i]
+        L[OK * C + i] = (L[OK * C + i] if r[16] else 0.0) if act else L[OK * C + i]
+        L[PROG * C + i] = (1.0 if r[17] else 0.0) if act else L[PROG * C + i]
 
 
 @njit(cache=True, inline="always")
@@ -303,8 +353,8 @@ def _differences(n, q, pl, ph, G):
 
 @njit(cache=True, error_model="numpy")
 def _finish(n, D, box, q, pl, ph, t0l, t0h, ang, acc, G):
-    """Lanes ``0..n-1`` done (final state in ``D``): ``psi ∩= atan(t)``, the periodic difference,
-    hull into their boxes' rows of ``acc``."""
+    """Lanes ``0..n-1`` done (final states in ``D``): ``psi ∩= atan(t)``, the periodic
+    difference, hull into their boxes' rows of ``acc``."""
     C = CHUNK
     for i in range(n):  # atan only where t moved (atan(tan(psi)) holds psi already)
         tl = D[TL * C + i]
@@ -347,12 +397,16 @@ def _finish(n, D, box, q, pl, ph, t0l, t0h, ang, acc, G):
 
 
 @njit(cache=True, error_model="numpy")
-def _to_fixpoint(n, L, D, orig, pl, ph, t0l, t0h, passes):
-    """Load the ``n`` lanes' tangents of their ψ bounds ``pl``, ``ph`` and run :func:`_passes`
-    (at most ``passes``) until no lane is left. After each pass from the second on, a lane that
-    shrank no width by ``RELATIVE_STOP`` (or was emptied, or is dead: ``L[OK]`` is 0 from the
-    start) is copied to ``D`` at its first slot and the others are packed to the front. A dead
-    lane should have ``pl = 0``, ``ph = pi/2`` (no libm call)."""
+def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes):
+    """Load the ``n`` lanes' tangents of their ψ bounds ``pl``, ``ph`` and run passes (at most
+    ``passes``) until every lane has stopped; the final states are left in ``L``, each lane at
+    its slot. After each pass from the second on, a lane stops if it shrank no width by
+    ``RELATIVE_STOP`` or is empty (a dead lane, ``L[OK]`` 0 from the start, stops there too; it
+    should have ``pl = 0``, ``ph = pi/2``: no libm call).
+
+    While at least half the lanes take passes they stay in place (:func:`_passes_live`: the
+    stopped ones keep their state); then the others are packed into ``S`` (``orig``: their
+    slots), contracted there, and each written back when it stops."""
     C = CHUNK
     for i in range(n):
         t0l[i] = _tan_lo(pl[i])
@@ -360,33 +414,54 @@ def _to_fixpoint(n, L, D, orig, pl, ph, t0l, t0h, passes):
         t0h[i] = _tan_hi(ph[i])
     for i in range(n):
         L[TL * C + i], L[TH * C + i] = t0l[i], t0h[i]
-        orig[i] = i
-    for p in range(passes):
-        _passes(n, L)
-        if p == 0:
-            continue
-        m = 0
+        L[ACT * C + i] = 1.0
+    _passes(n, L)
+    p = 1
+    na = n
+    while p < passes and 2 * na >= n:
+        if na == n:
+            _passes(n, L)
+        else:
+            _passes_live(n, L)
+        na = 0
         for i in range(n):
-            if L[OK * C + i] < 0.5 or L[PROG * C + i] < 0.5 or p + 1 == passes:
+            go = (L[ACT * C + i] > 0.5) & (L[OK * C + i] > 0.5) & (L[PROG * C + i] > 0.5)
+            go = go & (p + 1 < passes)
+            L[ACT * C + i] = 1.0 if go else 0.0
+            na += 1 if go else 0
+        p += 1
+    if na == 0:
+        return
+    m = 0
+    for i in range(n):
+        if L[ACT * C + i] > 0.5:
+            orig[m] = i
+            for r in range(ROWS):
+                S[r * C + m] = L[r * C + i]
+            m += 1
+    while m > 0:
+        _passes(m, S)
+        k = 0
+        for i in range(m):
+            if S[OK * C + i] < 0.5 or S[PROG * C + i] < 0.5 or p + 1 == passes:
                 o = orig[i]
                 for r in range(OK + 1):
-                    D[r * C + o] = L[r * C + i]
+                    L[r * C + o] = S[r * C + i]
                 continue
-            if m != i:
-                orig[m] = orig[i]
+            if k != i:
+                orig[k] = orig[i]
                 for r in range(ROWS):
-                    L[r * C + m] = L[r * C + i]
-            m += 1
-        n = m
-        if n == 0:
-            break
+                    S[r * C + k] = S[r * C + i]
+            k += 1
+        m = k
+        p += 1
 
 
 @njit(cache=True, error_model="numpy")
-def _flush(n, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, D, orig, out, G):
+def _flush(n, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, S, orig, out, G):
     """Contract the ``n`` lanes (pieces of ``nb`` boxes, output rows ``rows``) and write out."""
-    _to_fixpoint(n, L, D, orig, pl, ph, t0l, t0h, MAX_PASSES)
-    _finish(n, D, box, q, pl, ph, t0l, t0h, ang, acc, G)
+    _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, MAX_PASSES)
+    _finish(n, L, box, q, pl, ph, t0l, t0h, ang, acc, G)
     for j in range(nb):
         k = 2 * rows[j]
         ok = acc[j, 0] <= acc[j, 1]
@@ -414,7 +489,7 @@ NONE, ONE, MORE = 0.0, 1.0, 2.0
 # of the chunk (slot = box): its 14 bounds (sx sy st mx my rho alpha, lo hi; replaced by the
 # results on exit), the ψ bounds of its lane, its quadrant, its kind, and a flag for the scalar
 # angle steps. Every SIMD loop over W reads and writes one base pointer at compile-time row
-# offsets (plus D on exit), so LLVM vectorises it without runtime alias checks.
+# offsets, so LLVM vectorises it without runtime alias checks.
 BX = ROWS
 PSL, PSH, QD, KD, FX = BX + 14, BX + 15, BX + 16, BX + 17, BX + 18
 WROWS = BX + 19
@@ -513,24 +588,24 @@ def _entry(s, nb, out, W):
 
 
 @njit(cache=True, error_model="numpy")
-def _exit(s, nb, out, W, D, t0l, t0h):
-    """Rows ``s..s+nb-1`` from their lanes (final state in ``D``), as :func:`_finish` and
+def _exit(s, nb, out, W, t0l, t0h):
+    """Rows ``s..s+nb-1`` from their lanes (final states in ``W``), as :func:`_finish` and
     :func:`_flush` give them for one piece: ``psi ∩= atan(t)``; then as selects (a SIMD loop)
     the periodic difference (``_meet3``), back from the quadrant frame, into ``W``'s box rows;
     the rare lanes outside ``_meet3``'s range take the scalar steps; then written out. Rows of
     kind ``NONE`` are emptied, rows of kind ``MORE`` left to the general path."""
     C = CHUNK
     for i in range(nb):  # atan only where t moved (atan(tan(psi)) holds psi already)
-        tl = D[TL * C + i]
-        if tl != t0l[i] and D[OK * C + i] > 0.5:
+        tl = W[TL * C + i]
+        if tl != t0l[i] and W[OK * C + i] > 0.5:
             W[PSL * C + i] = _mx(W[PSL * C + i], _atan_lo(tl))
     for i in range(nb):
-        th = D[TH * C + i]
-        if th != t0h[i] and D[OK * C + i] > 0.5:
+        th = W[TH * C + i]
+        if th != t0h[i] and W[OK * C + i] > 0.5:
             W[PSH * C + i] = _mn(W[PSH * C + i], _atan_hi(th))
     for i in range(nb):
         lo, hi, qi = W[PSL * C + i], W[PSH * C + i], W[QD * C + i]
-        live = (W[KD * C + i] == ONE) & (D[OK * C + i] > 0.5) & (lo <= hi)
+        live = (W[KD * C + i] == ONE) & (W[OK * C + i] > 0.5) & (lo <= hi)
         # alpha ∩= phi - sth, sth ∩= phi - alpha (mod 2 pi), phi the world bearing of psi
         wl = lo if qi == 0.0 else (-hi if qi == 1.0 else (down(lo - PI_HI) if qi == 2.0 else down(PI_LO - hi)))
         wh = hi if qi == 0.0 else (-lo if qi == 1.0 else (up(hi - PI_LO) if qi == 2.0 else up(PI_HI - lo)))
@@ -545,15 +620,15 @@ def _exit(s, nb, out, W, D, t0l, t0h):
         stl, sth = (nsl, nsh) if gok else (stl, sth)
         xp = (qi == 0.0) | (qi == 1.0)
         yp = (qi == 0.0) | (qi == 3.0)
-        a, b = D[SXL * C + i], D[SXH * C + i]
+        a, b = W[SXL * C + i], W[SXH * C + i]
         sxl, sxh = (a if xp else -b), (b if xp else -a)
-        a, b = D[SYL * C + i], D[SYH * C + i]
+        a, b = W[SYL * C + i], W[SYH * C + i]
         syl, syh = (a if yp else -b), (b if yp else -a)
-        a, b = D[MXL * C + i], D[MXH * C + i]
+        a, b = W[MXL * C + i], W[MXH * C + i]
         mxl, mxh = (a if xp else -b), (b if xp else -a)
-        a, b = D[MYL * C + i], D[MYH * C + i]
+        a, b = W[MYL * C + i], W[MYH * C + i]
         myl, myh = (a if yp else -b), (b if yp else -a)
-        rl, rh = D[RL * C + i], D[RH * C + i]
+        rl, rh = W[RL * C + i], W[RH * C + i]
         w = live & ((not gok) | ((al <= ah) & (stl <= sth))) & (sxl <= sxh)
         # an infinite bound of alpha or sth: angle_meet leaves both as they are
         finite = (al > -INF) & (ah < INF) & (stl > -INF) & (sth < INF)
@@ -591,7 +666,7 @@ def _exit(s, nb, out, W, D, t0l, t0h):
 
 
 @njit(cache=True, error_model="numpy")
-def _general_box(i, out, L, D, orig, rows, box, q, pl, ph, t0l, t0h, ang, acc, G, cnt):
+def _general_box(i, out, L, S, orig, rows, box, q, pl, ph, t0l, t0h, ang, acc, G, cnt):
     """Box ``i`` (kind ``MORE``): its pieces as lanes of the general buffers (``cnt`` holds their
     lane and box counts), contracted and hulled when the buffers are full."""
     C = CHUNK
@@ -632,7 +707,7 @@ def _general_box(i, out, L, D, orig, rows, box, q, pl, ph, t0l, t0h, ang, acc, G
         acc[nb, v] = E if v % 2 == 0 else F
     nb += 1
     if m + 12 > C:
-        _flush(m, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, D, orig, out, G)
+        _flush(m, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, S, orig, out, G)
         m = 0
         nb = 0
     cnt[0], cnt[1] = m, nb
@@ -648,13 +723,13 @@ def _kernel(sx, sy, st, mx, my, rho, alpha):
     out = (sx, sy, st, mx, my, rho, alpha)
     okm = np.empty(n, np.bool_)
     W = np.empty(WROWS * C)  # the one-piece lanes, slot = box of the chunk
-    D = np.empty(ROWS * C)
+    S = np.empty(ROWS * C)
     orig = np.empty(C, np.int64)
     t0l, t0h = np.empty(C), np.empty(C)
     pl, ph = W[PSL * C:(PSL + 1) * C], W[PSH * C:(PSH + 1) * C]
     # the general path's lanes (pieces of boxes of kind MORE)
     L2 = np.empty(ROWS * C)
-    D2 = np.empty(ROWS * C)
+    S2 = np.empty(ROWS * C)
     G2 = np.empty(5 * C)
     orig2 = np.empty(C, np.int64)
     rows = np.empty(C, np.int64)
@@ -669,12 +744,12 @@ def _kernel(sx, sy, st, mx, my, rho, alpha):
         _entry(s, nb, out, W)
         for j in range(nb):
             if W[KD * C + j] == MORE:
-                _general_box(s + j, out, L2, D2, orig2, rows, box, q2, pl2, ph2, t0l2, t0h2,
+                _general_box(s + j, out, L2, S2, orig2, rows, box, q2, pl2, ph2, t0l2, t0h2,
                              ang, acc, G2, cnt)
-        _to_fixpoint(nb, W, D, orig, pl, ph, t0l, t0h, MAX_PASSES)
-        _exit(s, nb, out, W, D, t0l, t0h)
+        _to_fixpoint(nb, W, S, orig, pl, ph, t0l, t0h, MAX_PASSES)
+        _exit(s, nb, out, W, t0l, t0h)
     if cnt[0] > 0:
-        _flush(cnt[0], cnt[1], rows, box, q2, pl2, ph2, t0l2, t0h2, ang, acc, L2, D2, orig2, out,
+        _flush(cnt[0], cnt[1], rows, box, q2, pl2, ph2, t0l2, t0h2, ang, acc, L2, S2, orig2, out,
                G2)
     for i in range(n):
         okm[i] = sx[2 * i] <= sx[2 * i + 1]

@@ -238,17 +238,17 @@ def _pieces(b, j, L, m, box, q, kk, sg, pl, ph):
 
 
 @njit(cache=True, error_model="numpy")
-def _finish(n, D, b, acc, box, q, kk, sg, pl, ph, t0l, t0h):
-    """Lanes ``0..n-1`` done (state in ``D``): back to the box's variables, hull into ``acc``."""
+def _finish(n, L, b, acc, box, q, kk, sg, pl, ph, t0l, t0h):
+    """Lanes ``0..n-1`` done (final states in ``L``): back to the box's variables, hull into ``acc``."""
     C = CHUNK
     for i in range(n):
-        if D[TL * C + i] != t0l[i]:
-            pl[i] = max(pl[i], _atan_lo(D[TL * C + i]))
+        if L[TL * C + i] != t0l[i]:
+            pl[i] = max(pl[i], _atan_lo(L[TL * C + i]))
     for i in range(n):
-        if D[TH * C + i] != t0h[i]:
-            ph[i] = min(ph[i], _atan_hi(D[TH * C + i]))
+        if L[TH * C + i] != t0h[i]:
+            ph[i] = min(ph[i], _atan_hi(L[TH * C + i]))
     for i in range(n):
-        if D[OK * C + i] < 0.5 or not (pl[i] <= ph[i]):
+        if L[OK * C + i] < 0.5 or not (pl[i] <= ph[i]):
             continue
         j = box[i]
         tl, th = b[j, T0], b[j, T0 + 1]
@@ -262,14 +262,14 @@ def _finish(n, D, b, acc, box, q, kk, sg, pl, ph, t0l, t0h):
                 continue
         xs = 1.0 if (q[i] == 0 or q[i] == 1) else -1.0
         ys = 1.0 if (q[i] == 0 or q[i] == 3) else -1.0
-        sl, sh = _flip(sg[i], D[RL * C + i], D[RH * C + i])
+        sl, sh = _flip(sg[i], L[RL * C + i], L[RH * C + i])
         vl, vh, dl, dh = bwd_mul(sl, sh, b[j, V], b[j, V + 1], b[j, DT], b[j, DT + 1])
         if not (vl <= vh):
             continue
-        qxl, qxh = _flip(xs, D[SXL * C + i], D[SXH * C + i])
-        axl, axh = _flip(xs, D[MXL * C + i], D[MXH * C + i])
-        qyl, qyh = _flip(ys, D[SYL * C + i], D[SYH * C + i])
-        ayl, ayh = _flip(ys, D[MYL * C + i], D[MYH * C + i])
+        qxl, qxh = _flip(xs, L[SXL * C + i], L[SXH * C + i])
+        axl, axh = _flip(xs, L[MXL * C + i], L[MXH * C + i])
+        qyl, qyh = _flip(ys, L[SYL * C + i], L[SYH * C + i])
+        ayl, ayh = _flip(ys, L[MYL * C + i], L[MYH * C + i])
         x1l, x1h = inter(b[j, X1], b[j, X1 + 1], *add(axl, axh, b[j, X0], b[j, X0 + 1]))
         x0l, x0h = inter(b[j, X0], b[j, X0 + 1], *sub(x1l, x1h, axl, axh))
         y1l, y1h = inter(b[j, Y1], b[j, Y1 + 1], *add(ayl, ayh, b[j, Y0], b[j, Y0 + 1]))
@@ -284,10 +284,10 @@ def _finish(n, D, b, acc, box, q, kk, sg, pl, ph, t0l, t0h):
 
 
 @njit(cache=True, error_model="numpy")
-def _flush(n, L, D, orig, b, acc, box, q, kk, sg, pl, ph, t0l, t0h):
+def _flush(n, L, S, orig, b, acc, box, q, kk, sg, pl, ph, t0l, t0h):
     """Contract the ``n`` lanes to their fixpoint (``ctc_range_bearing_simd._to_fixpoint``)."""
-    _to_fixpoint(n, L, D, orig, pl, ph, t0l, t0h, PASSES)
-    _finish(n, D, b, acc, box, q, kk, sg, pl, ph, t0l, t0h)
+    _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, PASSES)
+    _finish(n, L, b, acc, box, q, kk, sg, pl, ph, t0l, t0h)
 
 
 @njit(cache=True, error_model="numpy")
@@ -295,7 +295,7 @@ def _block(b, nb):
     """Contract the ``nb`` boxes of ``b`` (rows of 24 bounds) in place, round after round."""
     C = CHUNK
     L = np.empty(ROWS * C)
-    D = np.empty(ROWS * C)
+    S = np.empty(ROWS * C)
     orig = np.empty(C, np.int64)
     box = np.empty(C, np.int64)
     q = np.empty(C, np.int64)
@@ -331,10 +331,10 @@ def _block(b, nb):
                 continue
             m = _pieces(b, j, L, m, box, q, kk, sg, pl, ph)
             if m + PIECES > C:
-                _flush(m, L, D, orig, b, acc, box, q, kk, sg, pl, ph, t0l, t0h)
+                _flush(m, L, S, orig, b, acc, box, q, kk, sg, pl, ph, t0l, t0h)
                 m = 0
         if m > 0:
-            _flush(m, L, D, orig, b, acc, box, q, kk, sg, pl, ph, t0l, t0h)
+            _flush(m, L, S, orig, b, acc, box, q, kk, sg, pl, ph, t0l, t0h)
         more = False
         for j in range(nb):
             if not active[j]:
