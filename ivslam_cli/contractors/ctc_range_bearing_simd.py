@@ -68,7 +68,10 @@ from ivslam_cli.interval.rounding import (
     up_raw,
 )
 
-CHUNK = 256
+# Lanes per chunk, and the stride of the rows of every lane buffer: not a multiple of 512 (4 KiB
+# rows apart alias in the store buffer: a scalar loop writing a lane across the rows of L
+# while reading another buffer ran 6x slower at 256).
+CHUNK = 264
 MAX_FLOAT = float(np.finfo(np.float64).max)
 MAX_PASSES = 16
 E = EMPTY_LO
@@ -97,6 +100,21 @@ def _dnf(c):
     real value above ``MAX_FLOAT``) gives ``MAX_FLOAT`` (``down`` would give ``-inf``: nothing;
     this keeps ``t = v / u`` huge when ``u`` is a few subnormals, i.e. ``psi`` at pi/2)."""
     return MAX_FLOAT if c == INF else down_pos(c)
+
+
+TINY = 2.0**-969  # below it PHI * |c| in down(c) is subnormal: a microcode assist on x86
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _down_tiny(c):
+    """A lower bound of the real number rounded to ``c``: ``down(c)`` where ``|c| >= TINY``,
+    below it ``c - 2^-1020`` (at most ``pred(c)``: the ulp there is at most ``2^-1021``), never
+    multiplying a number below ``TINY``. (``u^2 + v^2`` is ``-2^-1073`` at the origin: in some
+    lane of most vectors of a unicycle chunk.) It differs from ``down`` only for ``0 < c <
+    TINY``, by less than ``2^-1020``, lower."""
+    big = abs(c) >= TINY
+    r = down(c if big else 1.0)
+    return r if big else c - 2.0**-1020
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -135,7 +153,7 @@ def _lane_pass(L, i):
     # rho^2 = u^2 + v^2 (u2l, v2l and their sum enter _mx first: guarded)
     u2l, u2h = down(a * a), up_pos(b * b)
     v2l, v2h = down(c * c), up_pos(d * d)
-    sl = _mx(_mx(down(u2l + v2l), down_pos(e * e)), 0.0)
+    sl = _mx(_mx(_down_tiny(u2l + v2l), down_pos(e * e)), 0.0)
     sh = _mn(up_pos(u2h + v2h), up_pos(f * f))
     e = _mx(e, down_pos(np.sqrt(sl)))
     f = _mn(f, up_pos(np.sqrt(_mx(sh, 0.0))))
@@ -313,16 +331,17 @@ GAL, GAH, GSL, GSH, GOK = 0, 1, 2, 3, 4  # rows of the angle buffer G (alpha, st
 def _meet3(tl, th, al, ah):
     """:func:`_meet` as selects, for ``w(t) + w(a) < 6`` with moderate bounds (else ``ok`` is
     False and the result is to be ignored): the pieces of the copies ``k0 - 1, k0, k0 + 1``,
-    shifted as ``angle_meet`` shifts them, hulled."""
+    shifted as ``angle_meet`` shifts them, hulled. Where ``ok`` every sum and product here is
+    finite, so its roundings need no NaN guard."""
     ok = ((th - tl) + (ah - al) < 6.0) & (-1e15 < tl) & (th < 1e15) & (-1e15 < al) & (ah < 1e15)
     k0 = np.floor((0.5 * (tl + th) - 0.5 * (al + ah)) * INV_TWO_PI_LO + 0.5)
     lo, hi = E, F
     for dk in range(-1, 2):
         k = k0 + dk
-        ol = down(k * TWO_PI_LO) if k >= 0.0 else down(k * TWO_PI_HI)
-        oh = up(k * TWO_PI_HI) if k >= 0.0 else up(k * TWO_PI_LO)
-        sl = al if k == 0.0 else down(al + ol)
-        sh = ah if k == 0.0 else up(ah + oh)
+        ol = down_raw(k * (TWO_PI_LO if k >= 0.0 else TWO_PI_HI))
+        oh = up_raw(k * (TWO_PI_HI if k >= 0.0 else TWO_PI_LO))
+        sl = al if k == 0.0 else down_raw(al + ol)
+        sh = ah if k == 0.0 else up_raw(ah + oh)
         pl = sl if sl > tl else tl
         ph = sh if sh < th else th
         meets = pl <= ph
