@@ -350,6 +350,15 @@ def _meet3(tl, th, al, ah):
     return lo, hi, ok
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _meet3t(tl, th, al, ah):
+    """:func:`_meet3` that also takes the cases where ``angle_meet`` returns ``[t]`` as it is
+    (``[a]`` at least a turn wide, ``[t]`` unbounded), for non-empty ``[t]`` and ``[a]``."""
+    whole = (ah - al >= TWO_PI_LO) | (tl == -INF) | (th == INF)
+    lo, hi, ok = _meet3(tl, th, al, ah)
+    return (tl if whole else lo), (th if whole else hi), whole | ok
+
+
 @njit(cache=True, error_model="numpy")
 def _differences(n, q, pl, ph, G):
     """``alpha ∩= phi - sth``, ``sth ∩= phi - alpha`` (mod 2 pi) for lanes ``0..n-1`` in ``G``,
