@@ -28,6 +28,14 @@ depends on ``phi``, so this one backward step is all the angle part can give.
 
 Passes repeat per piece while one shrinks some width by at least ``RELATIVE_STOP`` (at least
 two, at most ``MAX_PASSES``); a piece that stops is written out and the chunk is packed.
+
+Boxes go through in chunks of ``CHUNK``. A box with exactly one piece (about 97 % of the bench's
+mix) takes the fast path: its piece is found, its lane built (:func:`_entry`) and, after the
+fixpoint, its result written back (:func:`_exit`) by select-based SIMD loops, its lane at the
+box's slot of the chunk. Every other box (several pieces, or none found that way) goes to the
+general path (:func:`_general_box`: its pieces as lanes of their own, hulled per box by
+:func:`_finish`). Both paths give a box the same bounds.
+
 tests/contractors/test_range_bearing_simd.py checks against the scalar kernel: the same rows
 emptied, no bound outside the scalar result by more than ``1e-9`` of its width plus
 ``1e-12 (1 + |bound|)``, and widths on average no larger.
@@ -53,10 +61,17 @@ from ivslam_cli.interval.rounding import (
     TWO_PI_HI,
     TWO_PI_LO,
     down,
+    down_pos,
+    down_raw,
     up,
+    up_pos,
+    up_raw,
 )
 
-CHUNK = 256
+# Lanes per chunk, and the stride of the rows of every lane buffer: not a multiple of 512 (4 KiB
+# rows apart alias in the store buffer: a scalar loop writing a lane across the rows of L
+# while reading another buffer ran 6x slower at 256).
+CHUNK = 264
 MAX_FLOAT = float(np.finfo(np.float64).max)
 MAX_PASSES = 16
 E = EMPTY_LO
@@ -67,7 +82,8 @@ UL, UH, VL, VH, RL, RH, TL, TH = 0, 1, 2, 3, 4, 5, 6, 7
 SXL, SXH, MXL, MXH, SYL, SYH, MYL, MYH = 8, 9, 10, 11, 12, 13, 14, 15
 OK = 16  # 1.0 while the lane is non-empty
 PROG = 17  # 1.0 if the last pass shrank some width by RELATIVE_STOP
-ROWS = 18
+ACT = 18  # 1.0 while the lane takes passes (the passes of _passes_live leave the others)
+ROWS = 19
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -79,11 +95,105 @@ def _shrunk(ol, oh, nl, nh):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _dnf(c):
-    """A lower bound of a nonnegative quotient or product rounded to ``c``: ``down(c)``, except
-    that an overflow (``c = +inf``, the real value above ``MAX_FLOAT``) gives ``MAX_FLOAT``
-    (``down`` would give ``-inf``: nothing; this keeps ``t = v / u`` huge when ``u`` is a few
-    subnormals, i.e. ``psi`` at pi/2)."""
-    return MAX_FLOAT if c == INF else down(c)
+    """A lower bound of a nonnegative quotient or product rounded to ``c``, to be taken by
+    ``_mx`` (NaN is ignored there): ``down_pos(c)``, except that an overflow (``c = +inf``, the
+    real value above ``MAX_FLOAT``) gives ``MAX_FLOAT`` (``down`` would give ``-inf``: nothing;
+    this keeps ``t = v / u`` huge when ``u`` is a few subnormals, i.e. ``psi`` at pi/2)."""
+    return MAX_FLOAT if c == INF else down_pos(c)
+
+
+TINY = 2.0**-969  # below it PHI * |c| in down(c) is subnormal: a microcode assist on x86
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _down_tiny(c):
+    """A lower bound of the real number rounded to ``c``: ``down(c)`` where ``|c| >= TINY``,
+    below it ``c - 2^-1020`` (at most ``pred(c)``: the ulp there is at most ``2^-1021``), never
+    multiplying a number below ``TINY``. (``u^2 + v^2`` is ``-2^-1073`` at the origin: in some
+    lane of most vectors of a unicycle chunk.) It differs from ``down`` only for ``0 < c <
+    TINY``, by less than ``2^-1020``, lower."""
+    big = abs(c) >= TINY
+    r = down(c if big else 1.0)
+    return r if big else c - 2.0**-1020
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _lane_pass(L, i):
+    """One pass of lane ``i``: its 16 new bounds, whether it stays non-empty, whether it shrank
+    some width by ``RELATIVE_STOP``.
+
+    In a lane that stays non-empty every bound of ``u, v, rho, t`` is ``>= 0`` or ``-0``
+    throughout the pass (lower bounds start so and only grow, an upper bound below its lower
+    bound empties the lane), so their products, sums and square roots are ``>= 0`` or ``±0``
+    and rounded with ``down_pos`` / ``up_pos``. A quotient by ``-0`` is ``-inf``: the upper
+    bounds of quotients keep the ``abs`` (``up_raw``: NaN, ignored, where ``up`` gives
+    ``+inf``); their lower bounds (``_dnf``) give NaN there, ignored too. A bound that only
+    enters ``_mx`` / ``_mn`` as the argument whose NaN is ignored takes no NaN guard. The
+    results are those of ``down`` / ``up`` everywhere, bit for bit; an emptied lane's values
+    are never used."""
+    C = CHUNK
+    a0, b0, c0, d0 = L[UL * C + i], L[UH * C + i], L[VL * C + i], L[VH * C + i]
+    e0, f0, g0, h0 = L[RL * C + i], L[RH * C + i], L[TL * C + i], L[TH * C + i]
+    p0, q0, r0, s0 = L[SXL * C + i], L[SXH * C + i], L[MXL * C + i], L[MXH * C + i]
+    w0, x0, y0, z0 = L[SYL * C + i], L[SYH * C + i], L[MYL * C + i], L[MYH * C + i]
+    sxl, sxh, mxl, mxh, syl, syh, myl, myh = p0, q0, r0, s0, w0, x0, y0, z0
+    # u = mx - sx, v = my - sy (frame: both >= 0)
+    a = _mx(a0, down_raw(mxl - sxh))
+    b = _mn(b0, up_raw(mxh - sxl))
+    c = _mx(c0, down_raw(myl - syh))
+    d = _mn(d0, up_raw(myh - syl))
+    e, f, g, h = e0, f0, g0, h0
+    # v = u t (u, v >= 0, t >= 0; t may be +inf above; 0 / 0 and 0 * inf are NaN: ignored)
+    a = _mx(a, _dnf(c / h))
+    b = _mn(b, up_raw(d / g))
+    g = _mx(g, _dnf(c / b))
+    h = _mn(h, up_raw(d / a))
+    c = _mx(c, _dnf(a * g))
+    d = _mn(d, up_pos(b * h))
+    # rho^2 = u^2 + v^2 (u2l, v2l and their sum enter _mx first: guarded)
+    u2l, u2h = down(a * a), up_pos(b * b)
+    v2l, v2h = down(c * c), up_pos(d * d)
+    sl = _mx(_mx(_down_tiny(u2l + v2l), down_pos(e * e)), 0.0)
+    sh = _mn(up_pos(u2h + v2h), up_pos(f * f))
+    e = _mx(e, down_pos(np.sqrt(sl)))
+    f = _mn(f, up_pos(np.sqrt(_mx(sh, 0.0))))
+    u2l = _mx(u2l, down_raw(sl - v2h))
+    u2h = _mn(u2h, up_raw(sh - v2l))
+    v2l = _mx(v2l, down_raw(sl - u2h))
+    v2h = _mn(v2h, up_raw(sh - u2l))
+    a = _mx(a, down_pos(np.sqrt(_mx(u2l, 0.0))))
+    b = _mn(b, up_pos(np.sqrt(_mx(u2h, 0.0))))
+    c = _mx(c, down_pos(np.sqrt(_mx(v2l, 0.0))))
+    d = _mn(d, up_pos(np.sqrt(_mx(v2h, 0.0))))
+    # u ∩= rho cos(psi), v ∩= rho sin(psi), cos and sin from t = tan(psi)
+    big = h > BIG
+    hb = _mn(h, BIG)
+    gb = _mn(g, BIG)
+    cos_l = _mx(0.0, down_pos(1.0 / up_pos(np.sqrt(up_pos(1.0 + up_pos(hb * hb))))))
+    sin_h = _mn(1.0, up_pos(hb / down_pos(np.sqrt(down_pos(1.0 + down_pos(hb * hb))))))
+    cos_l = 0.0 if big else cos_l
+    sin_h = 1.0 if big else sin_h
+    cos_h = _mn(1.0, up_pos(1.0 / down_pos(np.sqrt(down_pos(1.0 + down_pos(gb * gb))))))
+    sin_l = _mx(0.0, down_pos(gb / up_pos(np.sqrt(up_pos(1.0 + up_pos(gb * gb))))))
+    a = _mx(a, down_pos(e * cos_l))
+    b = _mn(b, up_pos(f * cos_h))
+    c = _mx(c, down_pos(e * sin_l))
+    d = _mn(d, up_pos(f * sin_h))
+    # back to the differences: mx ∩= u + sx, sx ∩= mx - u (y likewise)
+    mxl = _mx(mxl, down_raw(a + sxl))
+    mxh = _mn(mxh, up_raw(b + sxh))
+    sxl = _mx(sxl, down_raw(mxl - b))
+    sxh = _mn(sxh, up_raw(mxh - a))
+    myl = _mx(myl, down_raw(c + syl))
+    myh = _mn(myh, up_raw(d + syh))
+    syl = _mx(syl, down_raw(myl - d))
+    syh = _mn(syh, up_raw(myh - c))
+    good = ((a <= b) & (c <= d) & (e <= f) & (g <= h) & (sl <= sh) & (u2l <= u2h)
+            & (v2l <= v2h) & (sxl <= sxh) & (mxl <= mxh) & (syl <= syh) & (myl <= myh))
+    prog = (_shrunk(a0, b0, a, b) | _shrunk(c0, d0, c, d) | _shrunk(e0, f0, e, f)
+            | _shrunk(g0, h0, g, h) | _shrunk(p0, q0, sxl, sxh) | _shrunk(r0, s0, mxl, mxh)
+            | _shrunk(w0, x0, syl, syh) | _shrunk(y0, z0, myl, myh))
+    return (a, b, c, d, e, f, g, h, sxl, sxh, mxl, mxh, syl, syh, myl, myh, good, prog)
 
 
 @njit(cache=True, error_model="numpy")
@@ -91,73 +201,53 @@ def _passes(n, L):
     """One pass over lanes ``0..n-1`` (straight-line code: a SIMD loop)."""
     C = CHUNK
     for i in range(n):
-        a0, b0, c0, d0 = L[UL * C + i], L[UH * C + i], L[VL * C + i], L[VH * C + i]
-        e0, f0, g0, h0 = L[RL * C + i], L[RH * C + i], L[TL * C + i], L[TH * C + i]
-        p0, q0, r0, s0 = L[SXL * C + i], L[SXH * C + i], L[MXL * C + i], L[MXH * C + i]
-        w0, x0, y0, z0 = L[SYL * C + i], L[SYH * C + i], L[MYL * C + i], L[MYH * C + i]
-        sxl, sxh, mxl, mxh, syl, syh, myl, myh = p0, q0, r0, s0, w0, x0, y0, z0
-        # u = mx - sx, v = my - sy (frame: both >= 0)
-        a = _mx(a0, down(mxl - sxh))
-        b = _mn(b0, up(mxh - sxl))
-        c = _mx(c0, down(myl - syh))
-        d = _mn(d0, up(myh - syl))
-        e, f, g, h = e0, f0, g0, h0
-        # v = u t (u, v >= 0, t >= 0; t may be +inf above; 0 / 0 and 0 * inf are NaN: ignored)
-        a = _mx(a, _dnf(c / h))
-        b = _mn(b, up(d / g))
-        g = _mx(g, _dnf(c / b))
-        h = _mn(h, up(d / a))
-        c = _mx(c, _dnf(a * g))
-        d = _mn(d, up(b * h))
-        # rho^2 = u^2 + v^2
-        u2l, u2h = down(a * a), up(b * b)
-        v2l, v2h = down(c * c), up(d * d)
-        sl = _mx(_mx(down(u2l + v2l), down(e * e)), 0.0)
-        sh = _mn(up(u2h + v2h), up(f * f))
-        e = _mx(e, down(np.sqrt(sl)))
-        f = _mn(f, up(np.sqrt(_mx(sh, 0.0))))
-        u2l = _mx(u2l, down(sl - v2h))
-        u2h = _mn(u2h, up(sh - v2l))
-        v2l = _mx(v2l, down(sl - u2h))
-        v2h = _mn(v2h, up(sh - u2l))
-        a = _mx(a, down(np.sqrt(_mx(u2l, 0.0))))
-        b = _mn(b, up(np.sqrt(_mx(u2h, 0.0))))
-        c = _mx(c, down(np.sqrt(_mx(v2l, 0.0))))
-        d = _mn(d, up(np.sqrt(_mx(v2h, 0.0))))
-        # u ∩= rho cos(psi), v ∩= rho sin(psi), cos and sin from t = tan(psi)
-        big = h > BIG
-        hb = _mn(h, BIG)
-        gb = _mn(g, BIG)
-        cos_l = _mx(0.0, down(1.0 / up(np.sqrt(up(1.0 + up(hb * hb))))))
-        sin_h = _mn(1.0, up(hb / down(np.sqrt(down(1.0 + down(hb * hb))))))
-        cos_l = 0.0 if big else cos_l
-        sin_h = 1.0 if big else sin_h
-        cos_h = _mn(1.0, up(1.0 / down(np.sqrt(down(1.0 + down(gb * gb))))))
-        sin_l = _mx(0.0, down(gb / up(np.sqrt(up(1.0 + up(gb * gb))))))
-        a = _mx(a, down(e * cos_l))
-        b = _mn(b, up(f * cos_h))
-        c = _mx(c, down(e * sin_l))
-        d = _mn(d, up(f * sin_h))
-        # back to the differences: mx ∩= u + sx, sx ∩= mx - u (y likewise)
-        mxl = _mx(mxl, down(a + sxl))
-        mxh = _mn(mxh, up(b + sxh))
-        sxl = _mx(sxl, down(mxl - b))
-        sxh = _mn(sxh, up(mxh - a))
-        myl = _mx(myl, down(c + syl))
-        myh = _mn(myh, up(d + syh))
-        syl = _mx(syl, down(myl - d))
-        syh = _mn(syh, up(myh - c))
-        L[UL * C + i], L[UH * C + i], L[VL * C + i], L[VH * C + i] = a, b, c, d
-        L[RL * C + i], L[RH * C + i], L[TL * C + i], L[TH * C + i] = e, f, g, h
-        L[SXL * C + i], L[SXH * C + i], L[MXL * C + i], L[MXH * C + i] = sxl, sxh, mxl, mxh
-        L[SYL * C + i], L[SYH * C + i], L[MYL * C + i], L[MYH * C + i] = syl, syh, myl, myh
-        good = ((a <= b) & (c <= d) & (e <= f) & (g <= h) & (sl <= sh) & (u2l <= u2h)
-                & (v2l <= v2h) & (sxl <= sxh) & (mxl <= mxh) & (syl <= syh) & (myl <= myh))
-        L[OK * C + i] = L[OK * C + i] if good else 0.0
-        prog = (_shrunk(a0, b0, a, b) | _shrunk(c0, d0, c, d) | _shrunk(e0, f0, e, f)
-                | _shrunk(g0, h0, g, h) | _shrunk(p0, q0, sxl, sxh) | _shrunk(r0, s0, mxl, mxh)
-                | _shrunk(w0, x0, syl, syh) | _shrunk(y0, z0, myl, myh))
-        L[PROG * C + i] = 1.0 if prog else 0.0
+        r = _lane_pass(L, i)
+        L[UL * C + i] = r[0]
+        L[UH * C + i] = r[1]
+        L[VL * C + i] = r[2]
+        L[VH * C + i] = r[3]
+        L[RL * C + i] = r[4]
+        L[RH * C + i] = r[5]
+        L[TL * C + i] = r[6]
+        L[TH * C + i] = r[7]
+        L[SXL * C + i] = r[8]
+        L[SXH * C + i] = r[9]
+        L[MXL * C + i] = r[10]
+        L[MXH * C + i] = r[11]
+        L[SYL * C + i] = r[12]
+        L[SYH * C + i] = r[13]
+        L[MYL * C + i] = r[14]
+        L[MYH * C + i] = r[15]
+        L[OK * C + i] = L[OK * C + i] if r[16] else 0.0
+        L[PROG * C + i] = 1.0 if r[17] else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _passes_live(n, L):
+    """:func:`_passes` on the lanes with ``L[ACT]`` set; the others keep their state (selects:
+    a SIMD loop)."""
+    C = CHUNK
+    for i in range(n):
+        r = _lane_pass(L, i)
+        act = L[ACT * C + i] > 0.5
+        L[UL * C + i] = r[0] if act else L[UL * C + i]
+        L[UH * C + i] = r[1] if act else L[UH * C + i]
+        L[VL * C + i] = r[2] if act else L[VL * C + i]
+        L[VH * C + i] = r[3] if act else L[VH * C + i]
+        L[RL * C + i] = r[4] if act else L[RL * C + i]
+        L[RH * C + i] = r[5] if act else L[RH * C + i]
+        L[TL * C + i] = r[6] if act else L[TL * C + i]
+        L[TH * C + i] = r[7] if act else L[TH * C + i]
+        L[SXL * C + i] = r[8] if act else L[SXL * C + i]
+        L[SXH * C + i] = r[9] if act else L[SXH * C + i]
+        L[MXL * C + i] = r[10] if act else L[MXL * C + i]
+        L[MXH * C + i] = r[11] if act else L[MXH * C + i]
+        L[SYL * C + i] = r[12] if act else L[SYL * C + i]
+        L[SYH * C + i] = r[13] if act else L[SYH * C + i]
+        L[MYL * C + i] = r[14] if act else L[MYL * C + i]
+        L[MYH * C + i] = r[15] if act else L[MYH * C + i]
+        L[OK * C + i] = (L[OK * C + i] if r[16] else 0.0) if act else L[OK * C + i]
+        L[PROG * C + i] = (1.0 if r[17] else 0.0) if act else L[PROG * C + i]
 
 
 @njit(cache=True, inline="always")
@@ -241,22 +331,32 @@ GAL, GAH, GSL, GSH, GOK = 0, 1, 2, 3, 4  # rows of the angle buffer G (alpha, st
 def _meet3(tl, th, al, ah):
     """:func:`_meet` as selects, for ``w(t) + w(a) < 6`` with moderate bounds (else ``ok`` is
     False and the result is to be ignored): the pieces of the copies ``k0 - 1, k0, k0 + 1``,
-    shifted as ``angle_meet`` shifts them, hulled."""
+    shifted as ``angle_meet`` shifts them, hulled. Where ``ok`` every sum and product here is
+    finite, so its roundings need no NaN guard."""
     ok = ((th - tl) + (ah - al) < 6.0) & (-1e15 < tl) & (th < 1e15) & (-1e15 < al) & (ah < 1e15)
     k0 = np.floor((0.5 * (tl + th) - 0.5 * (al + ah)) * INV_TWO_PI_LO + 0.5)
     lo, hi = E, F
     for dk in range(-1, 2):
         k = k0 + dk
-        ol = down(k * TWO_PI_LO) if k >= 0.0 else down(k * TWO_PI_HI)
-        oh = up(k * TWO_PI_HI) if k >= 0.0 else up(k * TWO_PI_LO)
-        sl = al if k == 0.0 else down(al + ol)
-        sh = ah if k == 0.0 else up(ah + oh)
+        ol = down_raw(k * (TWO_PI_LO if k >= 0.0 else TWO_PI_HI))
+        oh = up_raw(k * (TWO_PI_HI if k >= 0.0 else TWO_PI_LO))
+        sl = al if k == 0.0 else down_raw(al + ol)
+        sh = ah if k == 0.0 else up_raw(ah + oh)
         pl = sl if sl > tl else tl
         ph = sh if sh < th else th
         meets = pl <= ph
         lo = pl if meets & (pl < lo) else lo
         hi = ph if meets & (ph > hi) else hi
     return lo, hi, ok
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _meet3t(tl, th, al, ah):
+    """:func:`_meet3` that also takes the cases where ``angle_meet`` returns ``[t]`` as it is
+    (``[a]`` at least a turn wide, ``[t]`` unbounded), for non-empty ``[t]`` and ``[a]``."""
+    whole = (ah - al >= TWO_PI_LO) | (tl == -INF) | (th == INF)
+    lo, hi, ok = _meet3(tl, th, al, ah)
+    return (tl if whole else lo), (th if whole else hi), whole | ok
 
 
 @njit(cache=True, error_model="numpy")
@@ -281,8 +381,8 @@ def _differences(n, q, pl, ph, G):
 
 @njit(cache=True, error_model="numpy")
 def _finish(n, D, box, q, pl, ph, t0l, t0h, ang, acc, G):
-    """Lanes ``0..n-1`` done (final state in ``D``): ``psi ∩= atan(t)``, the periodic difference,
-    hull into their boxes' rows of ``acc``."""
+    """Lanes ``0..n-1`` done (final states in ``D``): ``psi ∩= atan(t)``, the periodic
+    difference, hull into their boxes' rows of ``acc``."""
     C = CHUNK
     for i in range(n):  # atan only where t moved (atan(tan(psi)) holds psi already)
         tl = D[TL * C + i]
@@ -325,11 +425,16 @@ def _finish(n, D, box, q, pl, ph, t0l, t0h, ang, acc, G):
 
 
 @njit(cache=True, error_model="numpy")
-def _to_fixpoint(n, L, D, orig, pl, ph, t0l, t0h, passes):
-    """Load the ``n`` lanes' tangents of their ψ bounds ``pl``, ``ph`` and run :func:`_passes`
-    (at most ``passes``) until no lane is left. After each pass from the second on, a lane that
-    shrank no width by ``RELATIVE_STOP`` (or was emptied) is copied to ``D`` at its first slot
-    and the others are packed to the front."""
+def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes):
+    """Load the ``n`` lanes' tangents of their ψ bounds ``pl``, ``ph`` and run passes (at most
+    ``passes``) until every lane has stopped; the final states are left in ``L``, each lane at
+    its slot. After each pass from the second on, a lane stops if it shrank no width by
+    ``RELATIVE_STOP`` or is empty (a dead lane, ``L[OK]`` 0 from the start, stops there too; it
+    should have ``pl = 0``, ``ph = pi/2``: no libm call).
+
+    While at least half the lanes take passes they stay in place (:func:`_passes_live`: the
+    stopped ones keep their state); then the others are packed into ``S`` (``orig``: their
+    slots), contracted there, and each written back when it stops."""
     C = CHUNK
     for i in range(n):
         t0l[i] = _tan_lo(pl[i])
@@ -337,41 +442,60 @@ def _to_fixpoint(n, L, D, orig, pl, ph, t0l, t0h, passes):
         t0h[i] = _tan_hi(ph[i])
     for i in range(n):
         L[TL * C + i], L[TH * C + i] = t0l[i], t0h[i]
-        L[OK * C + i] = 1.0
-        orig[i] = i
-    for p in range(passes):
-        _passes(n, L)
-        if p == 0:
-            continue
-        m = 0
+        L[ACT * C + i] = 1.0
+    _passes(n, L)
+    p = 1
+    na = n
+    while p < passes and 2 * na >= n:
+        if na == n:
+            _passes(n, L)
+        else:
+            _passes_live(n, L)
+        na = 0
         for i in range(n):
-            if L[OK * C + i] < 0.5 or L[PROG * C + i] < 0.5 or p + 1 == passes:
+            go = (L[ACT * C + i] > 0.5) & (L[OK * C + i] > 0.5) & (L[PROG * C + i] > 0.5)
+            go = go & (p + 1 < passes)
+            L[ACT * C + i] = 1.0 if go else 0.0
+            na += 1 if go else 0
+        p += 1
+    if na == 0:
+        return
+    m = 0
+    for i in range(n):
+        if L[ACT * C + i] > 0.5:
+            orig[m] = i
+            for r in range(ROWS):
+                S[r * C + m] = L[r * C + i]
+            m += 1
+    while m > 0:
+        _passes(m, S)
+        k = 0
+        for i in range(m):
+            if S[OK * C + i] < 0.5 or S[PROG * C + i] < 0.5 or p + 1 == passes:
                 o = orig[i]
                 for r in range(OK + 1):
-                    D[r * C + o] = L[r * C + i]
+                    L[r * C + o] = S[r * C + i]
                 continue
-            if m != i:
-                orig[m] = orig[i]
+            if k != i:
+                orig[k] = orig[i]
                 for r in range(ROWS):
-                    L[r * C + m] = L[r * C + i]
-            m += 1
-        n = m
-        if n == 0:
-            break
+                    S[r * C + k] = S[r * C + i]
+            k += 1
+        m = k
+        p += 1
 
 
 @njit(cache=True, error_model="numpy")
-def _flush(n, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, D, orig, out, G):
+def _flush(n, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, S, orig, out, G):
     """Contract the ``n`` lanes (pieces of ``nb`` boxes, output rows ``rows``) and write out."""
-    _to_fixpoint(n, L, D, orig, pl, ph, t0l, t0h, MAX_PASSES)
-    _finish(n, D, box, q, pl, ph, t0l, t0h, ang, acc, G)
-    sx, sy, st, mx, my, rho, alpha = out
+    _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, MAX_PASSES)
+    _finish(n, L, box, q, pl, ph, t0l, t0h, ang, acc, G)
     for j in range(nb):
-        k = rows[j]
+        k = 2 * rows[j]
         ok = acc[j, 0] <= acc[j, 1]
-        for v, arr in enumerate((sx, sy, st, mx, my, rho, alpha)):
-            arr[k, 0] = acc[j, 2 * v] if ok else E
-            arr[k, 1] = acc[j, 2 * v + 1] if ok else F
+        for v, arr in enumerate(out):
+            arr[k] = acc[j, 2 * v] if ok else E
+            arr[k + 1] = acc[j, 2 * v + 1] if ok else F
 
 
 @njit(cache=True, inline="always")
@@ -380,86 +504,293 @@ def _lane(L, m, ul, uh, vl, vh, rl, rh, xs, ys, sxl, sxh, mxl, mxh, syl, syh, my
     C = CHUNK
     L[UL * C + m], L[UH * C + m], L[VL * C + m], L[VH * C + m] = ul, uh, vl, vh
     L[RL * C + m], L[RH * C + m] = rl, rh
+    L[OK * C + m] = 1.0
     L[SXL * C + m], L[SXH * C + m] = _flip(xs, sxl, sxh)
     L[MXL * C + m], L[MXH * C + m] = _flip(xs, mxl, mxh)
     L[SYL * C + m], L[SYH * C + m] = _flip(ys, syl, syh)
     L[MYL * C + m], L[MYH * C + m] = _flip(ys, myl, myh)
 
 
+# what _entry found for a box: no solution, one piece (a lane at the box's slot), several
+NONE, ONE, MORE = 0.0, 1.0, 2.0
+# The fast path's buffer W: the lane rows (0..ROWS-1, packed during the fixpoint), then per box
+# of the chunk (slot = box): its 14 bounds (sx sy st mx my rho alpha, lo hi; replaced by the
+# results on exit), the ψ bounds of its lane, its quadrant, its kind, and a flag for the scalar
+# angle steps. Every SIMD loop over W reads and writes one base pointer at compile-time row
+# offsets, so LLVM vectorises it without runtime alias checks.
+BX = ROWS
+PSL, PSH, QD, KD, FX = BX + 14, BX + 15, BX + 16, BX + 17, BX + 18
+WROWS = BX + 19
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _copy(k, dl, dh, fl, fh):
+    """Copy ``k`` of the bearing ``f`` as :func:`_shift` gives it, for the piece search of
+    :func:`_entry` (``dl``, ``dh``: the whole line, or nothing, for a wide bearing)."""
+    ol = down(k * (TWO_PI_LO if k >= 0.0 else TWO_PI_HI))
+    oh = up(k * (TWO_PI_HI if k >= 0.0 else TWO_PI_LO))
+    sl = fl if k == 0.0 else down(fl + ol)
+    sh = fh if k == 0.0 else up(fh + oh)
+    return dl if dl == dl else sl, dh if dh == dh else sh
+
+
+@njit(cache=True, error_model="numpy")
+def _entry(s, nb, out, W):
+    """Boxes ``s..s+nb-1`` into ``W`` and, as selects (a SIMD loop), their kinds: a box with one
+    piece gets its lane at its slot (``W`` rows ``PSL``, ``PSH``, ``QD`` and the lane rows, as
+    :func:`_general_box` builds it), any other box a dead lane (``OK`` 0, ψ = [0, pi/2]).
+
+    The pieces are counted over the copies ``K - 1, K, K + 1`` of the bearing around the one
+    nearest to 0 (``K``): every copy meeting a quadrant's arc is one of them, so the count is
+    :func:`_general_box`'s (a copy meeting the arc always gives a non-empty ψ; a box is only
+    taken as ``ONE`` if its piece's ψ is checked non-empty)."""
+    C = CHUNK
+    for v in range(7):
+        a = out[v]
+        r = (BX + 2 * v) * C
+        for j in range(nb):
+            W[r + j] = a[2 * (s + j)]
+            W[r + C + j] = a[2 * (s + j) + 1]
+    for j in range(nb):
+        sxl, sxh = W[(BX + 0) * C + j], W[(BX + 1) * C + j]
+        syl, syh = W[(BX + 2) * C + j], W[(BX + 3) * C + j]
+        stl, sth = W[(BX + 4) * C + j], W[(BX + 5) * C + j]
+        mxl, mxh = W[(BX + 6) * C + j], W[(BX + 7) * C + j]
+        myl, myh = W[(BX + 8) * C + j], W[(BX + 9) * C + j]
+        rl, rh = _mx(W[(BX + 10) * C + j], 0.0), W[(BX + 11) * C + j]
+        al, ah = W[(BX + 12) * C + j], W[(BX + 13) * C + j]
+        valid = ((sxl <= sxh) & (syl <= syh) & (stl <= sth) & (mxl <= mxh) & (myl <= myh)
+                 & (rl <= rh) & (al <= ah))
+        dxl, dxh = down(mxl - sxh), up(mxh - sxl)
+        dyl, dyh = down(myl - syh), up(myh - syl)
+        fl, fh = down(al + stl), up(ah + sth)
+        wide = not ((fh - fl < TWO_PI_LO) & (-1e15 < fl) & (fh < 1e15))
+        # the quadrants (dx, dy) meets: x >= 0 (q0, q1), x <= 0 (q2, q3), y >= 0 (q0, q3), y <= 0
+        xp, xn = _mx(dxl, 0.0) <= dxh, _mx(-dxh, 0.0) <= -dxl
+        yp, yn = _mx(dyl, 0.0) <= dyh, _mx(-dyh, 0.0) <= -dyl
+        kc = np.floor(-0.5 * (fl + fh) * INV_TWO_PI_LO + 0.5)
+        kc = 0.0 if wide else kc
+        wn = -INF if wide else np.nan  # a wide bearing: copy K (= 0) is the whole line
+        wp = INF if wide else np.nan
+        l0, h0 = _copy(kc - 1.0, INF if wide else np.nan, -INF if wide else np.nan, fl, fh)
+        l1, h1 = _copy(kc, wn, wp, fl, fh)
+        l2, h2 = _copy(kc + 1.0, INF if wide else np.nan, -INF if wide else np.nan, fl, fh)
+        cnt = 0
+        qq, wl, wh = 0.0, 0.0, 0.0
+        for qi in range(4):
+            cl, ch = _arc(qi)
+            qok = (xp if qi < 2 else xn) & (yp if (qi == 0 or qi == 3) else yn)
+            for sl, sh in ((l0, h0), (l1, h1), (l2, h2)):
+                pl = cl if cl > sl else sl
+                ph = ch if ch < sh else sh
+                meets = qok & (pl <= ph)
+                cnt += 1 if meets else 0
+                qq = float(qi) if meets else qq
+                wl = pl if meets else wl
+                wh = ph if meets else wh
+        # the piece's psi (_to_psi)
+        pl = wl if qq == 0.0 else (-wh if qq == 1.0 else (down(wl + PI_LO) if qq == 2.0 else down(PI_LO - wh)))
+        ph = wh if qq == 0.0 else (-wl if qq == 1.0 else (up(wh + PI_HI) if qq == 2.0 else up(PI_HI - wl)))
+        a = pl if pl > 0.0 else 0.0
+        b = ph if ph < HALF_PI_HI else HALF_PI_HI
+        one = valid & (cnt == 1) & (a <= b)
+        xs = (qq == 0.0) | (qq == 1.0)
+        ys = (qq == 0.0) | (qq == 3.0)
+        ul, uh = _mx(dxl if xs else -dxh, 0.0), dxh if xs else -dxl
+        vl, vh = _mx(dyl if ys else -dyh, 0.0), dyh if ys else -dyl
+        W[UL * C + j], W[UH * C + j], W[VL * C + j], W[VH * C + j] = ul, uh, vl, vh
+        W[RL * C + j], W[RH * C + j] = rl, rh
+        W[SXL * C + j] = sxl if xs else -sxh
+        W[SXH * C + j] = sxh if xs else -sxl
+        W[MXL * C + j] = mxl if xs else -mxh
+        W[MXH * C + j] = mxh if xs else -mxl
+        W[SYL * C + j] = syl if ys else -syh
+        W[SYH * C + j] = syh if ys else -syl
+        W[MYL * C + j] = myl if ys else -myh
+        W[MYH * C + j] = myh if ys else -myl
+        W[OK * C + j] = 1.0 if one else 0.0
+        W[QD * C + j] = qq
+        W[PSL * C + j] = a if one else 0.0
+        W[PSH * C + j] = b if one else HALF_PI_HI
+        W[KD * C + j] = ONE if one else (MORE if valid & (cnt > 0) else NONE)
+
+
+@njit(cache=True, error_model="numpy")
+def _exit(s, nb, out, W, t0l, t0h):
+    """Rows ``s..s+nb-1`` from their lanes (final states in ``W``), as :func:`_finish` and
+    :func:`_flush` give them for one piece: ``psi ∩= atan(t)``; then as selects (a SIMD loop)
+    the periodic difference (``_meet3``), back from the quadrant frame, into ``W``'s box rows;
+    the rare lanes outside ``_meet3``'s range take the scalar steps; then written out. Rows of
+    kind ``NONE`` are emptied, rows of kind ``MORE`` left to the general path."""
+    C = CHUNK
+    for i in range(nb):  # atan only where t moved (atan(tan(psi)) holds psi already)
+        tl = W[TL * C + i]
+        if tl != t0l[i] and W[OK * C + i] > 0.5:
+            W[PSL * C + i] = _mx(W[PSL * C + i], _atan_lo(tl))
+    for i in range(nb):
+        th = W[TH * C + i]
+        if th != t0h[i] and W[OK * C + i] > 0.5:
+            W[PSH * C + i] = _mn(W[PSH * C + i], _atan_hi(th))
+    for i in range(nb):
+        lo, hi, qi = W[PSL * C + i], W[PSH * C + i], W[QD * C + i]
+        live = (W[KD * C + i] == ONE) & (W[OK * C + i] > 0.5) & (lo <= hi)
+        # alpha ∩= phi - sth, sth ∩= phi - alpha (mod 2 pi), phi the world bearing of psi
+        wl = lo if qi == 0.0 else (-hi if qi == 1.0 else (down(lo - PI_HI) if qi == 2.0 else down(PI_LO - hi)))
+        wh = hi if qi == 0.0 else (-lo if qi == 1.0 else (up(hi - PI_LO) if qi == 2.0 else up(PI_HI - lo)))
+        al, ah = W[(BX + 12) * C + i], W[(BX + 13) * C + i]
+        stl, sth = W[(BX + 4) * C + i], W[(BX + 5) * C + i]
+        nal, nah, ok1 = _meet3(al, ah, down(wl - sth), up(wh - stl))
+        nsl, nsh, ok2 = _meet3(stl, sth, down(wl - nah), up(wh - nal))
+        gok = ok1 & ok2 & (lo <= hi)
+        # a lane outside _meet3's range keeps its angles here; the scalar steps below
+        # contract them (and empty the row if they empty one) unless they are unbounded
+        al, ah = (nal, nah) if gok else (al, ah)
+        stl, sth = (nsl, nsh) if gok else (stl, sth)
+        xp = (qi == 0.0) | (qi == 1.0)
+        yp = (qi == 0.0) | (qi == 3.0)
+        a, b = W[SXL * C + i], W[SXH * C + i]
+        sxl, sxh = (a if xp else -b), (b if xp else -a)
+        a, b = W[SYL * C + i], W[SYH * C + i]
+        syl, syh = (a if yp else -b), (b if yp else -a)
+        a, b = W[MXL * C + i], W[MXH * C + i]
+        mxl, mxh = (a if xp else -b), (b if xp else -a)
+        a, b = W[MYL * C + i], W[MYH * C + i]
+        myl, myh = (a if yp else -b), (b if yp else -a)
+        rl, rh = W[RL * C + i], W[RH * C + i]
+        w = live & ((not gok) | ((al <= ah) & (stl <= sth))) & (sxl <= sxh)
+        # an infinite bound of alpha or sth: angle_meet leaves both as they are
+        finite = (al > -INF) & (ah < INF) & (stl > -INF) & (sth < INF)
+        W[FX * C + i] = 1.0 if live & (not gok) & finite & (sxl <= sxh) else 0.0
+        W[(BX + 0) * C + i], W[(BX + 1) * C + i] = (sxl if w else E), (sxh if w else F)
+        W[(BX + 2) * C + i], W[(BX + 3) * C + i] = (syl if w else E), (syh if w else F)
+        W[(BX + 4) * C + i], W[(BX + 5) * C + i] = (stl if w else E), (sth if w else F)
+        W[(BX + 6) * C + i], W[(BX + 7) * C + i] = (mxl if w else E), (mxh if w else F)
+        W[(BX + 8) * C + i], W[(BX + 9) * C + i] = (myl if w else E), (myh if w else F)
+        W[(BX + 10) * C + i], W[(BX + 11) * C + i] = (rl if w else E), (rh if w else F)
+        W[(BX + 12) * C + i], W[(BX + 13) * C + i] = (al if w else E), (ah if w else F)
+    for i in range(nb):
+        if W[FX * C + i] < 0.5:
+            continue
+        al, ah = W[(BX + 12) * C + i], W[(BX + 13) * C + i]
+        stl, sth = W[(BX + 4) * C + i], W[(BX + 5) * C + i]
+        wl, wh = _from_psi(int(W[QD * C + i]), W[PSL * C + i], W[PSH * C + i])
+        dl, dh = sub(wl, wh, stl, sth)
+        al, ah = _meet(al, ah, dl, dh)
+        dl, dh = sub(wl, wh, al, ah)
+        stl, sth = _meet(stl, sth, dl, dh)
+        if (al <= ah) and (stl <= sth):
+            W[(BX + 12) * C + i], W[(BX + 13) * C + i] = al, ah
+            W[(BX + 4) * C + i], W[(BX + 5) * C + i] = stl, sth
+        else:
+            for r in range(7):
+                W[(BX + 2 * r) * C + i], W[(BX + 2 * r + 1) * C + i] = E, F
+    for v in range(7):
+        a = out[v]
+        r = (BX + 2 * v) * C
+        for j in range(nb):
+            keep = W[KD * C + j] == MORE
+            a[2 * (s + j)] = a[2 * (s + j)] if keep else W[r + j]
+            a[2 * (s + j) + 1] = a[2 * (s + j) + 1] if keep else W[r + C + j]
+
+
+@njit(cache=True, error_model="numpy")
+def _general_box(i, out, L, S, orig, rows, box, q, pl, ph, t0l, t0h, ang, acc, G, cnt):
+    """Box ``i`` (kind ``MORE``): its pieces as lanes of the general buffers (``cnt`` holds their
+    lane and box counts), contracted and hulled when the buffers are full."""
+    C = CHUNK
+    sxa, sya, sta, mxa, mya, rhoa, ala = out
+    k = 2 * i
+    sxl, sxh, syl, syh = sxa[k], sxa[k + 1], sya[k], sya[k + 1]
+    stl, sth, mxl, mxh = sta[k], sta[k + 1], mxa[k], mxa[k + 1]
+    myl, myh, rl, rh = mya[k], mya[k + 1], max(rhoa[k], 0.0), rhoa[k + 1]
+    al, ah = ala[k], ala[k + 1]
+    m, nb = cnt[0], cnt[1]
+    dxl, dxh = sub(mxl, mxh, sxl, sxh)
+    dyl, dyh = sub(myl, myh, syl, syh)
+    fl, fh = add(al, ah, stl, sth)
+    for qq in range(4):
+        xs = 1.0 if (qq == 0 or qq == 1) else -1.0
+        ys = 1.0 if (qq == 0 or qq == 3) else -1.0
+        ul, uh = _flip(xs, dxl, dxh)
+        vl, vh = _flip(ys, dyl, dyh)
+        ul, vl = max(ul, 0.0), max(vl, 0.0)
+        if not (ul <= uh and vl <= vh):
+            continue
+        cl, ch = _arc(qq)
+        wide = not (fh - fl < TWO_PI_LO and -1e15 < fl and fh < 1e15)
+        k0 = 0.0 if wide else float(round((0.5 * (cl + ch) - 0.5 * (fl + fh)) * INV_TWO_PI_LO))
+        for dk in range(-1, 2):
+            if wide and dk != 0:
+                continue
+            wl, wh = (cl, ch) if wide else inter(cl, ch, *_shift(fl, fh, k0 + dk))
+            a, b = _to_psi(qq, wl, wh) if wl <= wh else (E, F)
+            if not (a <= b):
+                continue
+            _lane(L, m, ul, uh, vl, vh, rl, rh, xs, ys, sxl, sxh, mxl, mxh, syl, syh, myl, myh)
+            box[m], q[m], pl[m], ph[m] = nb, qq, a, b
+            m += 1
+    rows[nb] = i
+    ang[nb, 0], ang[nb, 1], ang[nb, 2], ang[nb, 3] = al, ah, stl, sth
+    for v in range(14):
+        acc[nb, v] = E if v % 2 == 0 else F
+    nb += 1
+    if m + 12 > C:
+        _flush(m, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, S, orig, out, G)
+        m = 0
+        nb = 0
+    cnt[0], cnt[1] = m, nb
+
+
 @njit(cache=True, error_model="numpy")
 def _kernel(sx, sy, st, mx, my, rho, alpha):
-    n = sx.shape[0]
+    """Over seven flat ``[lo0, hi0, lo1, hi1, ...]`` arrays, a chunk of ``CHUNK`` boxes at a time:
+    :func:`_entry`, the boxes of several pieces to :func:`_general_box`, the fixpoint of the
+    one-piece lanes, :func:`_exit`."""
+    n = sx.shape[0] // 2
     C = CHUNK
+    out = (sx, sy, st, mx, my, rho, alpha)
     okm = np.empty(n, np.bool_)
+    W = np.empty(WROWS * C)  # the one-piece lanes, slot = box of the chunk
+    S = np.empty(ROWS * C)
+    orig = np.empty(C, np.int64)
+    t0l, t0h = np.empty(C), np.empty(C)
+    pl, ph = W[PSL * C:(PSL + 1) * C], W[PSH * C:(PSH + 1) * C]
+    # the general path's lanes (pieces of boxes of kind MORE)
+    L2 = np.empty(ROWS * C)
+    S2 = np.empty(ROWS * C)
+    G2 = np.empty(5 * C)
+    orig2 = np.empty(C, np.int64)
     rows = np.empty(C, np.int64)
     box = np.empty(C, np.int64)
-    q = np.empty(C, np.int64)
-    pl, ph, t0l, t0h = np.empty(C), np.empty(C), np.empty(C), np.empty(C)
+    q2 = np.empty(C, np.int64)
+    pl2, ph2, t0l2, t0h2 = np.empty(C), np.empty(C), np.empty(C), np.empty(C)
     ang = np.empty((C, 4))
     acc = np.empty((C, 14))
-    L = np.empty(ROWS * C)
-    D = np.empty(ROWS * C)
-    G = np.empty(5 * C)
-    orig = np.empty(C, np.int64)
-    out = (sx, sy, st, mx, my, rho, alpha)
-    m = 0  # lanes in the chunk
-    nb = 0  # boxes in the chunk
+    cnt = np.zeros(2, np.int64)
+    for s in range(0, n, C):
+        nb = min(C, n - s)
+        _entry(s, nb, out, W)
+        for j in range(nb):
+            if W[KD * C + j] == MORE:
+                _general_box(s + j, out, L2, S2, orig2, rows, box, q2, pl2, ph2, t0l2, t0h2,
+                             ang, acc, G2, cnt)
+        _to_fixpoint(nb, W, S, orig, pl, ph, t0l, t0h, MAX_PASSES)
+        _exit(s, nb, out, W, t0l, t0h)
+    if cnt[0] > 0:
+        _flush(cnt[0], cnt[1], rows, box, q2, pl2, ph2, t0l2, t0h2, ang, acc, L2, S2, orig2, out,
+               G2)
     for i in range(n):
-        sxl, sxh, syl, syh = sx[i, 0], sx[i, 1], sy[i, 0], sy[i, 1]
-        stl, sth, mxl, mxh = st[i, 0], st[i, 1], mx[i, 0], mx[i, 1]
-        myl, myh, rl, rh = my[i, 0], my[i, 1], max(rho[i, 0], 0.0), rho[i, 1]
-        al, ah = alpha[i, 0], alpha[i, 1]
-        okm[i] = False
-        if not (sxl <= sxh and syl <= syh and stl <= sth and mxl <= mxh and myl <= myh
-                and rl <= rh and al <= ah):
-            for arr in out:
-                arr[i, 0], arr[i, 1] = E, F
-            continue
-        dxl, dxh = sub(mxl, mxh, sxl, sxh)
-        dyl, dyh = sub(myl, myh, syl, syh)
-        fl, fh = add(al, ah, stl, sth)
-        m0 = m
-        for qq in range(4):
-            xs = 1.0 if (qq == 0 or qq == 1) else -1.0
-            ys = 1.0 if (qq == 0 or qq == 3) else -1.0
-            ul, uh = _flip(xs, dxl, dxh)
-            vl, vh = _flip(ys, dyl, dyh)
-            ul, vl = max(ul, 0.0), max(vl, 0.0)
-            if not (ul <= uh and vl <= vh):
-                continue
-            cl, ch = _arc(qq)
-            wide = not (fh - fl < TWO_PI_LO and -1e15 < fl and fh < 1e15)
-            k0 = 0.0 if wide else float(round((0.5 * (cl + ch) - 0.5 * (fl + fh)) * INV_TWO_PI_LO))
-            for dk in range(-1, 2):
-                if wide and dk != 0:
-                    continue
-                wl, wh = (cl, ch) if wide else inter(cl, ch, *_shift(fl, fh, k0 + dk))
-                a, b = _to_psi(qq, wl, wh) if wl <= wh else (E, F)
-                if not (a <= b):
-                    continue
-                _lane(L, m, ul, uh, vl, vh, rl, rh, xs, ys, sxl, sxh, mxl, mxh, syl, syh, myl, myh)
-                box[m], q[m], pl[m], ph[m] = nb, qq, a, b
-                m += 1
-        if m == m0:
-            for arr in out:
-                arr[i, 0], arr[i, 1] = E, F
-            continue
-        rows[nb] = i
-        ang[nb, 0], ang[nb, 1], ang[nb, 2], ang[nb, 3] = al, ah, stl, sth
-        for k in range(14):
-            acc[nb, k] = E if k % 2 == 0 else F
-        nb += 1
-        if m + 12 > C:
-            _flush(m, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, D, orig, out, G)
-            m = 0
-            nb = 0
-    if m > 0:
-        _flush(m, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, D, orig, out, G)
-    for i in range(n):
-        okm[i] = sx[i, 0] <= sx[i, 1]
+        okm[i] = sx[2 * i] <= sx[2 * i + 1]
     return okm
 
 
 def range_bearing_simd_kernel(sx, sy, sth, mx, my, rho, alpha):
     """In place over seven ``(N, 2)`` arrays; returns the mask of rows that stayed non-empty."""
-    return _kernel(sx, sy, sth, mx, my, rho, alpha)
+    arrs = (sx, sy, sth, mx, my, rho, alpha)
+    if all(a.flags.c_contiguous for a in arrs):
+        return _kernel(*(a.reshape(-1) for a in arrs))
+    flat = [np.ascontiguousarray(a).reshape(-1) for a in arrs]
+    ok = _kernel(*flat)
+    for a, f in zip(arrs, flat):
+        a[...] = f.reshape(a.shape)
+    return ok

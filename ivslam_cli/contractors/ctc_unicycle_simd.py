@@ -1,4 +1,4 @@
-"""Unicycle motion step contractor over structure-of-arrays chunks: the polar part as SIMD loops.
+"""Unicycle motion step contractor over structure-of-arrays slots: every stage a SIMD loop.
 
 Same constraint and guarantee as :mod:`~ivslam_cli.contractors.ctc_unicycle` (the kinematic
 model of the Guaranteed SLAM slides: ``x1 = x0 + v dt cos(th0) + qx``, ``y1 = y0 + v dt
@@ -10,11 +10,11 @@ tests/contractors/test_unicycle_simd.py compares the two.
 Decomposition (Jaulin's contractor programming, as in the scalar kernel): the heading
 ``w dt + qth = th1 - th0`` (mod 2 pi), then the position ``(dx, dy) = s (cos th0, sin th0)``
 with ``s = v dt``, ``dx = (x1 - x0) - qx``, ``dy = (y1 - y0) - qy``. A round contracts the
-heading (scalar code, the same steps as ``unicycle_pass``), then splits the position part into
-pieces: the sign of ``s`` (``s <= 0`` is the polar constraint on ``-s`` and ``th0 + pi``), the
-closed quadrant of ``(dx, dy)``, and the copy of that quadrant's arc the bearing meets (the
-solutions are the union of those of the pieces, so the hull of the pieces' contractions is
-sound). Each piece is contracted by the fused branch-free loop of
+heading (the steps of ``unicycle_pass``), then splits the position part into pieces: the sign
+of ``s`` (``s <= 0`` is the polar constraint on ``-s`` and ``th0 + pi``), the closed quadrant
+of ``(dx, dy)``, and the copy of that quadrant's arc the heading meets (the solutions are the
+union of those of the pieces, so the hull of the pieces' contractions is sound). Each piece is
+contracted by the fused branch-free loop of
 :mod:`~ivslam_cli.contractors.ctc_range_bearing_simd` (the polar steps of
 :mod:`~ivslam_cli.contractors.ctc_polar_simd` on ``(|dx|, |dy|, |s|, tan psi)`` with the
 difference ``dx = a - q``), rounded outward with
@@ -31,6 +31,17 @@ checks that no bound of this kernel is outside the scalar result by more than ``
 RELATIVE_STOP`` of the input width (of the scalar result's width where the input is unbounded)
 plus rounding, and that the widths are on average no larger. A heading wider than
 ``MAX_TURNS`` turns (or unbounded) is not contracted by the position part.
+
+Execution: ``NB`` slots hold boxes in flight, each at its own round; a slot whose box is done
+writes it out and takes the next one, so every pass over the slots works on live boxes. A pass
+is: the heading of every slot as selects (:func:`_headings`, the interval operations in select
+form: ``_mul_s``, ``_bwd_mul_s``, ``_meet3t``; the rare heading outside their range takes
+:func:`_heading`); the plan of the position part (:func:`_plan`: a box with at most two
+pieces and a heading narrower than 2 pi has them found by selects, any other by
+:func:`_pieces`); the lanes built (scalar, a few stores each), contracted to their fixpoint,
+taken back to their boxes (:func:`_exit`, selects) and hulled per box; the end of the round
+(:func:`_progress`, selects). The bounds are those of the per-box kernel of the scalar steps
+this replaced, bit for bit (the same operations in the same order, per box).
 """
 
 from __future__ import annotations
@@ -57,10 +68,9 @@ from ivslam_cli.contractors.ctc_range_bearing_simd import (
     TL,
     _arc,
     _flip,
-    _from_psi,
     _lane,
     _meet,
-    _meet3,
+    _meet3t,
     _mn,
     _mx,
     _shift,
@@ -68,7 +78,7 @@ from ivslam_cli.contractors.ctc_range_bearing_simd import (
     _to_psi,
 )
 from ivslam_cli.contractors.ctc_unicycle import MAX_PASSES as MAX_ROUNDS
-from ivslam_cli.contractors.ctc_unicycle import RELATIVE_STOP, shrink
+from ivslam_cli.contractors.ctc_unicycle import RELATIVE_STOP
 from ivslam_cli.interval.arith import (
     EMPTY_HI,
     EMPTY_LO,
@@ -79,12 +89,22 @@ from ivslam_cli.interval.arith import (
     mul,
     sub,
 )
-from ivslam_cli.interval.rounding import INV_TWO_PI_HI, INV_TWO_PI_LO, PI_HI, PI_LO, TWO_PI_LO, down, up
+from ivslam_cli.interval.rounding import (
+    HALF_PI_HI,
+    INF,
+    INV_TWO_PI_HI,
+    INV_TWO_PI_LO,
+    PI_HI,
+    PI_LO,
+    TWO_PI_HI,
+    TWO_PI_LO,
+    down,
+    up,
+)
 
 E = EMPTY_LO
 F = EMPTY_HI
 PASSES = 16  # at most this many fused passes per piece and round
-BLOCK = 64  # boxes contracted together, round after round
 MAX_TURNS = 3.0  # a heading wider than 3 turns is not contracted by the position part
 PIECES = 56  # at most 2 signs x 4 quadrants x 7 copies per box
 # the 24 bounds of a box, in the order of unicycle_scalar
@@ -129,74 +149,123 @@ def _heading(b, j):
     return True
 
 
-# rows of the heading buffer H (boxes of a block as structure of arrays)
-HWL, HWH, HDL, HDH, HQL, HQH, H1L, H1H, H0L, H0H, HPL, HPH, HUL, HUH, HOK = range(15)
-
-
 @njit(cache=True, inline="always", error_model="numpy")
 def _prod(a, c):
     return 0.0 if (a == 0.0) | (c == 0.0) else a * c
 
 
-@njit(cache=True, error_model="numpy")
-def _headings_simd(nb, H):
-    """The heading block of ``unicycle_pass`` up to ``bwd_add``, for boxes ``0..nb-1`` of ``H``,
-    as selects (a SIMD loop): the same float operations as ``mul``, ``add``, ``_angle_difference``
-    (with ``_meet3``) and ``bwd_add`` on non-empty inputs. ``H[HOK]``: 1 if the results hold, 0
-    if the box is emptied, -1 if ``_meet3`` does not apply (the scalar steps are then needed)."""
-    B = BLOCK
-    for j in range(nb):
-        wl, wh, dl, dh = H[HWL * B + j], H[HWH * B + j], H[HDL * B + j], H[HDH * B + j]
-        ql, qh = H[HQL * B + j], H[HQH * B + j]
-        t1l, t1h, t0l, t0h = H[H1L * B + j], H[H1H * B + j], H[H0L * B + j], H[H0H * B + j]
-        p1, p2, p3, p4 = _prod(wl, dl), _prod(wl, dh), _prod(wh, dl), _prod(wh, dh)
-        pl = down(min(min(p1, p2), min(p3, p4)))
-        ph = up(max(max(p1, p2), max(p3, p4)))
-        ul, uh = down(pl + ql), up(ph + qh)
-        ul, uh, ok1 = _meet3(ul, uh, down(t1l - t0h), up(t1h - t0l))
-        t1l, t1h, ok2 = _meet3(t1l, t1h, down(ul + t0l), up(uh + t0h))
-        t0l, t0h, ok3 = _meet3(t0l, t0h, down(t1l - uh), up(t1h - ul))
-        # bwd_add(u, p, qth): p ∩= u - qth, qth ∩= u - p
-        pl, ph = _mx(pl, down(ul - qh)), _mn(ph, up(uh - ql))
-        ql, qh = _mx(ql, down(ul - ph)), _mn(qh, up(uh - pl))
-        good = (ul <= uh) & (t1l <= t1h) & (t0l <= t0h) & (pl <= ph) & (ql <= qh)
-        H[H1L * B + j], H[H1H * B + j], H[H0L * B + j], H[H0H * B + j] = t1l, t1h, t0l, t0h
-        H[HPL * B + j], H[HPH * B + j], H[HQL * B + j], H[HQH * B + j] = pl, ph, ql, qh
-        H[HOK * B + j] = (1.0 if good else 0.0) if (ok1 & ok2 & ok3) else -1.0
+@njit(cache=True, inline="always", error_model="numpy")
+def _mul_s(al, ah, bl, bh):
+    """:func:`~ivslam_cli.interval.arith.mul` of non-empty intervals as selects."""
+    p1, p2, p3, p4 = _prod(al, bl), _prod(al, bh), _prod(ah, bl), _prod(ah, bh)
+    return down(min(min(p1, p2), min(p3, p4))), up(max(max(p1, p2), max(p3, p4)))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _ql(a, b):
+    q = a / b
+    return INF if q != q else q
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _qh(a, b):
+    q = a / b
+    return -INF if q != q else q
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _div_meet_s(tl, th, al, ah, bl, bh):
+    """:func:`~ivslam_cli.interval.arith.div_meet` (``[t] ∩ [a] / [b]``, both pieces of the
+    extended division) of non-empty intervals as selects: every case of
+    :func:`~ivslam_cli.interval.arith.div2` is computed and the one that applies is taken,
+    the same float operations in each."""
+    # 0 not in [b]
+    lo = down(min(min(_ql(al, bl), _ql(al, bh)), min(_ql(ah, bl), _ql(ah, bh))))
+    hi = up(max(max(_qh(al, bl), _qh(al, bh)), max(_qh(ah, bl), _qh(ah, bh))))
+    l1, h1, l2, h2 = lo, hi, E, F
+    apos = al >= 0.0
+    zb = (bl == 0.0) & (bh == 0.0)
+    nz = (bl > 0.0) | (bh < 0.0)
+    # 0 in [b], [b] not {0}
+    za = (al == 0.0) & (ah == 0.0)
+    sa = (al < 0.0) & (0.0 < ah)
+    lb = bl == 0.0  # [0, bh]
+    hb = bh == 0.0  # [bl, 0]
+    # [b] = [0, bh]: a >= 0 -> [a_lo / bh, inf], else [-inf, a_hi / bh]
+    c1l = down(al / bh) if apos else -INF
+    c1h = INF if apos else up(ah / bh)
+    # [b] = [bl, 0]: a >= 0 -> [-inf, a_lo / bl], else [a_hi / bl, inf]
+    c2l = -INF if apos else down(ah / bl)
+    c2h = up(al / bl) if apos else INF
+    # bl < 0 < bh: two pieces
+    t1h = up(al / bl) if apos else up(ah / bh)
+    t2l = down(al / bh) if apos else down(ah / bl)
+    l1 = l1 if nz else (0.0 if za else (-INF if sa else (c1l if lb else (c2l if hb else -INF))))
+    h1 = h1 if nz else (0.0 if za else (INF if sa else (c1h if lb else (c2h if hb else t1h))))
+    two = (not nz) & (not za) & (not sa) & (not lb) & (not hb)
+    l2 = t2l if two else E
+    h2 = INF if two else F
+    l1 = E if zb else l1
+    h1 = F if zb else h1
+    # inter with [t] of each piece, hull (the empty set is neutral)
+    p1l, p1h = (tl if tl > l1 else l1), (th if th < h1 else h1)
+    p2l, p2h = (tl if tl > l2 else l2), (th if th < h2 else h2)
+    e1 = not (p1l <= p1h)
+    e2 = not (p2l <= p2h)
+    rl = (E if e2 else p2l) if e1 else (p1l if e2 else (p1l if p1l < p2l else p2l))
+    rh = (F if e2 else p2h) if e1 else (p1h if e2 else (p1h if p1h > p2h else p2h))
+    return rl, rh
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _bwd_mul_s(zl, zh, xl, xh, yl, yh):
+    """:func:`~ivslam_cli.interval.arith.bwd_mul` (contract ``x, y`` under ``z = x y``) of
+    non-empty ``x, y`` as selects; the result is empty (``x`` and ``y``) where it empties."""
+    z0 = (zl <= 0.0) & (0.0 <= zh)
+    nxl, nxh = _div_meet_s(xl, xh, zl, zh, yl, yh)
+    keep_x = z0 & (yl <= 0.0) & (0.0 <= yh)
+    xl, xh = (xl if keep_x else nxl), (xh if keep_x else nxh)
+    nyl, nyh = _div_meet_s(yl, yh, zl, zh, xl, xh)
+    keep_y = z0 & (xl <= 0.0) & (0.0 <= xh)
+    yl, yh = (yl if keep_y else nyl), (yh if keep_y else nyh)
+    ok = (zl <= zh) & (xl <= xh) & (yl <= yh)
+    return (xl if ok else E), (xh if ok else F), (yl if ok else E), (yh if ok else F)
+
+
+
+# Slots: NB boxes in flight, each at its own round; a slot whose box is done takes the next
+# box. The slot buffer B holds slot j's values at B[r * NB + j]: the 24 bounds (rows 0..23, in
+# unicycle_scalar's order), the hull of the round's pieces (ACC..ACC+23), the slot's state
+# and the plan of its position part. The SIMD loops over slots use B only, at compile-time row
+# offsets (LLVM needs no runtime alias checks then).
+NB = 128
+ACC = 24
+LT0L, LT0H, LDTL, LDTH = 48, 49, 50, 51  # th0 and dt after the slot's last position part
+LIVE, RND, HOK, POS, NPC = 52, 53, 54, 55, 56
+PC = 57  # the pieces _plan found: piece t at PC + 5 t + (sign of s, quadrant, copy, psi lo, hi)
+SL_, SH_ = 67, 68  # s = v dt
+DXL, DXH, DYL, DYH = 69, 70, 71, 72  # dx = (x1 - x0) - qx, dy likewise
+AXL, AXH, AYL, AYH = 73, 74, 75, 76  # x1 - x0, y1 - y0
+BROWS = 77
+# B[POS]: the round's position part
+KEEP, SIMD, GEN, NOTHING = 0.0, 1.0, 2.0, 3.0
+# rows of the lane buffer L after the lane state (ROWS rows, packed during the fixpoint), each
+# lane at its slot: its piece; the bounds of its box that its way back reads (copied in when
+# the lane is built, so that the loop of _exit reads and writes L only: a SIMD loop); what the
+# lane gives the box
+MQ, MKK, MSG, MPL, MPH, MT0L, MT0H, MV = (ROWS + k for k in range(8))
+MB = ROWS + 8  # 14 rows: th0 v dt x0 x1 y0 y1 of the box (lo, hi), in that order
+MR = MB + 14  # 18 rows: x0 y0 th0 x1 y1 v dt qx qy (lo, hi), as the lane contracts them
+LROWS = MR + 18
+
 
 
 @njit(cache=True)
-def _headings(nb, b, active, H, res):
-    """``res[j] = _heading(b, j)`` for the active boxes, the same bounds, mostly as a SIMD loop."""
-    B = BLOCK
-    for j in range(nb):
-        H[HWL * B + j], H[HWH * B + j], H[HDL * B + j], H[HDH * B + j] = b[j, W], b[j, W + 1], b[j, DT], b[j, DT + 1]
-        H[HQL * B + j], H[HQH * B + j] = b[j, QT], b[j, QT + 1]
-        H[H1L * B + j], H[H1H * B + j], H[H0L * B + j], H[H0H * B + j] = b[j, T1], b[j, T1 + 1], b[j, T0], b[j, T0 + 1]
-    _headings_simd(nb, H)
-    for j in range(nb):
-        if not active[j]:
-            continue
-        ok = H[HOK * B + j]
-        if ok < -0.5:
-            res[j] = _heading(b, j)
-            continue
-        if ok < 0.5:
-            res[j] = False
-            continue
-        wl, wh, dl, dh = bwd_mul(H[HPL * B + j], H[HPH * B + j], b[j, W], b[j, W + 1], b[j, DT], b[j, DT + 1])
-        if not (wl <= wh) or not (dl <= dh):
-            res[j] = False
-            continue
-        b[j, T1], b[j, T1 + 1], b[j, T0], b[j, T0 + 1] = H[H1L * B + j], H[H1H * B + j], H[H0L * B + j], H[H0H * B + j]
-        b[j, QT], b[j, QT + 1] = H[HQL * B + j], H[HQH * B + j]
-        b[j, W], b[j, W + 1], b[j, DT], b[j, DT + 1] = wl, wh, dl, dh
-        res[j] = True
-
-
-@njit(cache=True)
-def _pieces(b, j, L, m, box, q, kk, sg, pl, ph):
-    """Lanes from row ``j`` of ``b`` from slot ``m`` on; returns the new lane count."""
+def _pieces(b, slot, L, m, box):
+    """Lanes from the box in row 0 of ``b`` (the bounds of slot ``slot``) from lane ``m`` on;
+    returns the new lane count."""
+    C = CHUNK
+    j = 0
     sl, sh = mul(b[j, V], b[j, V + 1], b[j, DT], b[j, DT + 1])
     axl, axh = sub(b[j, X1], b[j, X1 + 1], b[j, X0], b[j, X0 + 1])
     ayl, ayh = sub(b[j, Y1], b[j, Y1 + 1], b[j, Y0], b[j, Y0 + 1])
@@ -231,149 +300,491 @@ def _pieces(b, j, L, m, box, q, kk, sg, pl, ph):
                 if not (a <= c):
                     continue
                 _lane(L, m, ul, uh, vl, vh, rl, rh, xs, ys, qxl, qxh, axl, axh, qyl, qyh, ayl, ayh)
-                box[m], q[m], pl[m], ph[m], sg[m] = j, qq, a, c, sgn
-                kk[m] = np.nan if wide else k0 + dk
+                box[m] = slot
+                L[MQ * C + m], L[MPL * C + m], L[MPH * C + m], L[MSG * C + m] = qq, a, c, sgn
+                L[MKK * C + m] = np.nan if wide else k0 + dk
+                L[(MB + 0) * C + m] = b[0, T0]
+                L[(MB + 1) * C + m] = b[0, T0 + 1]
+                L[(MB + 2) * C + m] = b[0, V]
+                L[(MB + 3) * C + m] = b[0, V + 1]
+                L[(MB + 4) * C + m] = b[0, DT]
+                L[(MB + 5) * C + m] = b[0, DT + 1]
+                L[(MB + 6) * C + m] = b[0, X0]
+                L[(MB + 7) * C + m] = b[0, X0 + 1]
+                L[(MB + 8) * C + m] = b[0, X1]
+                L[(MB + 9) * C + m] = b[0, X1 + 1]
+                L[(MB + 10) * C + m] = b[0, Y0]
+                L[(MB + 11) * C + m] = b[0, Y0 + 1]
+                L[(MB + 12) * C + m] = b[0, Y1]
+                L[(MB + 13) * C + m] = b[0, Y1 + 1]
                 m += 1
     return m
 
 
 @njit(cache=True, error_model="numpy")
-def _finish(n, D, b, acc, box, q, kk, sg, pl, ph, t0l, t0h):
-    """Lanes ``0..n-1`` done (state in ``D``): back to the box's variables, hull into ``acc``."""
+def _headings(B):
+    """The heading block of ``unicycle_pass`` (:func:`_heading`) for every slot, as selects (a
+    SIMD loop), written back in the live slots where it holds: the same float operations as
+    ``mul``, ``add``, ``_angle_difference`` (with ``_meet3``), ``bwd_add`` and ``bwd_mul``.
+    ``B[HOK]``: 1 if it holds, 0 if the box is emptied, -1 if ``_meet3t`` does not apply (then
+    :func:`_heading` is to be run)."""
+    N = NB
+    for j in range(N):
+        wl, wh, dl, dh = B[W * N + j], B[(W + 1) * N + j], B[DT * N + j], B[(DT + 1) * N + j]
+        ql, qh = B[QT * N + j], B[(QT + 1) * N + j]
+        t1l, t1h = B[T1 * N + j], B[(T1 + 1) * N + j]
+        t0l, t0h = B[T0 * N + j], B[(T0 + 1) * N + j]
+        pl, ph = _mul_s(wl, wh, dl, dh)
+        ul, uh = down(pl + ql), up(ph + qh)
+        # (an empty meet empties the box whatever _meet3t returns after it)
+        ul, uh, ok1 = _meet3t(ul, uh, down(t1l - t0h), up(t1h - t0l))
+        t1l, t1h, ok2 = _meet3t(t1l, t1h, down(ul + t0l), up(uh + t0h))
+        t0l, t0h, ok3 = _meet3t(t0l, t0h, down(t1l - uh), up(t1h - ul))
+        # bwd_add(u, p, qth): p ∩= u - qth, qth ∩= u - p
+        pl, ph = _mx(pl, down(ul - qh)), _mn(ph, up(uh - ql))
+        ql, qh = _mx(ql, down(ul - ph)), _mn(qh, up(uh - pl))
+        good = (ul <= uh) & (t1l <= t1h) & (t0l <= t0h) & (pl <= ph) & (ql <= qh)
+        wl, wh, dl, dh = _bwd_mul_s(pl, ph, wl, wh, dl, dh)
+        good = good & (wl <= wh)
+        hok = (1.0 if good else 0.0) if (ok1 & ok2 & ok3) else -1.0
+        put = (hok > 0.5) & (B[LIVE * N + j] > 0.5)
+        B[HOK * N + j] = hok
+        B[T1 * N + j] = t1l if put else B[T1 * N + j]
+        B[(T1 + 1) * N + j] = t1h if put else B[(T1 + 1) * N + j]
+        B[T0 * N + j] = t0l if put else B[T0 * N + j]
+        B[(T0 + 1) * N + j] = t0h if put else B[(T0 + 1) * N + j]
+        B[QT * N + j] = ql if put else B[QT * N + j]
+        B[(QT + 1) * N + j] = qh if put else B[(QT + 1) * N + j]
+        B[W * N + j] = wl if put else B[W * N + j]
+        B[(W + 1) * N + j] = wh if put else B[(W + 1) * N + j]
+        B[DT * N + j] = dl if put else B[DT * N + j]
+        B[(DT + 1) * N + j] = dh if put else B[(DT + 1) * N + j]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _shifted(k, fl, fh):
+    """:func:`_shift` as selects."""
+    ol = down(k * (TWO_PI_LO if k >= 0.0 else TWO_PI_HI))
+    oh = up(k * (TWO_PI_HI if k >= 0.0 else TWO_PI_LO))
+    return (fl if k == 0.0 else down(fl + ol)), (fh if k == 0.0 else up(fh + oh))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _psi_s(q, wl, wh):
+    """:func:`_to_psi` as selects (``q`` a float), ∩ ``[0, pi/2]``."""
+    pl = wl if q == 0.0 else (-wh if q == 1.0 else (
+        down(wl + PI_LO) if q == 2.0 else down(PI_LO - wh)))
+    ph = wh if q == 0.0 else (-wl if q == 1.0 else (
+        up(wh + PI_HI) if q == 2.0 else up(PI_HI - wl)))
+    return (pl if pl > 0.0 else 0.0), (ph if ph < HALF_PI_HI else HALF_PI_HI)
+
+
+@njit(cache=True, error_model="numpy")
+def _plan(B):
+    """The position part of each live slot's round, as selects (a SIMD loop). ``B[POS]`` is
+    ``NOTHING`` (the heading emptied the box), ``KEEP`` (``th0`` and ``dt`` as after the slot's
+    last position part, which would give its own output again), ``SIMD`` (``B[NPC]`` pieces,
+    at most two, in the ``PC`` rows) or ``GEN`` (a heading wider than 2 pi or more pieces:
+    :func:`_pieces`). The pieces are those :func:`_pieces` finds: for a heading narrower than
+    2 pi every copy of it meeting a quadrant's arc is one of the copies ``K - 1, K, K + 1``
+    around the one nearest to 0, and a copy meeting the arc gives a non-empty ψ (checked).
+    Also ``s``, ``dx``, ``dy``, ``x1 - x0``, ``y1 - y0``, and the round's hull: the box for
+    ``KEEP``, empty otherwise."""
+    N = NB
+    for j in range(N):
+        x0l, x0h, y0l, y0h = B[X0 * N + j], B[(X0 + 1) * N + j], B[Y0 * N + j], B[(Y0 + 1) * N + j]
+        x1l, x1h, y1l, y1h = B[X1 * N + j], B[(X1 + 1) * N + j], B[Y1 * N + j], B[(Y1 + 1) * N + j]
+        t0l, t0h = B[T0 * N + j], B[(T0 + 1) * N + j]
+        vl, vh, dl, dh = B[V * N + j], B[(V + 1) * N + j], B[DT * N + j], B[(DT + 1) * N + j]
+        qxl, qxh, qyl, qyh = B[QX * N + j], B[(QX + 1) * N + j], B[QY * N + j], B[(QY + 1) * N + j]
+        sl, sh = _mul_s(vl, vh, dl, dh)
+        axl, axh = down(x1l - x0h), up(x1h - x0l)
+        ayl, ayh = down(y1l - y0h), up(y1h - y0l)
+        dxl, dxh = down(axl - qxh), up(axh - qxl)
+        dyl, dyh = down(ayl - qyh), up(ayh - qyl)
+        # the signs of s: s >= 0 with the heading th0, s <= 0 with th0 + pi
+        f1l, f1h = down(t0l + PI_LO), up(t0h + PI_HI)
+        n0 = (t0h - t0l < TWO_PI_LO) & (-1e15 < t0l) & (t0h < 1e15)
+        n1 = (f1h - f1l < TWO_PI_LO) & (-1e15 < f1l) & (f1h < 1e15)
+        k0 = np.floor(-0.5 * (t0l + t0h) * INV_TWO_PI_LO + 0.5)
+        k1 = np.floor(-0.5 * (f1l + f1h) * INV_TWO_PI_LO + 0.5)
+        k0 = k0 if n0 else 0.0
+        k1 = k1 if n1 else 0.0
+        # the quadrants (dx, dy) meets: x >= 0 (q0, q1), x <= 0 (q2, q3), y >= 0 (q0, q3), y <= 0
+        xp, xn = _mx(dxl, 0.0) <= dxh, _mx(-dxh, 0.0) <= -dxl
+        yp, yn = _mx(dyl, 0.0) <= dyh, _mx(-dyh, 0.0) <= -dyl
+        f0p, f1p = sh >= 0.0, sl <= 0.0
+        cnt = 0
+        g1, q1, c1, l1, h1 = 0.0, 0.0, 0.0, 0.0, 0.0
+        g2, q2, c2, l2, h2 = 0.0, 0.0, 0.0, 0.0, 0.0
+        for br in range(2):
+            sgn = 1.0 if br == 0 else -1.0
+            brok = f0p if br == 0 else f1p
+            kb = k0 if br == 0 else k1
+            fl = t0l if br == 0 else f1l
+            fh = t0h if br == 0 else f1h
+            for dk in range(-1, 2):
+                k = kb + dk
+                wl0, wh0 = _shifted(k, fl, fh)
+                for qi in range(4):
+                    cl, ch = _arc(qi)
+                    qok = (xp if qi < 2 else xn) & (yp if (qi == 0 or qi == 3) else yn)
+                    wl = cl if cl > wl0 else wl0
+                    wh = ch if ch < wh0 else wh0
+                    meets = brok & qok & (wl <= wh)
+                    first = meets & (cnt == 0)
+                    second = meets & (cnt == 1)
+                    g1 = sgn if first else g1
+                    q1 = float(qi) if first else q1
+                    c1 = k if first else c1
+                    l1 = wl if first else l1
+                    h1 = wh if first else h1
+                    g2 = sgn if second else g2
+                    q2 = float(qi) if second else q2
+                    c2 = k if second else c2
+                    l2 = wl if second else l2
+                    h2 = wh if second else h2
+                    cnt += 1 if meets else 0
+        a1, b1 = _psi_s(q1, l1, h1)
+        a2, b2 = _psi_s(q2, l2, h2)
+        simd = (n0 | (not f0p)) & (n1 | (not f1p)) & (cnt <= 2)
+        simd = simd & ((cnt < 1) | (a1 <= b1)) & ((cnt < 2) | (a2 <= b2))
+        keep = (B[RND * N + j] > 0.5) & (t0l == B[LT0L * N + j]) & (t0h == B[LT0H * N + j])
+        keep = keep & (dl == B[LDTL * N + j]) & (dh == B[LDTH * N + j])
+        pos = (KEEP if keep else (SIMD if simd else GEN)) if B[HOK * N + j] > 0.5 else NOTHING
+        pos = pos if B[LIVE * N + j] > 0.5 else NOTHING
+        B[POS * N + j] = pos
+        B[NPC * N + j] = float(cnt)
+        B[PC * N + j], B[(PC + 1) * N + j], B[(PC + 2) * N + j] = g1, q1, c1
+        B[(PC + 3) * N + j], B[(PC + 4) * N + j] = a1, b1
+        B[(PC + 5) * N + j], B[(PC + 6) * N + j], B[(PC + 7) * N + j] = g2, q2, c2
+        B[(PC + 8) * N + j], B[(PC + 9) * N + j] = a2, b2
+        B[SL_ * N + j], B[SH_ * N + j] = sl, sh
+        B[DXL * N + j], B[DXH * N + j], B[DYL * N + j], B[DYH * N + j] = dxl, dxh, dyl, dyh
+        B[AXL * N + j], B[AXH * N + j], B[AYL * N + j], B[AYH * N + j] = axl, axh, ayl, ayh
+    for r in range(24):
+        for j in range(N):
+            keep = B[POS * N + j] == KEEP
+            B[(ACC + r) * N + j] = B[r * N + j] if keep else (E if r % 2 == 0 else F)
+
+
+@njit(cache=True, inline="always")
+def _simd_lane(B, j, t, L, m, box):
+    """Lane ``m`` from piece ``t`` of slot ``j`` (as :func:`_pieces` builds it)."""
+    N = NB
+    C = CHUNK
+    p = PC + 5 * t
+    sgn, qq, k = B[p * N + j], B[(p + 1) * N + j], B[(p + 2) * N + j]
+    a, c = B[(p + 3) * N + j], B[(p + 4) * N + j]
+    rl, rh = _flip(sgn, B[SL_ * N + j], B[SH_ * N + j])
+    rl = max(rl, 0.0)
+    xs = 1.0 if (qq == 0.0 or qq == 1.0) else -1.0
+    ys = 1.0 if (qq == 0.0 or qq == 3.0) else -1.0
+    ul, uh = _flip(xs, B[DXL * N + j], B[DXH * N + j])
+    vl, vh = _flip(ys, B[DYL * N + j], B[DYH * N + j])
+    ul, vl = max(ul, 0.0), max(vl, 0.0)
+    _lane(L, m, ul, uh, vl, vh, rl, rh, xs, ys, B[QX * N + j], B[(QX + 1) * N + j],
+          B[AXL * N + j], B[AXH * N + j], B[QY * N + j], B[(QY + 1) * N + j],
+          B[AYL * N + j], B[AYH * N + j])
+    box[m] = j
+    L[MQ * C + m], L[MPL * C + m], L[MPH * C + m], L[MSG * C + m], L[MKK * C + m] = qq, a, c, sgn, k
+    L[(MB + 0) * C + m] = B[(T0) * N + j]
+    L[(MB + 1) * C + m] = B[(T0 + 1) * N + j]
+    L[(MB + 2) * C + m] = B[(V) * N + j]
+    L[(MB + 3) * C + m] = B[(V + 1) * N + j]
+    L[(MB + 4) * C + m] = B[(DT) * N + j]
+    L[(MB + 5) * C + m] = B[(DT + 1) * N + j]
+    L[(MB + 6) * C + m] = B[(X0) * N + j]
+    L[(MB + 7) * C + m] = B[(X0 + 1) * N + j]
+    L[(MB + 8) * C + m] = B[(X1) * N + j]
+    L[(MB + 9) * C + m] = B[(X1 + 1) * N + j]
+    L[(MB + 10) * C + m] = B[(Y0) * N + j]
+    L[(MB + 11) * C + m] = B[(Y0 + 1) * N + j]
+    L[(MB + 12) * C + m] = B[(Y1) * N + j]
+    L[(MB + 13) * C + m] = B[(Y1 + 1) * N + j]
+
+
+@njit(cache=True, error_model="numpy")
+def _exit(n, L):
+    """Lanes ``0..n-1`` done (final states in ``L``): ``psi ∩= atan(t)``; then as selects (a
+    SIMD loop) back to the box's variables (``th0`` from ψ in its copy, ``s = v dt`` backward,
+    ``x1 = x0 + (x1 - x0)``) into the ``MR`` rows; ``L[MV]``
+    is 1 where the lane gives the box something."""
     C = CHUNK
     for i in range(n):
-        if D[TL * C + i] != t0l[i]:
-            pl[i] = max(pl[i], _atan_lo(D[TL * C + i]))
+        tl = L[TL * C + i]
+        if tl != L[MT0L * C + i] and L[OK * C + i] > 0.5:
+            L[MPL * C + i] = _mx(L[MPL * C + i], _atan_lo(tl))
     for i in range(n):
-        if D[TH * C + i] != t0h[i]:
-            ph[i] = min(ph[i], _atan_hi(D[TH * C + i]))
+        th = L[TH * C + i]
+        if th != L[MT0H * C + i] and L[OK * C + i] > 0.5:
+            L[MPH * C + i] = _mn(L[MPH * C + i], _atan_hi(th))
     for i in range(n):
-        if D[OK * C + i] < 0.5 or not (pl[i] <= ph[i]):
+        qq, k, sgn = L[MQ * C + i], L[MKK * C + i], L[MSG * C + i]
+        lo, hi = L[MPL * C + i], L[MPH * C + i]
+        ok = (L[OK * C + i] > 0.5) & (lo <= hi)
+        # th0 from psi (_from_psi, _shift by -k, minus pi when reversing), where k is known
+        wl = lo if qq == 0.0 else (-hi if qq == 1.0 else (
+            down(lo - PI_HI) if qq == 2.0 else down(PI_LO - hi)))
+        wh = hi if qq == 0.0 else (-lo if qq == 1.0 else (
+            up(hi - PI_LO) if qq == 2.0 else up(PI_HI - lo)))
+        wl, wh = _shifted(-k, wl, wh)
+        wl = down(wl - PI_HI) if sgn < 0.0 else wl
+        wh = up(wh - PI_LO) if sgn < 0.0 else wh
+        tl, th = L[MB * C + i], L[(MB + 1) * C + i]
+        known = k == k
+        ntl = tl if tl > wl else wl
+        nth = th if th < wh else wh
+        tl, th = (ntl if known else tl), (nth if known else th)
+        ok = ok & (tl <= th)
+        xp = (qq == 0.0) | (qq == 1.0)
+        yp = (qq == 0.0) | (qq == 3.0)
+        a, b = L[RL * C + i], L[RH * C + i]
+        sl, sh = (a if sgn > 0.0 else -b), (b if sgn > 0.0 else -a)
+        vl, vh, dl, dh = _bwd_mul_s(sl, sh, L[(MB + 2) * C + i], L[(MB + 3) * C + i],
+                                    L[(MB + 4) * C + i], L[(MB + 5) * C + i])
+        ok = ok & (vl <= vh)
+        a, b = L[SXL * C + i], L[SXH * C + i]
+        qxl, qxh = (a if xp else -b), (b if xp else -a)
+        a, b = L[MXL * C + i], L[MXH * C + i]
+        axl, axh = (a if xp else -b), (b if xp else -a)
+        a, b = L[SYL * C + i], L[SYH * C + i]
+        qyl, qyh = (a if yp else -b), (b if yp else -a)
+        a, b = L[MYL * C + i], L[MYH * C + i]
+        ayl, ayh = (a if yp else -b), (b if yp else -a)
+        x0l, x0h = L[(MB + 6) * C + i], L[(MB + 7) * C + i]
+        x1l, x1h = L[(MB + 8) * C + i], L[(MB + 9) * C + i]
+        y0l, y0h = L[(MB + 10) * C + i], L[(MB + 11) * C + i]
+        y1l, y1h = L[(MB + 12) * C + i], L[(MB + 13) * C + i]
+        # x1 ∩= ax + x0, x0 ∩= x1 - ax (inter: the larger lower bound, the smaller upper one)
+        el, eh = down(axl + x0l), up(axh + x0h)
+        x1l, x1h = (x1l if x1l > el else el), (x1h if x1h < eh else eh)
+        el, eh = down(x1l - axh), up(x1h - axl)
+        x0l, x0h = (x0l if x0l > el else el), (x0h if x0h < eh else eh)
+        el, eh = down(ayl + y0l), up(ayh + y0h)
+        y1l, y1h = (y1l if y1l > el else el), (y1h if y1h < eh else eh)
+        el, eh = down(y1l - ayh), up(y1h - ayl)
+        y0l, y0h = (y0l if y0l > el else el), (y0h if y0h < eh else eh)
+        ok = ok & (x1l <= x1h) & (x0l <= x0h) & (y1l <= y1h) & (y0l <= y0h)
+        L[MV * C + i] = 1.0 if ok else 0.0
+        L[(MR + 0) * C + i], L[(MR + 1) * C + i] = x0l, x0h
+        L[(MR + 2) * C + i], L[(MR + 3) * C + i] = y0l, y0h
+        L[(MR + 4) * C + i], L[(MR + 5) * C + i] = tl, th
+        L[(MR + 6) * C + i], L[(MR + 7) * C + i] = x1l, x1h
+        L[(MR + 8) * C + i], L[(MR + 9) * C + i] = y1l, y1h
+        L[(MR + 10) * C + i], L[(MR + 11) * C + i] = vl, vh
+        L[(MR + 12) * C + i], L[(MR + 13) * C + i] = dl, dh
+        L[(MR + 14) * C + i], L[(MR + 15) * C + i] = qxl, qxh
+        L[(MR + 16) * C + i], L[(MR + 17) * C + i] = qyl, qyh
+
+
+@njit(cache=True, inline="always")
+def _into(B, r, j, lo, hi):
+    """Hull ``[lo, hi]`` into slot ``j``'s ``ACC`` rows of variable ``r``."""
+    N = NB
+    a = B[(ACC + r) * N + j]
+    B[(ACC + r) * N + j] = lo if lo < a else a
+    a = B[(ACC + r + 1) * N + j]
+    B[(ACC + r + 1) * N + j] = hi if hi > a else a
+
+
+@njit(cache=True, error_model="numpy")
+def _flush(n, L, S, orig, B, box):
+    """Contract the ``n`` lanes to their fixpoint (``ctc_range_bearing_simd._to_fixpoint``),
+    back to their boxes, hull into the boxes' ``ACC`` rows."""
+    C = CHUNK
+    N = NB
+    pl, ph = L[MPL * C:(MPL + 1) * C], L[MPH * C:(MPH + 1) * C]
+    t0l, t0h = L[MT0L * C:(MT0L + 1) * C], L[MT0H * C:(MT0H + 1) * C]
+    _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, PASSES)
+    _exit(n, L)
+    for i in range(n):
+        if L[MV * C + i] < 0.5:
             continue
         j = box[i]
-        tl, th = b[j, T0], b[j, T0 + 1]
-        if kk[i] == kk[i]:  # the bearing's copy is known: th0 from psi
-            wl, wh = _from_psi(q[i], pl[i], ph[i])
-            wl, wh = _shift(wl, wh, -kk[i])
-            if sg[i] < 0.0:
-                wl, wh = sub(wl, wh, PI_LO, PI_HI)
-            tl, th = inter(tl, th, wl, wh)
-            if not (tl <= th):
-                continue
-        xs = 1.0 if (q[i] == 0 or q[i] == 1) else -1.0
-        ys = 1.0 if (q[i] == 0 or q[i] == 3) else -1.0
-        sl, sh = _flip(sg[i], D[RL * C + i], D[RH * C + i])
-        vl, vh, dl, dh = bwd_mul(sl, sh, b[j, V], b[j, V + 1], b[j, DT], b[j, DT + 1])
-        if not (vl <= vh):
-            continue
-        qxl, qxh = _flip(xs, D[SXL * C + i], D[SXH * C + i])
-        axl, axh = _flip(xs, D[MXL * C + i], D[MXH * C + i])
-        qyl, qyh = _flip(ys, D[SYL * C + i], D[SYH * C + i])
-        ayl, ayh = _flip(ys, D[MYL * C + i], D[MYH * C + i])
-        x1l, x1h = inter(b[j, X1], b[j, X1 + 1], *add(axl, axh, b[j, X0], b[j, X0 + 1]))
-        x0l, x0h = inter(b[j, X0], b[j, X0 + 1], *sub(x1l, x1h, axl, axh))
-        y1l, y1h = inter(b[j, Y1], b[j, Y1 + 1], *add(ayl, ayh, b[j, Y0], b[j, Y0 + 1]))
-        y0l, y0h = inter(b[j, Y0], b[j, Y0 + 1], *sub(y1l, y1h, ayl, ayh))
-        if not (x1l <= x1h and x0l <= x0h and y1l <= y1h and y0l <= y0h):
-            continue
-        r = (x0l, x0h, y0l, y0h, tl, th, x1l, x1h, y1l, y1h, b[j, T1], b[j, T1 + 1],
-             vl, vh, b[j, W], b[j, W + 1], dl, dh, qxl, qxh, qyl, qyh, b[j, QT], b[j, QT + 1])
+        _into(B, X0, j, L[(MR + 0) * C + i], L[(MR + 1) * C + i])
+        _into(B, Y0, j, L[(MR + 2) * C + i], L[(MR + 3) * C + i])
+        _into(B, T0, j, L[(MR + 4) * C + i], L[(MR + 5) * C + i])
+        _into(B, X1, j, L[(MR + 6) * C + i], L[(MR + 7) * C + i])
+        _into(B, Y1, j, L[(MR + 8) * C + i], L[(MR + 9) * C + i])
+        _into(B, V, j, L[(MR + 10) * C + i], L[(MR + 11) * C + i])
+        _into(B, DT, j, L[(MR + 12) * C + i], L[(MR + 13) * C + i])
+        _into(B, QX, j, L[(MR + 14) * C + i], L[(MR + 15) * C + i])
+        _into(B, QY, j, L[(MR + 16) * C + i], L[(MR + 17) * C + i])
+        _into(B, T1, j, B[T1 * N + j], B[(T1 + 1) * N + j])
+        _into(B, W, j, B[W * N + j], B[(W + 1) * N + j])
+        _into(B, QT, j, B[QT * N + j], B[(QT + 1) * N + j])
+
+
+@njit(cache=True, error_model="numpy")
+def _progress(B):
+    """End of the round of every live slot, as selects (a SIMD loop): its box becomes the hull
+    of the round (empty if that is); ``B[LIVE]`` stays 1 while the round shrank some width by
+    ``RELATIVE_STOP`` and rounds are left, else it is 2 (done)."""
+    N = NB
+    for j in range(N):
+        live = B[LIVE * N + j] > 0.5
+        empty = not (B[ACC * N + j] <= B[(ACC + 1) * N + j])
+        prog = 0.0
         for k in range(0, 24, 2):
-            acc[j, k] = min(acc[j, k], r[k])
-            acc[j, k + 1] = max(acc[j, k + 1], r[k + 1])
+            w0 = B[(k + 1) * N + j] - B[k * N + j]
+            w1 = B[(ACC + k + 1) * N + j] - B[(ACC + k) * N + j]
+            s = (1.0 if w1 < INF else 0.0) if w0 == INF else ((w0 - w1) / w0 if w0 > 0.0 else 0.0)
+            prog = s if s > prog else prog
+        more = (not empty) & (prog >= RELATIVE_STOP) & (B[RND * N + j] + 1.0 < MAX_ROUNDS)
+        for r in range(24):
+            v = (E if r % 2 == 0 else F) if empty else B[(ACC + r) * N + j]
+            B[r * N + j] = v if live else B[r * N + j]
+        B[LT0L * N + j] = B[T0 * N + j] if live else B[LT0L * N + j]
+        B[LT0H * N + j] = B[(T0 + 1) * N + j] if live else B[LT0H * N + j]
+        B[LDTL * N + j] = B[DT * N + j] if live else B[LDTL * N + j]
+        B[LDTH * N + j] = B[(DT + 1) * N + j] if live else B[LDTH * N + j]
+        B[RND * N + j] = B[RND * N + j] + 1.0 if live else B[RND * N + j]
+        B[LIVE * N + j] = (1.0 if more else 2.0) if live else B[LIVE * N + j]
 
 
-@njit(cache=True, error_model="numpy")
-def _flush(n, L, D, orig, b, acc, box, q, kk, sg, pl, ph, t0l, t0h):
-    """Contract the ``n`` lanes to their fixpoint (``ctc_range_bearing_simd._to_fixpoint``)."""
-    _to_fixpoint(n, L, D, orig, pl, ph, t0l, t0h, PASSES)
-    _finish(n, D, b, acc, box, q, kk, sg, pl, ph, t0l, t0h)
+@njit(cache=True, inline="always")
+def _load(arrs, B, j, i, n, ok):
+    """Take boxes from row ``i`` on into slot ``j``: rows with an empty variable are emptied on
+    the way; returns the next row (``n`` if none is left: the slot is then free). The twelve
+    arrays are named one by one: an index into the tuple that varies at run time costs a copy
+    of the tuple per access."""
+    N = NB
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11 = arrs
+    while i < n:
+        good = (a0[2 * i] <= a0[2 * i + 1] and a1[2 * i] <= a1[2 * i + 1]
+                and a2[2 * i] <= a2[2 * i + 1] and a3[2 * i] <= a3[2 * i + 1]
+                and a4[2 * i] <= a4[2 * i + 1] and a5[2 * i] <= a5[2 * i + 1]
+                and a6[2 * i] <= a6[2 * i + 1] and a7[2 * i] <= a7[2 * i + 1]
+                and a8[2 * i] <= a8[2 * i + 1] and a9[2 * i] <= a9[2 * i + 1]
+                and a10[2 * i] <= a10[2 * i + 1] and a11[2 * i] <= a11[2 * i + 1])
+        if good:
+            B[0 * N + j], B[1 * N + j] = a0[2 * i], a0[2 * i + 1]
+            B[2 * N + j], B[3 * N + j] = a1[2 * i], a1[2 * i + 1]
+            B[4 * N + j], B[5 * N + j] = a2[2 * i], a2[2 * i + 1]
+            B[6 * N + j], B[7 * N + j] = a3[2 * i], a3[2 * i + 1]
+            B[8 * N + j], B[9 * N + j] = a4[2 * i], a4[2 * i + 1]
+            B[10 * N + j], B[11 * N + j] = a5[2 * i], a5[2 * i + 1]
+            B[12 * N + j], B[13 * N + j] = a6[2 * i], a6[2 * i + 1]
+            B[14 * N + j], B[15 * N + j] = a7[2 * i], a7[2 * i + 1]
+            B[16 * N + j], B[17 * N + j] = a8[2 * i], a8[2 * i + 1]
+            B[18 * N + j], B[19 * N + j] = a9[2 * i], a9[2 * i + 1]
+            B[20 * N + j], B[21 * N + j] = a10[2 * i], a10[2 * i + 1]
+            B[22 * N + j], B[23 * N + j] = a11[2 * i], a11[2 * i + 1]
+            B[LIVE * N + j] = 1.0
+            B[RND * N + j] = 0.0
+            return i + 1
+        a0[2 * i], a0[2 * i + 1] = E, F
+        a1[2 * i], a1[2 * i + 1] = E, F
+        a2[2 * i], a2[2 * i + 1] = E, F
+        a3[2 * i], a3[2 * i + 1] = E, F
+        a4[2 * i], a4[2 * i + 1] = E, F
+        a5[2 * i], a5[2 * i + 1] = E, F
+        a6[2 * i], a6[2 * i + 1] = E, F
+        a7[2 * i], a7[2 * i + 1] = E, F
+        a8[2 * i], a8[2 * i + 1] = E, F
+        a9[2 * i], a9[2 * i + 1] = E, F
+        a10[2 * i], a10[2 * i + 1] = E, F
+        a11[2 * i], a11[2 * i + 1] = E, F
+        ok[i] = False
+        i += 1
+    B[LIVE * N + j] = 0.0
+    return i
 
 
-@njit(cache=True, error_model="numpy")
-def _block(b, nb):
-    """Contract the ``nb`` boxes of ``b`` (rows of 24 bounds) in place, round after round."""
-    C = CHUNK
-    L = np.empty(ROWS * C)
-    D = np.empty(ROWS * C)
-    orig = np.empty(C, np.int64)
-    box = np.empty(C, np.int64)
-    q = np.empty(C, np.int64)
-    kk, sg, pl, ph = np.empty(C), np.empty(C), np.empty(C), np.empty(C)
-    t0l, t0h = np.empty(C), np.empty(C)
-    acc = np.empty((nb, 24))
-    last = np.empty((nb, 4))  # th0, dt after each box's last position part
-    active = np.ones(nb, np.bool_)
-    H = np.empty(15 * BLOCK)
-    hres = np.zeros(nb, np.bool_)
-    for j in range(nb):
-        for k in range(12):
-            if not (b[j, 2 * k] <= b[j, 2 * k + 1]):
-                active[j] = False
-        if not active[j]:
-            for k in range(24):
-                b[j, k] = E if k % 2 == 0 else F
-    for rnd in range(MAX_ROUNDS):
-        m = 0
-        _headings(nb, b, active, H, hres)
-        for j in range(nb):
-            if not active[j]:
-                continue
-            for k in range(24):
-                acc[j, k] = E if k % 2 == 0 else F
-            if not hres[j]:
-                continue
-            if (rnd > 0 and b[j, T0] == last[j, 0] and b[j, T0 + 1] == last[j, 1]
-                    and b[j, DT] == last[j, 2] and b[j, DT + 1] == last[j, 3]):
-                # the position part would get its own last output again: nothing to redo
-                for k in range(24):
-                    acc[j, k] = b[j, k]
-                continue
-            m = _pieces(b, j, L, m, box, q, kk, sg, pl, ph)
-            if m + PIECES > C:
-                _flush(m, L, D, orig, b, acc, box, q, kk, sg, pl, ph, t0l, t0h)
-                m = 0
-        if m > 0:
-            _flush(m, L, D, orig, b, acc, box, q, kk, sg, pl, ph, t0l, t0h)
-        more = False
-        for j in range(nb):
-            if not active[j]:
-                continue
-            if not (acc[j, 0] <= acc[j, 1]):
-                for k in range(24):
-                    b[j, k] = E if k % 2 == 0 else F
-                active[j] = False
-                continue
-            progress = 0.0
-            for k in range(0, 24, 2):
-                progress = max(progress, shrink(b[j, k], b[j, k + 1], acc[j, k], acc[j, k + 1]))
-            for k in range(24):
-                b[j, k] = acc[j, k]
-            last[j, 0], last[j, 1], last[j, 2], last[j, 3] = b[j, T0], b[j, T0 + 1], b[j, DT], b[j, DT + 1]
-            active[j] = progress >= RELATIVE_STOP
-            more |= active[j]
-        if not more:
-            break
+@njit(cache=True, inline="always")
+def _store(arrs, B, j, i):
+    """Slot ``j``'s box into row ``i`` of the twelve arrays."""
+    N = NB
+    a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11 = arrs
+    a0[2 * i], a0[2 * i + 1] = B[0 * N + j], B[1 * N + j]
+    a1[2 * i], a1[2 * i + 1] = B[2 * N + j], B[3 * N + j]
+    a2[2 * i], a2[2 * i + 1] = B[4 * N + j], B[5 * N + j]
+    a3[2 * i], a3[2 * i + 1] = B[6 * N + j], B[7 * N + j]
+    a4[2 * i], a4[2 * i + 1] = B[8 * N + j], B[9 * N + j]
+    a5[2 * i], a5[2 * i + 1] = B[10 * N + j], B[11 * N + j]
+    a6[2 * i], a6[2 * i + 1] = B[12 * N + j], B[13 * N + j]
+    a7[2 * i], a7[2 * i + 1] = B[14 * N + j], B[15 * N + j]
+    a8[2 * i], a8[2 * i + 1] = B[16 * N + j], B[17 * N + j]
+    a9[2 * i], a9[2 * i + 1] = B[18 * N + j], B[19 * N + j]
+    a10[2 * i], a10[2 * i + 1] = B[20 * N + j], B[21 * N + j]
+    a11[2 * i], a11[2 * i + 1] = B[22 * N + j], B[23 * N + j]
 
 
 @njit(cache=True, error_model="numpy")
 def _kernel(arrs):
-    n = arrs[0].shape[0]
+    """Over twelve flat ``[lo0, hi0, lo1, hi1, ...]`` arrays: NB slots, a round of each at a
+    time (:func:`_headings`, :func:`_plan`, lanes, :func:`_flush`, :func:`_progress`); a slot
+    whose box is done writes it out and takes the next."""
+    n = arrs[0].shape[0] // 2
+    N = NB
+    C = CHUNK
     ok = np.empty(n, np.bool_)
-    b = np.empty((BLOCK, 24))
-    for s in range(0, n, BLOCK):
-        nb = min(BLOCK, n - s)
-        for j in range(nb):
-            for v in range(12):
-                b[j, 2 * v], b[j, 2 * v + 1] = arrs[v][s + j, 0], arrs[v][s + j, 1]
-        _block(b, nb)
-        for j in range(nb):
-            for v in range(12):
-                arrs[v][s + j, 0], arrs[v][s + j, 1] = b[j, 2 * v], b[j, 2 * v + 1]
-            ok[s + j] = b[j, 0] <= b[j, 1]
+    B = np.zeros(BROWS * N)
+    boxid = np.full(N, -1, np.int64)
+    L = np.empty(LROWS * C)
+    S = np.empty(ROWS * C)
+    orig = np.empty(C, np.int64)
+    box = np.empty(C, np.int64)
+    row = np.empty((1, 24))
+    nxt = 0
+    for j in range(N):
+        nxt = _load(arrs, B, j, nxt, n, ok)
+        boxid[j] = nxt - 1 if B[LIVE * N + j] > 0.5 else -1
+    while True:
+        live = 0
+        for j in range(N):
+            live += 1 if B[LIVE * N + j] > 0.5 else 0
+        if live == 0:
+            break
+        _headings(B)
+        for j in range(N):  # the heading steps outside _meet3t's range
+            if B[LIVE * N + j] > 0.5 and B[HOK * N + j] < -0.5:
+                for r in range(24):
+                    row[0, r] = B[r * N + j]
+                good = _heading(row, 0)
+                for r in range(24):
+                    B[r * N + j] = row[0, r]
+                B[HOK * N + j] = 1.0 if good else 0.0
+        _plan(B)
+        m = 0
+        for j in range(N):
+            pos = B[POS * N + j]
+            if pos == SIMD:
+                if m + 2 > C:
+                    _flush(m, L, S, orig, B, box)
+                    m = 0
+                for t in range(int(B[NPC * N + j])):
+                    _simd_lane(B, j, t, L, m, box)
+                    m += 1
+            elif pos == GEN:
+                if m + PIECES > C:
+                    _flush(m, L, S, orig, B, box)
+                    m = 0
+                for r in range(24):
+                    row[0, r] = B[r * N + j]
+                m = _pieces(row, j, L, m, box)
+        if m > 0:
+            _flush(m, L, S, orig, B, box)
+        _progress(B)
+        for j in range(N):
+            if B[LIVE * N + j] < 1.5:
+                continue
+            i = boxid[j]
+            _store(arrs, B, j, i)
+            ok[i] = B[X0 * N + j] <= B[(X0 + 1) * N + j]
+            nxt = _load(arrs, B, j, nxt, n, ok)
+            boxid[j] = nxt - 1 if B[LIVE * N + j] > 0.5 else -1
     return ok
 
 
 def unicycle_simd_kernel(x0, y0, th0, x1, y1, th1, v, w, dt, qx, qy, qth):
     """In place over twelve ``(N, 2)`` arrays; returns the mask of rows that stayed non-empty."""
-    return _kernel((x0, y0, th0, x1, y1, th1, v, w, dt, qx, qy, qth))
+    arrs = (x0, y0, th0, x1, y1, th1, v, w, dt, qx, qy, qth)
+    if all(a.flags.c_contiguous for a in arrs):
+        return _kernel(tuple(a.reshape(-1) for a in arrs))
+    flat = [np.ascontiguousarray(a).reshape(-1) for a in arrs]
+    ok = _kernel(tuple(flat))
+    for a, f in zip(arrs, flat):
+        a[...] = f.reshape(a.shape)
+    return ok

@@ -60,6 +60,37 @@ def up(c: float) -> float:
     return r
 
 
+@njit(cache=True, inline="always")
+def down_raw(c: float) -> float:
+    """``down(c)`` without its NaN guard: the same float, except NaN where ``down`` gives
+    ``-inf`` for ``c = +inf`` or NaN. For a lower bound that only enters ``max`` as the
+    argument a NaN of which is ignored (``b if b > a else a``): the same result, two
+    operations fewer (SIMD loops)."""
+    return c - (_PHI * abs(c) + _ETA)
+
+
+@njit(cache=True, inline="always")
+def up_raw(c: float) -> float:
+    """``up(c)`` without its NaN guard (NaN where ``up`` gives ``+inf`` for ``c = -inf`` or
+    NaN); see :func:`down_raw`."""
+    return c + (_PHI * abs(c) + _ETA)
+
+
+@njit(cache=True, inline="always")
+def down_pos(c: float) -> float:
+    """:func:`down_raw` for ``c >= 0`` (``±0``, ``+inf`` and NaN included), without the
+    ``abs``: not a lower bound for ``c < 0``, so only where ``c`` is a product, quotient, sum
+    or square root of non-negative bounds."""
+    return c - (_PHI * c + _ETA)
+
+
+@njit(cache=True, inline="always")
+def up_pos(c: float) -> float:
+    """:func:`up_raw` for ``c >= 0`` (``±0``, ``+inf`` and NaN included), without the ``abs``:
+    not an upper bound for ``c < 0``; see :func:`down_pos`."""
+    return c + (_PHI * c + _ETA)
+
+
 @njit(cache=True)
 def down2(c: float) -> float:
     """Two ulps down: lower bound of a libm transcendental result."""

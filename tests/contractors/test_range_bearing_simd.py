@@ -163,3 +163,18 @@ def test_chunks_pack_and_public_function_is_the_simd_kernel():
         range_bearing_simd_kernel(*r)
         for x, y in zip(r, a):
             assert np.array_equal(x[0], y[i])
+
+
+def test_negative_zero_bounds_keep_the_piece():
+    """``dx = mx - sx`` with an upper bound rounding to ``-0`` gives a quadrant piece whose
+    ``|dx|`` has the lower bound ``-0``: the upper bound of ``t = v / |dx|`` must not turn into
+    ``-inf`` there (a quotient by ``-0``), which would empty the piece and drop every solution
+    with ``sx`` above the subnormal ``5e-324``."""
+    row = [[5e-324, 2.5129887686083993e-15], [-35.08317093372674, -35.083170876490385],
+           [12.57570811053139, 12.57570811053139], [-0.0, 0.0],
+           [-56.177642786977565, -56.17764215795992], [21.094471847236132, 21.094471853755948],
+           [-14.301793690544141, INF]]
+    s = _rows(row)
+    v = _rows(row)
+    assert range_bearing_kernel(*s).all() and range_bearing_simd_kernel(*v).all()
+    assert v[0][0, 1] >= s[0][0, 1] > 1e-15

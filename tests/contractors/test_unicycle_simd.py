@@ -23,7 +23,8 @@ from hypothesis import strategies as st
 from bench.bench_kernels import _lost, unicycle_truths
 from ivslam_cli.contractors import unicycle
 from ivslam_cli.contractors.ctc_unicycle import RELATIVE_STOP, unicycle_kernel
-from ivslam_cli.contractors.ctc_unicycle_simd import BLOCK, _heading, _headings, unicycle_simd_kernel
+from ivslam_cli.contractors import ctc_unicycle_simd as simd
+from ivslam_cli.contractors.ctc_unicycle_simd import NB, _heading, _headings, unicycle_simd_kernel
 from tests.helpers.exact import around
 from tests.helpers.hyp import examples
 
@@ -132,15 +133,15 @@ def test_across_the_cut_and_reversing():
     assert all(th0[3, 0] <= t <= th0[3, 1] for t in (-math.pi, 0.0, math.pi))
 
 
-def test_blocks_and_public_function_is_the_simd_kernel():
-    boxes, _ = unicycle_truths(3 * BLOCK + 7, seed=5)
+def test_slots_and_public_function_is_the_simd_kernel():
+    boxes, _ = unicycle_truths(3 * NB + 7, seed=5)
     a = [b.copy() for b in boxes]
     c = [b.copy() for b in boxes]
     unicycle(*a)
     unicycle_simd_kernel(*c)
     for x, y in zip(a, c):
         assert np.array_equal(x, y)
-    for i in range(0, 3 * BLOCK + 7, 41):  # a row alone: the same bounds as in the batch
+    for i in range(0, 3 * NB + 7, 41):  # a row alone: the same bounds as in the batch
         r = [b[i:i + 1].copy() for b in boxes]
         unicycle_simd_kernel(*r)
         for x, y in zip(r, a):
@@ -148,15 +149,68 @@ def test_blocks_and_public_function_is_the_simd_kernel():
 
 
 def test_vectorised_heading_step_is_the_scalar_one_bit_for_bit():
-    boxes, _ = unicycle_truths(BLOCK * 20, seed=13)
+    """Where ``_headings`` says its selects apply (``HOK`` 0 or 1), it is ``_heading``: the
+    same verdict and, where the box stays, the same 24 bounds."""
+    boxes, _ = unicycle_truths(NB * 20, seed=13)
     rows = np.stack(boxes, axis=1).reshape(-1, 24)  # (n, 24) in unicycle_scalar's order
-    for s in range(0, rows.shape[0], BLOCK):
-        a = rows[s:s + BLOCK].copy()
+    applied = 0
+    for s in range(0, rows.shape[0], NB):
+        a = rows[s:s + NB]
+        B = np.zeros(simd.BROWS * NB)
+        B[:24 * NB] = a.T.reshape(-1)
+        B[simd.LIVE * NB:(simd.LIVE + 1) * NB] = 1.0
+        _headings(B)
         c = a.copy()
-        active = np.ones(BLOCK, np.bool_)
-        res = np.zeros(BLOCK, np.bool_)
-        _headings(BLOCK, a, active, np.empty(15 * BLOCK), res)
-        for j in range(BLOCK):
-            assert res[j] == _heading(c, j)
-            if res[j]:
-                assert np.array_equal(a[j], c[j])
+        for j in range(NB):
+            hok = B[simd.HOK * NB + j]
+            if hok < -0.5:
+                continue
+            applied += 1
+            assert (hok > 0.5) == _heading(c, j)
+            if hok > 0.5:
+                assert np.array_equal(B[:24 * NB].reshape(24, NB)[:, j], c[j])
+    assert applied > 0.9 * rows.shape[0]
+
+
+bound = st.one_of(st.floats(-1e6, 1e6), st.sampled_from([0.0, -0.0, 1.0, -1.0, INF, -INF, 5e-324]))
+
+
+def _iv(draw_a, draw_b):
+    lo, hi = sorted((draw_a, draw_b))
+    return lo, hi
+
+
+def _same(x, y):
+    return all((a == b and math.copysign(1, a) == math.copysign(1, b)) or (a != a and b != b)
+               for a, b in zip(x, y))
+
+
+@settings(max_examples=examples(ci=500))
+@given(bound, bound, bound, bound, bound, bound)
+def test_select_forms_are_the_interval_operations_bit_for_bit(a, b, c, d, e, f):
+    """``_mul_s``, ``_div_meet_s`` and ``_bwd_mul_s`` (selects, SIMD loops) give the bounds of
+    ``mul``, ``div_meet`` and ``bwd_mul`` on non-empty intervals, every case of the extended
+    division included."""
+    from ivslam_cli.interval.arith import bwd_mul, div_meet, mul
+
+    x, y, z = _iv(a, b), _iv(c, d), _iv(e, f)
+    assert _same(simd._mul_s(*x, *y), mul(*x, *y))
+    assert _same(simd._div_meet_s(*x, *y, *z), div_meet(*x, *y, *z))
+    r, s = simd._bwd_mul_s(*z, *x, *y), bwd_mul(*z, *x, *y)
+    assert _same(r, s) or (not r[0] <= r[1] and not s[0] <= s[1])
+
+
+@settings(max_examples=examples(ci=300))
+@given(st.one_of(st.floats(-20, 20), st.just(-INF)), st.one_of(st.floats(0, 8), st.just(INF)),
+       st.floats(-20, 20), st.one_of(st.floats(0, 8), st.floats(6.2, 7.0)))
+def test_meet3t_is_angle_meet_where_it_applies(tl, tw, al, aw):
+    from ivslam_cli.contractors.ctc_range_bearing_simd import _meet3t
+    from ivslam_cli.interval.angles import angle_meet
+
+    th = tl + tw
+    if not th == th:
+        return
+    lo, hi, ok = _meet3t(tl, th, al, al + aw)
+    ref = angle_meet(tl, th, al, al + aw)
+    if ok:
+        assert (lo, hi) == ref or (not lo <= hi and not ref[0] <= ref[1])

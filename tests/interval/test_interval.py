@@ -309,3 +309,22 @@ def test_sin_cos_of_huge_arguments(x):
         c = iv.cos([lo, hi])[0]
         assert mp_in(s, mpmath.sin(mpmath.mpf(lo))) and mp_in(c, mpmath.cos(mpmath.mpf(lo)))
         assert mp_in(s, mpmath.sin(mpmath.mpf(hi))) and mp_in(c, mpmath.cos(mpmath.mpf(hi)))
+
+
+@SETTINGS
+@given(st.one_of(st.floats(allow_nan=True, allow_infinity=True),
+                 st.sampled_from([0.0, -0.0, 5e-324, -5e-324, math.inf, -math.inf, math.nan])))
+def test_unguarded_roundings_are_down_and_up_where_they_are_used(c):
+    """``down_raw`` / ``up_raw`` are ``down`` / ``up`` except NaN where those give ``-inf`` /
+    ``+inf`` (nothing, for a ``max`` / ``min`` that ignores NaN); ``down_pos`` / ``up_pos`` are
+    ``down_raw`` / ``up_raw`` for ``c >= 0``, ``±0``, ``+inf`` and NaN."""
+    from ivslam_cli.interval.rounding import down, down_pos, down_raw, up, up_pos, up_raw
+
+    def same(a, b):
+        return (a == b and math.copysign(1.0, a) == math.copysign(1.0, b)) or (a != a and b != b)
+
+    for raw, guarded, nothing in ((down_raw, down, -math.inf), (up_raw, up, math.inf)):
+        r, g = raw(c), guarded(c)
+        assert same(r, g) or (r != r and g == nothing)
+    if c >= 0.0 or c != c:
+        assert same(down_pos(c), down_raw(c)) and same(up_pos(c), up_raw(c))
