@@ -46,14 +46,37 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ivslam_cli.contractors.ctc_polar import _atan_hi, _atan_lo, _tan_hi, _tan_lo, _two_pi_times
-from ivslam_cli.contractors.ctc_polar_simd import BIG, _mn, _mx
-from ivslam_cli.contractors.ctc_range_bearing import RELATIVE_STOP
-from ivslam_cli.interval.angles import angle_meet
+from ivslam_cli.contractors.ctc_polar import _atan_hi, _atan_lo
+from ivslam_cli.contractors.ctc_polar_simd import _mn, _mx
+from ivslam_cli.contractors.simd_polar_lanes import (
+    CHUNK,
+    MAX_PASSES,
+    MXH,
+    MXL,
+    MYH,
+    MYL,
+    OK,
+    RH,
+    RL,
+    ROWS,
+    SXH,
+    SXL,
+    SYH,
+    SYL,
+    TH,
+    TL,
+    UH,
+    UL,
+    VH,
+    VL,
+    _flip,
+    _lane,
+    _to_fixpoint,
+)
+from ivslam_cli.contractors.simd_quadrants import _arc, _from_psi, _meet, _meet3, _shift, _to_psi
 from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO, add, inter, sub
 from ivslam_cli.interval.rounding import (
     HALF_PI_HI,
-    HALF_PI_LO,
     INF,
     INV_TWO_PI_LO,
     PI_HI,
@@ -61,302 +84,13 @@ from ivslam_cli.interval.rounding import (
     TWO_PI_HI,
     TWO_PI_LO,
     down,
-    down_pos,
-    down_raw,
     up,
-    up_pos,
-    up_raw,
 )
 
-# Lanes per chunk, and the stride of the rows of every lane buffer: not a multiple of 512 (4 KiB
-# rows apart alias in the store buffer: a scalar loop writing a lane across the rows of L
-# while reading another buffer ran 6x slower at 256).
-CHUNK = 264
-MAX_FLOAT = float(np.finfo(np.float64).max)
-MAX_PASSES = 16
 E = EMPTY_LO
 F = EMPTY_HI
 
-# Lane state, row r of lane i at L[r * CHUNK + i] (one base pointer, compile-time offsets).
-UL, UH, VL, VH, RL, RH, TL, TH = 0, 1, 2, 3, 4, 5, 6, 7
-SXL, SXH, MXL, MXH, SYL, SYH, MYL, MYH = 8, 9, 10, 11, 12, 13, 14, 15
-OK = 16  # 1.0 while the lane is non-empty
-PROG = 17  # 1.0 if the last pass shrank some width by RELATIVE_STOP
-ACT = 18  # 1.0 while the lane takes passes (the passes of _passes_live leave the others)
-ROWS = 19
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _shrunk(ol, oh, nl, nh):
-    """Did ``[ol, oh] -> [nl, nh]`` shrink the width by ``RELATIVE_STOP``? (inf -> finite: yes)."""
-    w0 = oh - ol
-    return (w0 > 0.0) & ((w0 - (nh - nl)) >= RELATIVE_STOP * w0)
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _dnf(c):
-    """A lower bound of a nonnegative quotient or product rounded to ``c``, to be taken by
-    ``_mx`` (NaN is ignored there): ``down_pos(c)``, except that an overflow (``c = +inf``, the
-    real value above ``MAX_FLOAT``) gives ``MAX_FLOAT`` (``down`` would give ``-inf``: nothing;
-    this keeps ``t = v / u`` huge when ``u`` is a few subnormals, i.e. ``psi`` at pi/2)."""
-    return MAX_FLOAT if c == INF else down_pos(c)
-
-
-TINY = 2.0**-969  # below it PHI * |c| in down(c) is subnormal: a microcode assist on x86
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _down_tiny(c):
-    """A lower bound of the real number rounded to ``c``: ``down(c)`` where ``|c| >= TINY``,
-    below it ``c - 2^-1020`` (at most ``pred(c)``: the ulp there is at most ``2^-1021``), never
-    multiplying a number below ``TINY``. (``u^2 + v^2`` is ``-2^-1073`` at the origin: in some
-    lane of most vectors of a unicycle chunk.) It differs from ``down`` only for ``0 < c <
-    TINY``, by less than ``2^-1020``, lower."""
-    big = abs(c) >= TINY
-    r = down(c if big else 1.0)
-    return r if big else c - 2.0**-1020
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _lane_pass(L, i):
-    """One pass of lane ``i``: its 16 new bounds, whether it stays non-empty, whether it shrank
-    some width by ``RELATIVE_STOP``.
-
-    In a lane that stays non-empty every bound of ``u, v, rho, t`` is ``>= 0`` or ``-0``
-    throughout the pass (lower bounds start so and only grow, an upper bound below its lower
-    bound empties the lane), so their products, sums and square roots are ``>= 0`` or ``±0``
-    and rounded with ``down_pos`` / ``up_pos``. A quotient by ``-0`` is ``-inf``: the upper
-    bounds of quotients keep the ``abs`` (``up_raw``: NaN, ignored, where ``up`` gives
-    ``+inf``); their lower bounds (``_dnf``) give NaN there, ignored too. A bound that only
-    enters ``_mx`` / ``_mn`` as the argument whose NaN is ignored takes no NaN guard. The
-    results are those of ``down`` / ``up`` everywhere, bit for bit; an emptied lane's values
-    are never used."""
-    C = CHUNK
-    a0, b0, c0, d0 = L[UL * C + i], L[UH * C + i], L[VL * C + i], L[VH * C + i]
-    e0, f0, g0, h0 = L[RL * C + i], L[RH * C + i], L[TL * C + i], L[TH * C + i]
-    p0, q0, r0, s0 = L[SXL * C + i], L[SXH * C + i], L[MXL * C + i], L[MXH * C + i]
-    w0, x0, y0, z0 = L[SYL * C + i], L[SYH * C + i], L[MYL * C + i], L[MYH * C + i]
-    sxl, sxh, mxl, mxh, syl, syh, myl, myh = p0, q0, r0, s0, w0, x0, y0, z0
-    # u = mx - sx, v = my - sy (frame: both >= 0)
-    a = _mx(a0, down_raw(mxl - sxh))
-    b = _mn(b0, up_raw(mxh - sxl))
-    c = _mx(c0, down_raw(myl - syh))
-    d = _mn(d0, up_raw(myh - syl))
-    e, f, g, h = e0, f0, g0, h0
-    # v = u t (u, v >= 0, t >= 0; t may be +inf above; 0 / 0 and 0 * inf are NaN: ignored)
-    a = _mx(a, _dnf(c / h))
-    b = _mn(b, up_raw(d / g))
-    g = _mx(g, _dnf(c / b))
-    h = _mn(h, up_raw(d / a))
-    c = _mx(c, _dnf(a * g))
-    d = _mn(d, up_pos(b * h))
-    # rho^2 = u^2 + v^2 (u2l, v2l and their sum enter _mx first: guarded)
-    u2l, u2h = down(a * a), up_pos(b * b)
-    v2l, v2h = down(c * c), up_pos(d * d)
-    sl = _mx(_mx(_down_tiny(u2l + v2l), down_pos(e * e)), 0.0)
-    sh = _mn(up_pos(u2h + v2h), up_pos(f * f))
-    e = _mx(e, down_pos(np.sqrt(sl)))
-    f = _mn(f, up_pos(np.sqrt(_mx(sh, 0.0))))
-    u2l = _mx(u2l, down_raw(sl - v2h))
-    u2h = _mn(u2h, up_raw(sh - v2l))
-    v2l = _mx(v2l, down_raw(sl - u2h))
-    v2h = _mn(v2h, up_raw(sh - u2l))
-    a = _mx(a, down_pos(np.sqrt(_mx(u2l, 0.0))))
-    b = _mn(b, up_pos(np.sqrt(_mx(u2h, 0.0))))
-    c = _mx(c, down_pos(np.sqrt(_mx(v2l, 0.0))))
-    d = _mn(d, up_pos(np.sqrt(_mx(v2h, 0.0))))
-    # u ∩= rho cos(psi), v ∩= rho sin(psi), cos and sin from t = tan(psi)
-    big = h > BIG
-    hb = _mn(h, BIG)
-    gb = _mn(g, BIG)
-    cos_l = _mx(0.0, down_pos(1.0 / up_pos(np.sqrt(up_pos(1.0 + up_pos(hb * hb))))))
-    sin_h = _mn(1.0, up_pos(hb / down_pos(np.sqrt(down_pos(1.0 + down_pos(hb * hb))))))
-    cos_l = 0.0 if big else cos_l
-    sin_h = 1.0 if big else sin_h
-    cos_h = _mn(1.0, up_pos(1.0 / down_pos(np.sqrt(down_pos(1.0 + down_pos(gb * gb))))))
-    sin_l = _mx(0.0, down_pos(gb / up_pos(np.sqrt(up_pos(1.0 + up_pos(gb * gb))))))
-    a = _mx(a, down_pos(e * cos_l))
-    b = _mn(b, up_pos(f * cos_h))
-    c = _mx(c, down_pos(e * sin_l))
-    d = _mn(d, up_pos(f * sin_h))
-    # back to the differences: mx ∩= u + sx, sx ∩= mx - u (y likewise)
-    mxl = _mx(mxl, down_raw(a + sxl))
-    mxh = _mn(mxh, up_raw(b + sxh))
-    sxl = _mx(sxl, down_raw(mxl - b))
-    sxh = _mn(sxh, up_raw(mxh - a))
-    myl = _mx(myl, down_raw(c + syl))
-    myh = _mn(myh, up_raw(d + syh))
-    syl = _mx(syl, down_raw(myl - d))
-    syh = _mn(syh, up_raw(myh - c))
-    good = ((a <= b) & (c <= d) & (e <= f) & (g <= h) & (sl <= sh) & (u2l <= u2h)
-            & (v2l <= v2h) & (sxl <= sxh) & (mxl <= mxh) & (syl <= syh) & (myl <= myh))
-    prog = (_shrunk(a0, b0, a, b) | _shrunk(c0, d0, c, d) | _shrunk(e0, f0, e, f)
-            | _shrunk(g0, h0, g, h) | _shrunk(p0, q0, sxl, sxh) | _shrunk(r0, s0, mxl, mxh)
-            | _shrunk(w0, x0, syl, syh) | _shrunk(y0, z0, myl, myh))
-    return (a, b, c, d, e, f, g, h, sxl, sxh, mxl, mxh, syl, syh, myl, myh, good, prog)
-
-
-@njit(cache=True, error_model="numpy")
-def _passes(n, L):
-    """One pass over lanes ``0..n-1`` (straight-line code: a SIMD loop)."""
-    C = CHUNK
-    for i in range(n):
-        r = _lane_pass(L, i)
-        L[UL * C + i] = r[0]
-        L[UH * C + i] = r[1]
-        L[VL * C + i] = r[2]
-        L[VH * C + i] = r[3]
-        L[RL * C + i] = r[4]
-        L[RH * C + i] = r[5]
-        L[TL * C + i] = r[6]
-        L[TH * C + i] = r[7]
-        L[SXL * C + i] = r[8]
-        L[SXH * C + i] = r[9]
-        L[MXL * C + i] = r[10]
-        L[MXH * C + i] = r[11]
-        L[SYL * C + i] = r[12]
-        L[SYH * C + i] = r[13]
-        L[MYL * C + i] = r[14]
-        L[MYH * C + i] = r[15]
-        L[OK * C + i] = L[OK * C + i] if r[16] else 0.0
-        L[PROG * C + i] = 1.0 if r[17] else 0.0
-
-
-@njit(cache=True, error_model="numpy")
-def _passes_live(n, L):
-    """:func:`_passes` on the lanes with ``L[ACT]`` set; the others keep their state (selects:
-    a SIMD loop)."""
-    C = CHUNK
-    for i in range(n):
-        r = _lane_pass(L, i)
-        act = L[ACT * C + i] > 0.5
-        L[UL * C + i] = r[0] if act else L[UL * C + i]
-        L[UH * C + i] = r[1] if act else L[UH * C + i]
-        L[VL * C + i] = r[2] if act else L[VL * C + i]
-        L[VH * C + i] = r[3] if act else L[VH * C + i]
-        L[RL * C + i] = r[4] if act else L[RL * C + i]
-        L[RH * C + i] = r[5] if act else L[RH * C + i]
-        L[TL * C + i] = r[6] if act else L[TL * C + i]
-        L[TH * C + i] = r[7] if act else L[TH * C + i]
-        L[SXL * C + i] = r[8] if act else L[SXL * C + i]
-        L[SXH * C + i] = r[9] if act else L[SXH * C + i]
-        L[MXL * C + i] = r[10] if act else L[MXL * C + i]
-        L[MXH * C + i] = r[11] if act else L[MXH * C + i]
-        L[SYL * C + i] = r[12] if act else L[SYL * C + i]
-        L[SYH * C + i] = r[13] if act else L[SYH * C + i]
-        L[MYL * C + i] = r[14] if act else L[MYL * C + i]
-        L[MYH * C + i] = r[15] if act else L[MYH * C + i]
-        L[OK * C + i] = (L[OK * C + i] if r[16] else 0.0) if act else L[OK * C + i]
-        L[PROG * C + i] = (1.0 if r[17] else 0.0) if act else L[PROG * C + i]
-
-
-@njit(cache=True, inline="always")
-def _flip(sign, lo, hi):
-    """``sign * [lo, hi]`` for ``sign = ±1`` (exact)."""
-    if sign > 0.0:
-        return lo, hi
-    return -hi, -lo
-
-
-@njit(cache=True, inline="always")
-def _arc(q):
-    """The quadrant's arc of world bearings (``q`` as in ``catan2``)."""
-    if q == 0:
-        return 0.0, HALF_PI_HI
-    if q == 1:
-        return -HALF_PI_HI, 0.0
-    if q == 2:
-        return -PI_HI, -HALF_PI_LO
-    return HALF_PI_LO, PI_HI
-
-
-@njit(cache=True, inline="always")
-def _to_psi(q, tl, th):
-    """World bearing in the quadrant's arc -> ``psi in [0, pi/2]`` (outward)."""
-    if q == 0:
-        pl, ph = tl, th
-    elif q == 1:
-        pl, ph = -th, -tl
-    elif q == 2:
-        pl, ph = add(tl, th, PI_LO, PI_HI)
-    else:
-        pl, ph = sub(PI_LO, PI_HI, tl, th)
-    return inter(pl, ph, 0.0, HALF_PI_HI)
-
-
-@njit(cache=True, inline="always")
-def _from_psi(q, pl, ph):
-    if q == 0:
-        return pl, ph
-    if q == 1:
-        return -ph, -pl
-    if q == 2:
-        return sub(pl, ph, PI_LO, PI_HI)
-    return sub(PI_LO, PI_HI, pl, ph)
-
-
-@njit(cache=True, inline="always")
-def _shift(al, ah, k):
-    """:func:`~ivslam_cli.interval.angles.shift` (``[a] + 2 k pi``, same roundings) for a
-    non-empty ``[a]``."""
-    if k == 0.0:
-        return al, ah
-    ol, oh = _two_pi_times(k)
-    return down(al + ol), up(ah + oh)
-
-
-@njit(cache=True, inline="always")
-def _meet(tl, th, al, ah):
-    """:func:`~ivslam_cli.interval.angles.angle_meet`, the same bounds: when ``w(t) + w(a) < 6``
-    only the copies ``k0 - 1, k0, k0 + 1`` around the nearest one can meet ``[t]``, so their
-    pieces (shifted as ``angle_meet`` shifts them) are hulled without its search."""
-    if not (tl <= th and al <= ah and (th - tl) + (ah - al) < 6.0 and -1e15 < tl and th < 1e15
-            and -1e15 < al and ah < 1e15):
-        return angle_meet(tl, th, al, ah)
-    k0 = float(round((0.5 * (tl + th) - 0.5 * (al + ah)) * INV_TWO_PI_LO))
-    lo, hi = E, F
-    for dk in range(-1, 2):
-        sl, sh = _shift(al, ah, k0 + dk)
-        pl, ph = (sl if sl > tl else tl), (sh if sh < th else th)
-        if pl <= ph:
-            lo = pl if pl < lo else lo
-            hi = ph if ph > hi else hi
-    return lo, hi
-
-
 GAL, GAH, GSL, GSH, GOK = 0, 1, 2, 3, 4  # rows of the angle buffer G (alpha, sth, in range)
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _meet3(tl, th, al, ah):
-    """:func:`_meet` as selects, for ``w(t) + w(a) < 6`` with moderate bounds (else ``ok`` is
-    False and the result is to be ignored): the pieces of the copies ``k0 - 1, k0, k0 + 1``,
-    shifted as ``angle_meet`` shifts them, hulled. Where ``ok`` every sum and product here is
-    finite, so its roundings need no NaN guard."""
-    ok = ((th - tl) + (ah - al) < 6.0) & (-1e15 < tl) & (th < 1e15) & (-1e15 < al) & (ah < 1e15)
-    k0 = np.floor((0.5 * (tl + th) - 0.5 * (al + ah)) * INV_TWO_PI_LO + 0.5)
-    lo, hi = E, F
-    for dk in range(-1, 2):
-        k = k0 + dk
-        ol = down_raw(k * (TWO_PI_LO if k >= 0.0 else TWO_PI_HI))
-        oh = up_raw(k * (TWO_PI_HI if k >= 0.0 else TWO_PI_LO))
-        sl = al if k == 0.0 else down_raw(al + ol)
-        sh = ah if k == 0.0 else up_raw(ah + oh)
-        pl = sl if sl > tl else tl
-        ph = sh if sh < th else th
-        meets = pl <= ph
-        lo = pl if meets & (pl < lo) else lo
-        hi = ph if meets & (ph > hi) else hi
-    return lo, hi, ok
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _meet3t(tl, th, al, ah):
-    """:func:`_meet3` that also takes the cases where ``angle_meet`` returns ``[t]`` as it is
-    (``[a]`` at least a turn wide, ``[t]`` unbounded), for non-empty ``[t]`` and ``[a]``."""
-    whole = (ah - al >= TWO_PI_LO) | (tl == -INF) | (th == INF)
-    lo, hi, ok = _meet3(tl, th, al, ah)
-    return (tl if whole else lo), (th if whole else hi), whole | ok
 
 
 @njit(cache=True, error_model="numpy")
@@ -425,67 +159,6 @@ def _finish(n, D, box, q, pl, ph, t0l, t0h, ang, acc, G):
 
 
 @njit(cache=True, error_model="numpy")
-def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes):
-    """Load the ``n`` lanes' tangents of their ψ bounds ``pl``, ``ph`` and run passes (at most
-    ``passes``) until every lane has stopped; the final states are left in ``L``, each lane at
-    its slot. After each pass from the second on, a lane stops if it shrank no width by
-    ``RELATIVE_STOP`` or is empty (a dead lane, ``L[OK]`` 0 from the start, stops there too; it
-    should have ``pl = 0``, ``ph = pi/2``: no libm call).
-
-    While at least half the lanes take passes they stay in place (:func:`_passes_live`: the
-    stopped ones keep their state); then the others are packed into ``S`` (``orig``: their
-    slots), contracted there, and each written back when it stops."""
-    C = CHUNK
-    for i in range(n):
-        t0l[i] = _tan_lo(pl[i])
-    for i in range(n):
-        t0h[i] = _tan_hi(ph[i])
-    for i in range(n):
-        L[TL * C + i], L[TH * C + i] = t0l[i], t0h[i]
-        L[ACT * C + i] = 1.0
-    _passes(n, L)
-    p = 1
-    na = n
-    while p < passes and 2 * na >= n:
-        if na == n:
-            _passes(n, L)
-        else:
-            _passes_live(n, L)
-        na = 0
-        for i in range(n):
-            go = (L[ACT * C + i] > 0.5) & (L[OK * C + i] > 0.5) & (L[PROG * C + i] > 0.5)
-            go = go & (p + 1 < passes)
-            L[ACT * C + i] = 1.0 if go else 0.0
-            na += 1 if go else 0
-        p += 1
-    if na == 0:
-        return
-    m = 0
-    for i in range(n):
-        if L[ACT * C + i] > 0.5:
-            orig[m] = i
-            for r in range(ROWS):
-                S[r * C + m] = L[r * C + i]
-            m += 1
-    while m > 0:
-        _passes(m, S)
-        k = 0
-        for i in range(m):
-            if S[OK * C + i] < 0.5 or S[PROG * C + i] < 0.5 or p + 1 == passes:
-                o = orig[i]
-                for r in range(OK + 1):
-                    L[r * C + o] = S[r * C + i]
-                continue
-            if k != i:
-                orig[k] = orig[i]
-                for r in range(ROWS):
-                    S[r * C + k] = S[r * C + i]
-            k += 1
-        m = k
-        p += 1
-
-
-@njit(cache=True, error_model="numpy")
 def _flush(n, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, S, orig, out, G):
     """Contract the ``n`` lanes (pieces of ``nb`` boxes, output rows ``rows``) and write out."""
     _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, MAX_PASSES)
@@ -496,19 +169,6 @@ def _flush(n, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, S, orig, out, G):
         for v, arr in enumerate(out):
             arr[k] = acc[j, 2 * v] if ok else E
             arr[k + 1] = acc[j, 2 * v + 1] if ok else F
-
-
-@njit(cache=True, inline="always")
-def _lane(L, m, ul, uh, vl, vh, rl, rh, xs, ys, sxl, sxh, mxl, mxh, syl, syh, myl, myh):
-    """Lane ``m``'s state from one quadrant piece of a box (x variables negated by ``xs``, y by ``ys``)."""
-    C = CHUNK
-    L[UL * C + m], L[UH * C + m], L[VL * C + m], L[VH * C + m] = ul, uh, vl, vh
-    L[RL * C + m], L[RH * C + m] = rl, rh
-    L[OK * C + m] = 1.0
-    L[SXL * C + m], L[SXH * C + m] = _flip(xs, sxl, sxh)
-    L[MXL * C + m], L[MXH * C + m] = _flip(xs, mxl, mxh)
-    L[SYL * C + m], L[SYH * C + m] = _flip(ys, syl, syh)
-    L[MYL * C + m], L[MYH * C + m] = _flip(ys, myl, myh)
 
 
 # what _entry found for a box: no solution, one piece (a lane at the box's slot), several

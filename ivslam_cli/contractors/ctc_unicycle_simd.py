@@ -35,7 +35,7 @@ plus rounding, and that the widths are on average no larger. A heading wider tha
 Execution: ``NB`` slots hold boxes in flight, each at its own round; a slot whose box is done
 writes it out and takes the next one, so every pass over the slots works on live boxes. A pass
 is: the heading of every slot as selects (:func:`_headings`, the interval operations in select
-form: ``_mul_s``, ``_bwd_mul_s``, ``_meet3t``; the rare heading outside their range takes
+form: ``mul_s``, ``bwd_mul_s``, ``_meet3t``; the rare heading outside their range takes
 :func:`_heading`); the plan of the position part (:func:`_plan`: a box with at most two
 pieces and a heading narrower than 2 pi has them found by selects, any other by
 :func:`_pieces`); the lanes built (scalar, a few stores each), contracted to their fixpoint,
@@ -50,7 +50,8 @@ import numpy as np
 from numba import njit
 
 from ivslam_cli.contractors.ctc_polar import _atan_hi, _atan_lo
-from ivslam_cli.contractors.ctc_range_bearing_simd import (
+from ivslam_cli.contractors.ctc_polar_simd import _mn, _mx
+from ivslam_cli.contractors.simd_polar_lanes import (
     CHUNK,
     MXH,
     MXL,
@@ -66,17 +67,11 @@ from ivslam_cli.contractors.ctc_range_bearing_simd import (
     SYL,
     TH,
     TL,
-    _arc,
     _flip,
     _lane,
-    _meet,
-    _meet3t,
-    _mn,
-    _mx,
-    _shift,
     _to_fixpoint,
-    _to_psi,
 )
+from ivslam_cli.contractors.simd_quadrants import _angle_difference, _arc, _meet3t, _shift, _to_psi
 from ivslam_cli.contractors.ctc_unicycle import MAX_PASSES as MAX_ROUNDS
 from ivslam_cli.contractors.ctc_unicycle import RELATIVE_STOP
 from ivslam_cli.interval.arith import (
@@ -89,6 +84,7 @@ from ivslam_cli.interval.arith import (
     mul,
     sub,
 )
+from ivslam_cli.interval.arith_select import bwd_mul_s, mul_s
 from ivslam_cli.interval.rounding import (
     HALF_PI_HI,
     INF,
@@ -111,26 +107,6 @@ PIECES = 56  # at most 2 signs x 4 quadrants x 7 copies per box
 X0, Y0, T0, X1, Y1, T1, V, W, DT, QX, QY, QT = range(0, 24, 2)
 
 
-@njit(cache=True, inline="always")
-def _angle_difference(al, ah, bl, bh, cl, ch):
-    """``angle_difference_scalar`` (``a = b - c`` mod 2 pi), the same bounds (``_meet``)."""
-    if not (al <= ah and bl <= bh and cl <= ch):
-        return E, F, E, F, E, F
-    dl, dh = sub(bl, bh, cl, ch)
-    al, ah = _meet(al, ah, dl, dh)
-    if not (al <= ah):
-        return E, F, E, F, E, F
-    dl, dh = add(al, ah, cl, ch)
-    bl, bh = _meet(bl, bh, dl, dh)
-    if not (bl <= bh):
-        return E, F, E, F, E, F
-    dl, dh = sub(bl, bh, al, ah)
-    cl, ch = _meet(cl, ch, dl, dh)
-    if not (cl <= ch):
-        return E, F, E, F, E, F
-    return al, ah, bl, bh, cl, ch
-
-
 @njit(cache=True)
 def _heading(b, j):
     """The heading block of ``unicycle_pass`` on row ``j`` of ``b``; False if it empties."""
@@ -147,90 +123,6 @@ def _heading(b, j):
         return False
     b[j, QT], b[j, QT + 1], b[j, W], b[j, W + 1], b[j, DT], b[j, DT + 1] = ql, qh, wl, wh, dl, dh
     return True
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _prod(a, c):
-    return 0.0 if (a == 0.0) | (c == 0.0) else a * c
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _mul_s(al, ah, bl, bh):
-    """:func:`~ivslam_cli.interval.arith.mul` of non-empty intervals as selects."""
-    p1, p2, p3, p4 = _prod(al, bl), _prod(al, bh), _prod(ah, bl), _prod(ah, bh)
-    return down(min(min(p1, p2), min(p3, p4))), up(max(max(p1, p2), max(p3, p4)))
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _ql(a, b):
-    q = a / b
-    return INF if q != q else q
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _qh(a, b):
-    q = a / b
-    return -INF if q != q else q
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _div_meet_s(tl, th, al, ah, bl, bh):
-    """:func:`~ivslam_cli.interval.arith.div_meet` (``[t] ∩ [a] / [b]``, both pieces of the
-    extended division) of non-empty intervals as selects: every case of
-    :func:`~ivslam_cli.interval.arith.div2` is computed and the one that applies is taken,
-    the same float operations in each."""
-    # 0 not in [b]
-    lo = down(min(min(_ql(al, bl), _ql(al, bh)), min(_ql(ah, bl), _ql(ah, bh))))
-    hi = up(max(max(_qh(al, bl), _qh(al, bh)), max(_qh(ah, bl), _qh(ah, bh))))
-    l1, h1, l2, h2 = lo, hi, E, F
-    apos = al >= 0.0
-    zb = (bl == 0.0) & (bh == 0.0)
-    nz = (bl > 0.0) | (bh < 0.0)
-    # 0 in [b], [b] not {0}
-    za = (al == 0.0) & (ah == 0.0)
-    sa = (al < 0.0) & (0.0 < ah)
-    lb = bl == 0.0  # [0, bh]
-    hb = bh == 0.0  # [bl, 0]
-    # [b] = [0, bh]: a >= 0 -> [a_lo / bh, inf], else [-inf, a_hi / bh]
-    c1l = down(al / bh) if apos else -INF
-    c1h = INF if apos else up(ah / bh)
-    # [b] = [bl, 0]: a >= 0 -> [-inf, a_lo / bl], else [a_hi / bl, inf]
-    c2l = -INF if apos else down(ah / bl)
-    c2h = up(al / bl) if apos else INF
-    # bl < 0 < bh: two pieces
-    t1h = up(al / bl) if apos else up(ah / bh)
-    t2l = down(al / bh) if apos else down(ah / bl)
-    l1 = l1 if nz else (0.0 if za else (-INF if sa else (c1l if lb else (c2l if hb else -INF))))
-    h1 = h1 if nz else (0.0 if za else (INF if sa else (c1h if lb else (c2h if hb else t1h))))
-    two = (not nz) & (not za) & (not sa) & (not lb) & (not hb)
-    l2 = t2l if two else E
-    h2 = INF if two else F
-    l1 = E if zb else l1
-    h1 = F if zb else h1
-    # inter with [t] of each piece, hull (the empty set is neutral)
-    p1l, p1h = (tl if tl > l1 else l1), (th if th < h1 else h1)
-    p2l, p2h = (tl if tl > l2 else l2), (th if th < h2 else h2)
-    e1 = not (p1l <= p1h)
-    e2 = not (p2l <= p2h)
-    rl = (E if e2 else p2l) if e1 else (p1l if e2 else (p1l if p1l < p2l else p2l))
-    rh = (F if e2 else p2h) if e1 else (p1h if e2 else (p1h if p1h > p2h else p2h))
-    return rl, rh
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _bwd_mul_s(zl, zh, xl, xh, yl, yh):
-    """:func:`~ivslam_cli.interval.arith.bwd_mul` (contract ``x, y`` under ``z = x y``) of
-    non-empty ``x, y`` as selects; the result is empty (``x`` and ``y``) where it empties."""
-    z0 = (zl <= 0.0) & (0.0 <= zh)
-    nxl, nxh = _div_meet_s(xl, xh, zl, zh, yl, yh)
-    keep_x = z0 & (yl <= 0.0) & (0.0 <= yh)
-    xl, xh = (xl if keep_x else nxl), (xh if keep_x else nxh)
-    nyl, nyh = _div_meet_s(yl, yh, zl, zh, xl, xh)
-    keep_y = z0 & (xl <= 0.0) & (0.0 <= xh)
-    yl, yh = (yl if keep_y else nyl), (yh if keep_y else nyh)
-    ok = (zl <= zh) & (xl <= xh) & (yl <= yh)
-    return (xl if ok else E), (xh if ok else F), (yl if ok else E), (yh if ok else F)
-
 
 
 # Slots: NB boxes in flight, each at its own round; a slot whose box is done takes the next
@@ -334,7 +226,7 @@ def _headings(B):
         ql, qh = B[QT * N + j], B[(QT + 1) * N + j]
         t1l, t1h = B[T1 * N + j], B[(T1 + 1) * N + j]
         t0l, t0h = B[T0 * N + j], B[(T0 + 1) * N + j]
-        pl, ph = _mul_s(wl, wh, dl, dh)
+        pl, ph = mul_s(wl, wh, dl, dh)
         ul, uh = down(pl + ql), up(ph + qh)
         # (an empty meet empties the box whatever _meet3t returns after it)
         ul, uh, ok1 = _meet3t(ul, uh, down(t1l - t0h), up(t1h - t0l))
@@ -344,7 +236,7 @@ def _headings(B):
         pl, ph = _mx(pl, down(ul - qh)), _mn(ph, up(uh - ql))
         ql, qh = _mx(ql, down(ul - ph)), _mn(qh, up(uh - pl))
         good = (ul <= uh) & (t1l <= t1h) & (t0l <= t0h) & (pl <= ph) & (ql <= qh)
-        wl, wh, dl, dh = _bwd_mul_s(pl, ph, wl, wh, dl, dh)
+        wl, wh, dl, dh = bwd_mul_s(pl, ph, wl, wh, dl, dh)
         good = good & (wl <= wh)
         hok = (1.0 if good else 0.0) if (ok1 & ok2 & ok3) else -1.0
         put = (hok > 0.5) & (B[LIVE * N + j] > 0.5)
@@ -397,7 +289,7 @@ def _plan(B):
         t0l, t0h = B[T0 * N + j], B[(T0 + 1) * N + j]
         vl, vh, dl, dh = B[V * N + j], B[(V + 1) * N + j], B[DT * N + j], B[(DT + 1) * N + j]
         qxl, qxh, qyl, qyh = B[QX * N + j], B[(QX + 1) * N + j], B[QY * N + j], B[(QY + 1) * N + j]
-        sl, sh = _mul_s(vl, vh, dl, dh)
+        sl, sh = mul_s(vl, vh, dl, dh)
         axl, axh = down(x1l - x0h), up(x1h - x0l)
         ayl, ayh = down(y1l - y0h), up(y1h - y0l)
         dxl, dxh = down(axl - qxh), up(axh - qxl)
@@ -541,7 +433,7 @@ def _exit(n, L):
         yp = (qq == 0.0) | (qq == 3.0)
         a, b = L[RL * C + i], L[RH * C + i]
         sl, sh = (a if sgn > 0.0 else -b), (b if sgn > 0.0 else -a)
-        vl, vh, dl, dh = _bwd_mul_s(sl, sh, L[(MB + 2) * C + i], L[(MB + 3) * C + i],
+        vl, vh, dl, dh = bwd_mul_s(sl, sh, L[(MB + 2) * C + i], L[(MB + 3) * C + i],
                                     L[(MB + 4) * C + i], L[(MB + 5) * C + i])
         ok = ok & (vl <= vh)
         a, b = L[SXL * C + i], L[SXH * C + i]

@@ -21,12 +21,8 @@ from hypothesis import strategies as st
 from bench.bench_kernels import _lost, range_bearing_truths
 from ivslam_cli.contractors import range_bearing
 from ivslam_cli.contractors.ctc_range_bearing import range_bearing_kernel
-from ivslam_cli.contractors.ctc_range_bearing_simd import (
-    CHUNK,
-    _meet,
-    _meet3,
-    range_bearing_simd_kernel,
-)
+from ivslam_cli.contractors.ctc_range_bearing_simd import CHUNK, range_bearing_simd_kernel
+from ivslam_cli.contractors.simd_quadrants import _meet, _meet3
 from ivslam_cli.interval.angles import angle_meet
 from tests.helpers.exact import around
 from tests.helpers.hyp import examples

@@ -188,15 +188,16 @@ def _same(x, y):
 @settings(max_examples=examples(ci=500))
 @given(bound, bound, bound, bound, bound, bound)
 def test_select_forms_are_the_interval_operations_bit_for_bit(a, b, c, d, e, f):
-    """``_mul_s``, ``_div_meet_s`` and ``_bwd_mul_s`` (selects, SIMD loops) give the bounds of
+    """``mul_s``, ``div_meet_s`` and ``bwd_mul_s`` (selects, SIMD loops) give the bounds of
     ``mul``, ``div_meet`` and ``bwd_mul`` on non-empty intervals, every case of the extended
     division included."""
     from ivslam_cli.interval.arith import bwd_mul, div_meet, mul
+    from ivslam_cli.interval.arith_select import bwd_mul_s, div_meet_s, mul_s
 
     x, y, z = _iv(a, b), _iv(c, d), _iv(e, f)
-    assert _same(simd._mul_s(*x, *y), mul(*x, *y))
-    assert _same(simd._div_meet_s(*x, *y, *z), div_meet(*x, *y, *z))
-    r, s = simd._bwd_mul_s(*z, *x, *y), bwd_mul(*z, *x, *y)
+    assert _same(mul_s(*x, *y), mul(*x, *y))
+    assert _same(div_meet_s(*x, *y, *z), div_meet(*x, *y, *z))
+    r, s = bwd_mul_s(*z, *x, *y), bwd_mul(*z, *x, *y)
     assert _same(r, s) or (not r[0] <= r[1] and not s[0] <= s[1])
 
 
@@ -204,7 +205,7 @@ def test_select_forms_are_the_interval_operations_bit_for_bit(a, b, c, d, e, f):
 @given(st.one_of(st.floats(-20, 20), st.just(-INF)), st.one_of(st.floats(0, 8), st.just(INF)),
        st.floats(-20, 20), st.one_of(st.floats(0, 8), st.floats(6.2, 7.0)))
 def test_meet3t_is_angle_meet_where_it_applies(tl, tw, al, aw):
-    from ivslam_cli.contractors.ctc_range_bearing_simd import _meet3t
+    from ivslam_cli.contractors.simd_quadrants import _meet3t
     from ivslam_cli.interval.angles import angle_meet
 
     th = tl + tw
