@@ -42,6 +42,7 @@ from ivslam_cli.contractors.ctc_polar import (
     _two_pi_times,
     polar_scalar,
 )
+from ivslam_cli.contractors.simd_polar_lanes import BIG, _mn, _mx
 from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO
 from ivslam_cli.interval.rounding import (
     HALF_PI_HI,
@@ -55,17 +56,6 @@ from ivslam_cli.interval.rounding import (
 CHUNK = 256
 # quadrant q: (sign of x, sign of y) = q0 (+,+), q1 (+,-), q2 (-,-), q3 (-,+);
 # theta = s phi + 2 k pi + c with (s, c) = q0 (1, 0), q1 (-1, 0), q2 (1, -pi), q3 (-1, pi)
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _mx(a, b):
-    """``max`` as a select (``a`` when ``b`` is NaN)."""
-    return b if b > a else a
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _mn(a, b):
-    return b if b < a else a
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -129,9 +119,6 @@ def _setup(xl, xh, yl, yh, rl, rh, tl, th):
     if found != 1:
         return bad
     return (True, q, s, cl, ch, ul, uh, vl, vh, pl, ph)
-
-
-BIG = 1e150  # tan bounds above this are treated as unbounded in the sin/cos step (no overflow)
 
 
 # Lane state of a chunk: one flat float64 buffer, row r of lane i at L[r * CHUNK + i], so every

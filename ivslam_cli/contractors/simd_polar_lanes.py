@@ -16,7 +16,6 @@ import numpy as np
 from numba import njit
 
 from ivslam_cli.contractors.ctc_polar import _tan_hi, _tan_lo
-from ivslam_cli.contractors.ctc_polar_simd import BIG, _mn, _mx
 from ivslam_cli.contractors.ctc_range_bearing import RELATIVE_STOP
 from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO
 from ivslam_cli.interval.rounding import INF, down, down_pos, down_raw, up_pos, up_raw
@@ -37,6 +36,19 @@ OK = 16  # 1.0 while the lane is non-empty
 PROG = 17  # 1.0 if the last pass shrank some width by RELATIVE_STOP
 ACT = 18  # 1.0 while the lane takes passes (the passes of _passes_live leave the others)
 ROWS = 19
+BIG = 1e150  # tan bounds above this are treated as unbounded in the sin/cos step (no overflow)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _mx(a, b):
+    """``max`` as a select (``a`` when ``b`` is NaN)."""
+    return b if b > a else a
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _mn(a, b):
+    """``min`` as a select (``a`` when ``b`` is NaN)."""
+    return b if b < a else a
 
 
 @njit(cache=True, inline="always", error_model="numpy")
