@@ -18,7 +18,7 @@ from numba import njit
 from ivslam_cli.contractors.ctc_polar import _tan_hi, _tan_lo
 from ivslam_cli.contractors.ctc_range_bearing import RELATIVE_STOP
 from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO
-from ivslam_cli.interval.rounding import INF, down, down_pos, down_raw, up_pos, up_raw
+from ivslam_cli.interval.rounding import HALF_PI_LO, INF, down, down_pos, down_raw, up_pos, up_raw
 
 # Lanes per chunk, and the stride of the rows of every lane buffer: not a multiple of 512 (4 KiB
 # rows apart alias in the store buffer: a scalar loop writing a lane across the rows of L
@@ -161,6 +161,98 @@ def _lane_pass(L, i):
     return (a, b, c, d, e, f, g, h, sxl, sxh, mxl, mxh, syl, syh, myl, myh, good, prog)
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _polar_lane_pass(L, i):
+    """One pass of the polar lane ``i`` (the polar constraint on ``(u, v, rho, t)`` alone, rows
+    ``UL..TH``): its 8 new bounds, whether it stays non-empty, whether it shrank some width by
+    ``RELATIVE_STOP``. The steps and roundings of :func:`_lane_pass` without its difference
+    steps (``u``, ``v`` are the lane's own variables here), under the same invariants: every
+    bound ``>= 0`` or ``-0`` in a lane that stays non-empty, NaN only where ``_mx`` / ``_mn``
+    ignore it; every result holds every solution of the lane."""
+    C = CHUNK
+    a0, b0, c0, d0 = L[UL * C + i], L[UH * C + i], L[VL * C + i], L[VH * C + i]
+    e0, f0, g0, h0 = L[RL * C + i], L[RH * C + i], L[TL * C + i], L[TH * C + i]
+    # v = u t (u, v >= 0, t >= 0; t may be +inf above; 0 / 0 and 0 * inf are NaN: ignored)
+    a = _mx(a0, _dnf(c0 / h0))
+    b = _mn(b0, up_raw(d0 / g0))
+    g = _mx(g0, _dnf(c0 / b))
+    h = _mn(h0, up_raw(d0 / a))
+    c = _mx(c0, _dnf(a * g))
+    d = _mn(d0, up_pos(b * h))
+    e, f = e0, f0
+    # rho^2 = u^2 + v^2 (u2l, v2l and their sum enter _mx first: guarded)
+    u2l, u2h = down(a * a), up_pos(b * b)
+    v2l, v2h = down(c * c), up_pos(d * d)
+    sl = _mx(_mx(_down_tiny(u2l + v2l), down_pos(e * e)), 0.0)
+    sh = _mn(up_pos(u2h + v2h), up_pos(f * f))
+    e = _mx(e, down_pos(np.sqrt(sl)))
+    f = _mn(f, up_pos(np.sqrt(_mx(sh, 0.0))))
+    u2l = _mx(u2l, down_raw(sl - v2h))
+    u2h = _mn(u2h, up_raw(sh - v2l))
+    v2l = _mx(v2l, down_raw(sl - u2h))
+    v2h = _mn(v2h, up_raw(sh - u2l))
+    a = _mx(a, down_pos(np.sqrt(_mx(u2l, 0.0))))
+    b = _mn(b, up_pos(np.sqrt(_mx(u2h, 0.0))))
+    c = _mx(c, down_pos(np.sqrt(_mx(v2l, 0.0))))
+    d = _mn(d, up_pos(np.sqrt(_mx(v2h, 0.0))))
+    # u ∩= rho cos(psi), v ∩= rho sin(psi), cos and sin from t = tan(psi)
+    big = h > BIG
+    hb = _mn(h, BIG)
+    gb = _mn(g, BIG)
+    cos_l = _mx(0.0, down_pos(1.0 / up_pos(np.sqrt(up_pos(1.0 + up_pos(hb * hb))))))
+    sin_h = _mn(1.0, up_pos(hb / down_pos(np.sqrt(down_pos(1.0 + down_pos(hb * hb))))))
+    cos_l = 0.0 if big else cos_l
+    sin_h = 1.0 if big else sin_h
+    cos_h = _mn(1.0, up_pos(1.0 / down_pos(np.sqrt(down_pos(1.0 + down_pos(gb * gb))))))
+    sin_l = _mx(0.0, down_pos(gb / up_pos(np.sqrt(up_pos(1.0 + up_pos(gb * gb))))))
+    a = _mx(a, down_pos(e * cos_l))
+    b = _mn(b, up_pos(f * cos_h))
+    c = _mx(c, down_pos(e * sin_l))
+    d = _mn(d, up_pos(f * sin_h))
+    good = ((a <= b) & (c <= d) & (e <= f) & (g <= h) & (sl <= sh) & (u2l <= u2h)
+            & (v2l <= v2h))
+    prog = (_shrunk(a0, b0, a, b) | _shrunk(c0, d0, c, d) | _shrunk(e0, f0, e, f)
+            | _shrunk(g0, h0, g, h))
+    return (a, b, c, d, e, f, g, h, good, prog)
+
+
+@njit(cache=True, error_model="numpy")
+def _polar_passes(n, L):
+    """One pass of the polar lanes ``0..n-1`` (straight-line code: a SIMD loop)."""
+    C = CHUNK
+    for i in range(n):
+        r = _polar_lane_pass(L, i)
+        L[UL * C + i] = r[0]
+        L[UH * C + i] = r[1]
+        L[VL * C + i] = r[2]
+        L[VH * C + i] = r[3]
+        L[RL * C + i] = r[4]
+        L[RH * C + i] = r[5]
+        L[TL * C + i] = r[6]
+        L[TH * C + i] = r[7]
+        L[OK * C + i] = L[OK * C + i] if r[8] else 0.0
+        L[PROG * C + i] = 1.0 if r[9] else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _polar_passes_live(n, L):
+    """:func:`_polar_passes` on the lanes with ``L[ACT]`` set; the others keep their state."""
+    C = CHUNK
+    for i in range(n):
+        r = _polar_lane_pass(L, i)
+        act = L[ACT * C + i] > 0.5
+        L[UL * C + i] = r[0] if act else L[UL * C + i]
+        L[UH * C + i] = r[1] if act else L[UH * C + i]
+        L[VL * C + i] = r[2] if act else L[VL * C + i]
+        L[VH * C + i] = r[3] if act else L[VH * C + i]
+        L[RL * C + i] = r[4] if act else L[RL * C + i]
+        L[RH * C + i] = r[5] if act else L[RH * C + i]
+        L[TL * C + i] = r[6] if act else L[TL * C + i]
+        L[TH * C + i] = r[7] if act else L[TH * C + i]
+        L[OK * C + i] = (L[OK * C + i] if r[8] else 0.0) if act else L[OK * C + i]
+        L[PROG * C + i] = (1.0 if r[9] else 0.0) if act else L[PROG * C + i]
+
+
 @njit(cache=True, error_model="numpy")
 def _passes(n, L):
     """One pass over lanes ``0..n-1`` (straight-line code: a SIMD loop)."""
@@ -224,10 +316,11 @@ def _flip(sign, lo, hi):
 
 
 @njit(cache=True, error_model="numpy")
-def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes):
+def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes, polar=False):
     """Load the ``n`` lanes' tangents of their ψ bounds ``pl``, ``ph`` and run passes (at most
     ``passes``) until every lane has stopped; the final states are left in ``L``, each lane at
-    its slot. After each pass from the second on, a lane stops if it shrank no width by
+    its slot. The passes are :func:`_passes` (range-bearing lanes) or, with ``polar``,
+    :func:`_polar_passes` (polar lanes: rows ``SXL..MYH`` unused). After each pass from the second on, a lane stops if it shrank no width by
     ``RELATIVE_STOP`` or is empty (a dead lane, ``L[OK]`` 0 from the start, stops there too; it
     should have ``pl = 0``, ``ph = pi/2``: no libm call).
 
@@ -235,18 +328,38 @@ def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes):
     stopped ones keep their state); then the others are packed into ``S`` (``orig``: their
     slots), contracted there, and each written back when it stops."""
     C = CHUNK
+    # the libm calls on a packed list of the lanes that need them (no branch to mispredict);
+    # elsewhere _tan_lo is 0 (pl <= 0) and _tan_hi +inf (ph >= HALF_PI_LO)
+    m = 0
     for i in range(n):
-        t0l[i] = _tan_lo(pl[i])
+        t0l[i] = 0.0
+        orig[m] = i
+        m += 1 if pl[i] > 0.0 else 0
+    for k in range(m):
+        t0l[orig[k]] = _tan_lo(pl[orig[k]])
+    m = 0
     for i in range(n):
-        t0h[i] = _tan_hi(ph[i])
+        t0h[i] = INF
+        orig[m] = i
+        m += 1 if ph[i] < HALF_PI_LO else 0
+    for k in range(m):
+        t0h[orig[k]] = _tan_hi(ph[orig[k]])
     for i in range(n):
         L[TL * C + i], L[TH * C + i] = t0l[i], t0h[i]
         L[ACT * C + i] = 1.0
-    _passes(n, L)
+    if polar:
+        _polar_passes(n, L)
+    else:
+        _passes(n, L)
     p = 1
     na = n
     while p < passes and 2 * na >= n:
-        if na == n:
+        if polar:
+            if na == n:
+                _polar_passes(n, L)
+            else:
+                _polar_passes_live(n, L)
+        elif na == n:
             _passes(n, L)
         else:
             _passes_live(n, L)
@@ -267,7 +380,10 @@ def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes):
                 S[r * C + m] = L[r * C + i]
             m += 1
     while m > 0:
-        _passes(m, S)
+        if polar:
+            _polar_passes(m, S)
+        else:
+            _passes(m, S)
         k = 0
         for i in range(m):
             if S[OK * C + i] < 0.5 or S[PROG * C + i] < 0.5 or p + 1 == passes:
