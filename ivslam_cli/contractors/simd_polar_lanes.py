@@ -161,14 +161,27 @@ def _lane_pass(L, i):
     return (a, b, c, d, e, f, g, h, sxl, sxh, mxl, mxh, syl, syh, myl, myh, good, prog)
 
 
+# cos(psi) = 1 / sqrt(1 + t^2), sin(psi) = t cos(psi) for t = tan(psi) in [0, BIG]: the float
+# R = fl(1 / fl(sqrt(fl(1 + fl(t t))))) is within a factor (1 ± 3.01 u) of cos (u = 2^-53: one
+# rounding of t t, relative to 1 + t^2 even when t t is subnormal, one of the sum, both halved
+# by the sqrt, one of the sqrt, one of the quotient), fl(t R) within (1 ± 4.01 u) of sin. A
+# product by LO_SLACK = 1 - 2^-50 (one more rounding) is then below the real value,
+# (1 + 4.01 u)(1 - 8 u)(1 + u) < 1, and by HI_SLACK = 1 + 2^-50 above it, (1 - 4.01 u)(1 + 8 u)
+# (1 - u) > 1. The results are >= 0 (or -0), and none is subnormal (R >= 1e-150).
+LO_SLACK = 1.0 - 2.0**-50
+HI_SLACK = 1.0 + 2.0**-50
+
+
 @njit(cache=True, inline="always", error_model="numpy")
 def _polar_lane_pass(L, i):
     """One pass of the polar lane ``i`` (the polar constraint on ``(u, v, rho, t)`` alone, rows
     ``UL..TH``): its 8 new bounds, whether it stays non-empty, whether it shrank some width by
     ``RELATIVE_STOP``. The steps and roundings of :func:`_lane_pass` without its difference
-    steps (``u``, ``v`` are the lane's own variables here), under the same invariants: every
-    bound ``>= 0`` or ``-0`` in a lane that stays non-empty, NaN only where ``_mx`` / ``_mn``
-    ignore it; every result holds every solution of the lane."""
+    steps (``u``, ``v`` are the lane's own variables here), except that cos and sin of each t
+    bound come from one sqrt and one quotient (``LO_SLACK``, ``HI_SLACK``: two sqrt and two
+    quotients fewer per pass); the same invariants: every bound ``>= 0`` or ``-0`` in a lane
+    that stays non-empty, NaN only where ``_mx`` / ``_mn`` ignore it; every result holds every
+    solution of the lane."""
     C = CHUNK
     a0, b0, c0, d0 = L[UL * C + i], L[UH * C + i], L[VL * C + i], L[VH * C + i]
     e0, f0, g0, h0 = L[RL * C + i], L[RH * C + i], L[TL * C + i], L[TH * C + i]
@@ -195,16 +208,17 @@ def _polar_lane_pass(L, i):
     b = _mn(b, up_pos(np.sqrt(_mx(u2h, 0.0))))
     c = _mx(c, down_pos(np.sqrt(_mx(v2l, 0.0))))
     d = _mn(d, up_pos(np.sqrt(_mx(v2h, 0.0))))
-    # u ∩= rho cos(psi), v ∩= rho sin(psi), cos and sin from t = tan(psi)
+    # u ∩= rho cos(psi), v ∩= rho sin(psi), cos = 1 / sqrt(1 + t^2) and sin = t cos from one
+    # rounded sqrt and quotient per t bound (_cos_sin: within COS_SIN_SLACK of the real values)
     big = h > BIG
     hb = _mn(h, BIG)
     gb = _mn(g, BIG)
-    cos_l = _mx(0.0, down_pos(1.0 / up_pos(np.sqrt(up_pos(1.0 + up_pos(hb * hb))))))
-    sin_h = _mn(1.0, up_pos(hb / down_pos(np.sqrt(down_pos(1.0 + down_pos(hb * hb))))))
-    cos_l = 0.0 if big else cos_l
-    sin_h = 1.0 if big else sin_h
-    cos_h = _mn(1.0, up_pos(1.0 / down_pos(np.sqrt(down_pos(1.0 + down_pos(gb * gb))))))
-    sin_l = _mx(0.0, down_pos(gb / up_pos(np.sqrt(up_pos(1.0 + up_pos(gb * gb))))))
+    rh_ = 1.0 / np.sqrt(1.0 + hb * hb)
+    rg_ = 1.0 / np.sqrt(1.0 + gb * gb)
+    cos_l = 0.0 if big else rh_ * LO_SLACK
+    sin_h = 1.0 if big else _mn(1.0, (hb * rh_) * HI_SLACK)
+    cos_h = _mn(1.0, rg_ * HI_SLACK)
+    sin_l = (gb * rg_) * LO_SLACK
     a = _mx(a, down_pos(e * cos_l))
     b = _mn(b, up_pos(f * cos_h))
     c = _mx(c, down_pos(e * sin_l))
@@ -377,7 +391,8 @@ def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes, polar=False):
         if L[ACT * C + i] > 0.5:
             orig[m] = i
             for r in range(ROWS):
-                S[r * C + m] = L[r * C + i]
+                if not (polar and SXL <= r <= MYH):
+                    S[r * C + m] = L[r * C + i]
             m += 1
     while m > 0:
         if polar:
@@ -389,12 +404,14 @@ def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes, polar=False):
             if S[OK * C + i] < 0.5 or S[PROG * C + i] < 0.5 or p + 1 == passes:
                 o = orig[i]
                 for r in range(OK + 1):
-                    L[r * C + o] = S[r * C + i]
+                    if not (polar and SXL <= r <= MYH):
+                        L[r * C + o] = S[r * C + i]
                 continue
             if k != i:
                 orig[k] = orig[i]
                 for r in range(ROWS):
-                    S[r * C + k] = S[r * C + i]
+                    if not (polar and SXL <= r <= MYH):
+                        S[r * C + k] = S[r * C + i]
             k += 1
         m = k
         p += 1
