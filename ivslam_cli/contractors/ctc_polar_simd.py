@@ -63,16 +63,13 @@ from ivslam_cli.contractors.simd_polar_lanes import (
 from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO
 from ivslam_cli.interval.rounding import (
     HALF_PI_HI,
-    INF,
     INV_TWO_PI_LO,
     PI_HI,
     PI_LO,
     TWO_PI_HI,
     TWO_PI_LO,
     down,
-    down_pos,
     up,
-    up_pos,
 )
 
 E = EMPTY_LO
@@ -164,21 +161,26 @@ def _sin_cos_series(p):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _tan_above(p):
-    """A number above ``tan(p)`` for ``p`` in ``[0, 1.5]`` with ``cos(p) > 0.01`` (with a
-    ``1e-12`` relative margin over the polynomials' rounding), ``+inf`` elsewhere."""
+def _tan_at_most(p, y, x):
+    """Is ``tan(p) <= y / x`` for sure (``x, y > 0``)? True only for ``p`` in ``[0, 1.5]`` with
+    ``cos(p) > 0.01`` and the series bound of ``tan(p)`` at least ``2e-12`` (relative) below
+    ``y / x``: far above the polynomials' rounding; both products normal (``> 1e-300``) or
+    the left one 0. Products, no quotient."""
     s_hi, _, _, c_lo = _sin_cos_series(p)
-    ok = (p >= 0.0) & (p <= 1.5) & (c_lo > 0.01)
-    return s_hi / c_lo * (1.0 + 1e-12) if ok else INF
+    lhs = s_hi * x * (1.0 + 2e-12)
+    rhs = y * c_lo
+    ok = (p >= 0.0) & (p <= 1.5) & (c_lo > 0.01) & ((lhs == 0.0) | (lhs > 1e-300)) & (rhs > 1e-300)
+    return ok & (lhs <= rhs)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _tan_below(p):
-    """A number below ``tan(p)`` for ``p`` in ``[0, 1.5]`` with ``cos(p) > 0.01``, ``-inf``
-    elsewhere."""
+def _tan_at_least(p, y, x):
+    """Is ``tan(p) >= y / x`` for sure (``x, y > 0``)? As :func:`_tan_at_most`."""
     _, s_lo, c_hi, c_lo = _sin_cos_series(p)
-    ok = (p >= 0.0) & (p <= 1.5) & (c_lo > 0.01)
-    return s_lo / c_hi * (1.0 - 1e-12) if ok else -INF
+    lhs = s_lo * x * (1.0 - 2e-12)
+    rhs = y * c_hi
+    ok = (p >= 0.0) & (p <= 1.5) & (c_lo > 0.01) & (lhs > 1e-300) & (rhs > 1e-300)
+    return ok & (lhs >= rhs)
 
 
 # The fast path's buffer W: the lane rows (0..ROWS-1, as simd_polar_lanes lays them out; packed
@@ -248,10 +250,8 @@ def _entry(s, nb, dx, dy, rho, theta, W):
         W[PSH * C + j] = ph if fast else HALF_PI_HI
         # tan of a psi bound is wanted only where it may contract: where tan(pl) <= vl / uh
         # (or tan(ph) >= vh / ul) the first pass's v / u bounds of t hold it already
-        tan_pl_hi = _tan_above(pl)
-        tan_ph_lo = _tan_below(ph)
-        need_l = fast & (not (tan_pl_hi <= down_pos(vl / uh)))
-        need_h = fast & (not (tan_ph_lo >= up_pos(vh / ul)))
+        need_l = fast & (not _tan_at_most(pl, vl, uh))
+        need_h = fast & (not _tan_at_least(ph, vh, ul))
         W[QL * C + j] = pl if need_l else 0.0
         W[QH * C + j] = ph if need_h else HALF_PI_HI
 

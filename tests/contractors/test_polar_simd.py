@@ -36,8 +36,8 @@ from ivslam_cli.contractors.ctc_polar_simd import (
     WROWS,
     _entry,
     _setup,
-    _tan_above,
-    _tan_below,
+    _tan_at_least,
+    _tan_at_most,
     polar_simd_kernel,
 )
 from ivslam_cli.contractors.simd_polar_lanes import UH, UL, VH, VL
@@ -135,17 +135,22 @@ def test_entry_is_setup(rows):
             assert got == (f[1], f[3], f[4], f[5], f[6], f[7], f[8], f[9], f[10]), k
 
 
-def test_tan_bounds_hold_tan():
-    """The series bounds that decide which tan calls to skip do bound tan (mpmath), and are
-    close to it away from pi/2."""
-    ps = np.concatenate([np.linspace(0.0, 1.5, 3001), [5e-324, 1e-300, 1e-8, 0.7853981633974483]])
-    for p in ps:
-        t = mpmath.tan(mpmath.mpf(float(p)))
-        hi, lo = _tan_above(p), _tan_below(p)
-        assert mpmath.mpf(lo) <= t <= mpmath.mpf(hi), p
-        if p <= 1.2:
-            assert hi - lo <= 1e-6 * max(float(t), 1e-300) + 1e-300, p
-    assert _tan_above(1.5705) == math.inf and _tan_below(-0.1) == -math.inf
+@settings(max_examples=examples(ci=300))
+@given(st.one_of(st.floats(0.0, 1.6), st.sampled_from([0.0, 5e-324, 1e-300, 1e-8, 1.5, 1.5705])),
+       st.floats(1e-3, 1e3), st.floats(-1e-3, 1e-3))
+def test_tan_comparisons_are_sure_and_close(p, x, rel):
+    """The series comparisons that decide which tan calls to skip are never wrong (mpmath), and
+    decide (True) once ``y / x`` is ``1e-6`` (relative) past ``tan(p)`` for ``p <= 1.2``."""
+    t = mpmath.tan(mpmath.mpf(p))
+    for y in (float(t * x * (1 + rel)), float(t * x * (1 + 1e-6)), float(t * x * (1 - 1e-6))):
+        if y > 0.0:
+            if _tan_at_most(p, y, x):
+                assert t <= mpmath.mpf(y) / mpmath.mpf(x)
+            if _tan_at_least(p, y, x):
+                assert t >= mpmath.mpf(y) / mpmath.mpf(x)
+    if 1e-8 <= p <= 1.2:
+        assert _tan_at_most(p, float(t * x * (1 + 1e-6)), x)
+        assert _tan_at_least(p, float(t * x * (1 - 1e-6)), x)
 
 
 def test_most_boxes_take_the_fast_path():
