@@ -223,6 +223,9 @@ def _polar_lane_pass(L, i):
     b = _mn(b, up_pos(f * cos_h))
     c = _mx(c, down_pos(e * sin_l))
     d = _mn(d, up_pos(f * sin_h))
+    # t = v / u again: what u and v gained above reaches t in this pass, not the next one
+    g = _mx(g, _dnf(c / b))
+    h = _mn(h, up_raw(d / a))
     good = ((a <= b) & (c <= d) & (e <= f) & (g <= h) & (sl <= sh) & (u2l <= u2h)
             & (v2l <= v2h))
     prog = (_shrunk(a0, b0, a, b) | _shrunk(c0, d0, c, d) | _shrunk(e0, f0, e, f)
