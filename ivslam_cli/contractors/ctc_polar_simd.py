@@ -56,6 +56,7 @@ from ivslam_cli.contractors.simd_polar_lanes import (
     UL,
     VH,
     VL,
+    _dnf,
     _mn,
     _mx,
     _to_fixpoint,
@@ -63,6 +64,7 @@ from ivslam_cli.contractors.simd_polar_lanes import (
 from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO
 from ivslam_cli.interval.rounding import (
     HALF_PI_HI,
+    INF,
     INV_TWO_PI_LO,
     PI_HI,
     PI_LO,
@@ -70,6 +72,7 @@ from ivslam_cli.interval.rounding import (
     TWO_PI_LO,
     down,
     up,
+    up_raw,
 )
 
 E = EMPTY_LO
@@ -243,6 +246,8 @@ def _entry(s, nb, dx, dy, rho, theta, W):
         W[VL * C + j], W[VH * C + j] = (vl, vh) if fast else (1.0, 1.0)
         W[RL * C + j], W[RH * C + j] = (rl, rh) if fast else (1.0, 1.0)
         W[OK * C + j] = 1.0 if fast else 0.0
+        W[TL * C + j] = _dnf(vl / uh) if fast else 0.0  # t = v / u, before the first pass
+        W[TH * C + j] = up_raw(vh / ul) if fast else INF
         W[KD * C + j] = 1.0 if fast else 0.0
         W[QD * C + j] = q
         W[CL * C + j], W[CH * C + j] = cl, ch

@@ -185,11 +185,11 @@ def _polar_lane_pass(L, i):
     C = CHUNK
     a0, b0, c0, d0 = L[UL * C + i], L[UH * C + i], L[VL * C + i], L[VH * C + i]
     e0, f0, g0, h0 = L[RL * C + i], L[RH * C + i], L[TL * C + i], L[TH * C + i]
-    # v = u t (u, v >= 0, t >= 0; t may be +inf above; 0 / 0 and 0 * inf are NaN: ignored)
+    # v = u t (u, v >= 0, t >= 0; t may be +inf above; 0 / 0 and 0 * inf are NaN: ignored);
+    # t = v / u comes at the end of the pass (and before the first: _to_fixpoint's polar lanes)
     a = _mx(a0, _dnf(c0 / h0))
     b = _mn(b0, up_raw(d0 / g0))
-    g = _mx(g0, _dnf(c0 / b))
-    h = _mn(h0, up_raw(d0 / a))
+    g, h = g0, h0
     c = _mx(c0, _dnf(a * g))
     d = _mn(d0, up_pos(b * h))
     e, f = e0, f0
@@ -361,8 +361,9 @@ def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes, polar=False):
         m += 1 if ph[i] < HALF_PI_LO else 0
     for k in range(m):
         t0h[orig[k]] = _tan_hi(ph[orig[k]])
-    for i in range(n):
-        L[TL * C + i], L[TH * C + i] = t0l[i], t0h[i]
+    for i in range(n):  # a polar lane's t rows hold v / u already: intersected
+        L[TL * C + i] = _mx(L[TL * C + i], t0l[i]) if polar else t0l[i]
+        L[TH * C + i] = _mn(L[TH * C + i], t0h[i]) if polar else t0h[i]
         L[ACT * C + i] = 1.0
     if polar:
         _polar_passes(n, L)
