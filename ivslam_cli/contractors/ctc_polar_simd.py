@@ -223,23 +223,17 @@ def _entry(s, nb, dx, dy, rho, theta, W):
         c0 = 0.0 if xp else (math.pi if yp else -math.pi)
         k0 = np.floor((0.5 * (tl + th) - c0 - (0.25 if pos else -0.25) * math.pi) * INV_TWO_PI_LO
                       + 0.5)
-        found = 0
-        cl, ch, pl, ph = 0.0, 0.0, 0.0, HALF_PI_HI
-        for dk in range(-1, 2):  # _offset and _to_phi of the copy k, as selects
-            k = k0 + dk
-            ol = down(k * (TWO_PI_LO if k >= 0.0 else TWO_PI_HI))
-            oh = up(k * (TWO_PI_HI if k >= 0.0 else TWO_PI_LO))
-            ol = ol if xp else down(ol + (PI_LO if yp else -PI_HI))
-            oh = oh if xp else up(oh + (PI_HI if yp else -PI_LO))
-            al = _mx(down((tl - oh) if pos else (ol - th)), 0.0)
-            ah = _mn(up((th - ol) if pos else (oh - tl)), HALF_PI_HI)
-            meets = al <= ah
-            found += 1 if meets else 0
-            cl = ol if meets else cl
-            ch = oh if meets else ch
-            pl = al if meets else pl
-            ph = ah if meets else ph
-        fast = fin & quad & (found == 1)
+        # _offset and _to_phi of the copy k0, as selects: the only one that can meet theta (its
+        # arc's centre is the one nearest to theta's midpoint, and a copy meeting theta has its
+        # centre within w(theta) / 2 + pi / 4 < 3.1354 < pi of that midpoint), so _setup's
+        # count over k0 - 1, k0, k0 + 1 is 1 exactly when k0's piece is non-empty
+        ol = down(k0 * (TWO_PI_LO if k0 >= 0.0 else TWO_PI_HI))
+        oh = up(k0 * (TWO_PI_HI if k0 >= 0.0 else TWO_PI_LO))
+        cl = ol if xp else down(ol + (PI_LO if yp else -PI_HI))
+        ch = oh if xp else up(oh + (PI_HI if yp else -PI_LO))
+        pl = _mx(down((tl - ch) if pos else (cl - th)), 0.0)
+        ph = _mn(up((th - cl) if pos else (ch - tl)), HALF_PI_HI)
+        fast = fin & quad & (pl <= ph)
         ul, uh = (xl, xh) if xp else (-xh, -xl)
         vl, vh = (yl, yh) if yp else (-yh, -yl)
         W[UL * C + j], W[UH * C + j] = (ul, uh) if fast else (1.0, 1.0)
