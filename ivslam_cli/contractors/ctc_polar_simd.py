@@ -260,7 +260,8 @@ def _exit(s, nb, dx, dy, rho, theta, W, t0l, t0h, idx):
     """Rows ``s..s+nb-1`` of the fast path from their lanes (final states in ``W``): ``psi ∩=
     atan(t)`` where ``t`` moved, then as selects (a SIMD loop) ``theta ∩= s psi + C`` and ``u``,
     ``v`` back from the quadrant frame; a lane emptied (or a psi or theta emptied) empties its
-    row. Rows off the fast path are left as they are."""
+    row. A row off the fast path takes the bounds its box rows hold (``polar_scalar``'s result,
+    put there by :func:`_kernel`). All rows are then written out (an unconditional copy)."""
     C = CHUNK
     # atan only where t moved (atan(tan(psi)) holds psi already), on a packed list of those
     # lanes (``idx``: no branch to mispredict)
@@ -294,23 +295,30 @@ def _exit(s, nb, dx, dy, rho, theta, W, t0l, t0h, idx):
         yl, yh = (a, b) if yp else (-b, -a)
         rl, rh = W[RL * C + i], W[RH * C + i]
         live = (W[OK * C + i] > 0.5) & (pl <= ph) & (tl <= th)
-        W[(BX + 0) * C + i], W[(BX + 1) * C + i] = (xl, xh) if live else (E, F)
-        W[(BX + 2) * C + i], W[(BX + 3) * C + i] = (yl, yh) if live else (E, F)
-        W[(BX + 4) * C + i], W[(BX + 5) * C + i] = (rl, rh) if live else (E, F)
-        W[(BX + 6) * C + i], W[(BX + 7) * C + i] = (tl, th) if live else (E, F)
+        fast = W[KD * C + i] > 0.5  # a row off the fast path holds polar_scalar's result
+        xl, xh = ((xl, xh) if live else (E, F)) if fast else (W[BX * C + i], W[(BX + 1) * C + i])
+        yl, yh = (((yl, yh) if live else (E, F)) if fast
+                  else (W[(BX + 2) * C + i], W[(BX + 3) * C + i]))
+        rl, rh = (((rl, rh) if live else (E, F)) if fast
+                  else (W[(BX + 4) * C + i], W[(BX + 5) * C + i]))
+        tl, th = (((tl, th) if live else (E, F)) if fast
+                  else (W[(BX + 6) * C + i], W[(BX + 7) * C + i]))
+        W[(BX + 0) * C + i], W[(BX + 1) * C + i] = xl, xh
+        W[(BX + 2) * C + i], W[(BX + 3) * C + i] = yl, yh
+        W[(BX + 4) * C + i], W[(BX + 5) * C + i] = rl, rh
+        W[(BX + 6) * C + i], W[(BX + 7) * C + i] = tl, th
     for v, a in enumerate((dx, dy, rho, theta)):
         r = (BX + 2 * v) * C
         for j in range(nb):
-            fast = W[KD * C + j] > 0.5
-            a[2 * (s + j)] = W[r + j] if fast else a[2 * (s + j)]
-            a[2 * (s + j) + 1] = W[r + C + j] if fast else a[2 * (s + j) + 1]
+            a[2 * (s + j)] = W[r + j]
+            a[2 * (s + j) + 1] = W[r + C + j]
 
 
 @njit(cache=True, error_model="numpy")
 def _kernel(dx, dy, rho, theta):
     """Over four flat ``[lo0, hi0, lo1, hi1, ...]`` arrays, a chunk of ``CHUNK`` boxes at a time:
-    :func:`_entry`, the boxes off the fast path to ``polar_scalar``, the fixpoint of the lanes,
-    :func:`_exit`."""
+    :func:`_entry`, the boxes off the fast path to ``polar_scalar`` (results into their box
+    rows of ``W``), the fixpoint of the lanes, :func:`_exit`."""
     n = dx.shape[0] // 2
     C = CHUNK
     okm = np.empty(n, np.bool_)
@@ -327,8 +335,8 @@ def _kernel(dx, dy, rho, theta):
                 k = 2 * (s + j)
                 r = polar_scalar(dx[k], dx[k + 1], dy[k], dy[k + 1], rho[k], rho[k + 1],
                                  theta[k], theta[k + 1])
-                dx[k], dx[k + 1], dy[k], dy[k + 1] = r[0], r[1], r[2], r[3]
-                rho[k], rho[k + 1], theta[k], theta[k + 1] = r[4], r[5], r[6], r[7]
+                for v in range(8):  # into the box rows, written out by _exit
+                    W[(BX + v) * C + j] = r[v]
         _to_fixpoint(nb, W, S, orig, ql, qh, t0l, t0h, MAX_PASSES, True)
         _exit(s, nb, dx, dy, rho, theta, W, t0l, t0h, orig)
     for i in range(n):
