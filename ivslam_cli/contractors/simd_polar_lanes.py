@@ -1,13 +1,15 @@
-"""The polar lane of the SIMD range-bearing and unicycle contractors: state, pass, fixpoint.
+"""The polar lane of the SIMD polar, range-bearing and unicycle contractors: state, pass, fixpoint.
 
 A lane is one closed quadrant piece of the range-bearing constraint (Jaulin's contractor
 programming: ``u = mx - sx``, ``v = my - sy``, the polar constraint on ``(u, v, rho, t)`` with
 ``t = tan(psi)``, ``u, v >= 0`` after the quadrant's sign flips), kept as rows of one buffer so
-that a pass over the lanes is one branch-free loop LLVM turns into SIMD code. Every bound is
+that a pass over the lanes is one branch-free loop LLVM turns into SIMD code; a polar lane
+(:func:`_polar_lane_pass`) is the polar constraint on ``(u, v, rho, t)`` alone. Every bound is
 rounded outward (:func:`~ivslam_cli.interval.rounding.down` / ``up`` or their sign-aware forms,
-bit for bit); a lane keeps every solution of its piece.
-:mod:`~ivslam_cli.contractors.ctc_range_bearing_simd` and
-:mod:`~ivslam_cli.contractors.ctc_unicycle_simd` build the lanes and take them back.
+bit for bit, or products by ``LO_SLACK`` / ``HI_SLACK`` where stated); a lane keeps every
+solution of its piece. :mod:`~ivslam_cli.contractors.ctc_range_bearing_simd`,
+:mod:`~ivslam_cli.contractors.ctc_unicycle_simd` and
+:mod:`~ivslam_cli.contractors.ctc_polar_simd` build the lanes and take them back.
 """
 
 from __future__ import annotations
@@ -337,8 +339,9 @@ def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes, polar=False):
     """Load the ``n`` lanes' tangents of their ψ bounds ``pl``, ``ph`` and run passes (at most
     ``passes``) until every lane has stopped; the final states are left in ``L``, each lane at
     its slot. The passes are :func:`_passes` (range-bearing lanes) or, with ``polar``,
-    :func:`_polar_passes` (polar lanes: rows ``SXL..MYH`` unused). After each pass from the second on, a lane stops if it shrank no width by
-    ``RELATIVE_STOP`` or is empty (a dead lane, ``L[OK]`` 0 from the start, stops there too; it
+    :func:`_polar_passes` (polar lanes: rows ``SXL..MYH`` unused; their ``TL``, ``TH`` rows
+    hold ``t ∩= v / u`` on entry, intersected with the tangents). After each pass from the
+    second on, a lane stops if it shrank no width by ``RELATIVE_STOP`` or is empty (a dead lane, ``L[OK]`` 0 from the start, stops there too; it
     should have ``pl = 0``, ``ph = pi/2``: no libm call).
 
     While at least half the lanes take passes they stay in place (:func:`_passes_live`: the
