@@ -175,6 +175,19 @@ HI_SLACK = 1.0 + 2.0**-50
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _cos_sin(t):
+    """``(cos_lo, cos_hi, sin_lo, sin_hi)`` of ``psi = atan(t)`` for ``t`` in ``[0, BIG]`` (or
+    ``-0``): ``cos = 1 / sqrt(1 + t^2)``, ``sin = t cos``, from one rounded sqrt and quotient and
+    products by ``LO_SLACK`` / ``HI_SLACK`` (see there): each bound on its side of the real
+    value. ``t r`` is subnormal for ``t < 2^-1022``, where the slack products cannot move it:
+    the sine's lower bound then steps one subnormal down (``sin < t``, and ``t - sin < t^3 / 2``
+    is far below 2^-1074), which leaves a normal bound unchanged."""
+    r = 1.0 / np.sqrt(1.0 + t * t)
+    st = t * r
+    return r * LO_SLACK, r * HI_SLACK, _mx(0.0, st * LO_SLACK - 2.0**-1074), st * HI_SLACK
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _polar_lane_pass(L, i):
     """One pass of the polar lane ``i`` (the polar constraint on ``(u, v, rho, t)`` alone, rows
     ``UL..TH``): its 8 new bounds, whether it stays non-empty, whether it shrank some width by
@@ -210,17 +223,14 @@ def _polar_lane_pass(L, i):
     b = _mn(b, up_pos(np.sqrt(_mx(u2h, 0.0))))
     c = _mx(c, down_pos(np.sqrt(_mx(v2l, 0.0))))
     d = _mn(d, up_pos(np.sqrt(_mx(v2h, 0.0))))
-    # u ∩= rho cos(psi), v ∩= rho sin(psi), cos = 1 / sqrt(1 + t^2) and sin = t cos from one
-    # rounded sqrt and quotient per t bound (_cos_sin: within COS_SIN_SLACK of the real values)
+    # u ∩= rho cos(psi), v ∩= rho sin(psi), cos and sin of the t bounds by _cos_sin (bounds of
+    # t above BIG: cos >= 0, sin <= 1; a lower bound of t lowered to BIG is still one)
     big = h > BIG
-    hb = _mn(h, BIG)
-    gb = _mn(g, BIG)
-    rh_ = 1.0 / np.sqrt(1.0 + hb * hb)
-    rg_ = 1.0 / np.sqrt(1.0 + gb * gb)
-    cos_l = 0.0 if big else rh_ * LO_SLACK
-    sin_h = 1.0 if big else _mn(1.0, (hb * rh_) * HI_SLACK)
-    cos_h = _mn(1.0, rg_ * HI_SLACK)
-    sin_l = (gb * rg_) * LO_SLACK
+    cos_l, _, _, sin_h = _cos_sin(_mn(h, BIG))
+    cos_l = 0.0 if big else cos_l
+    sin_h = 1.0 if big else _mn(1.0, sin_h)
+    _, cos_h, sin_l, _ = _cos_sin(_mn(g, BIG))
+    cos_h = _mn(1.0, cos_h)
     a = _mx(a, down_pos(e * cos_l))
     b = _mn(b, up_pos(f * cos_h))
     c = _mx(c, down_pos(e * sin_l))

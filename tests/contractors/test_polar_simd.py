@@ -40,7 +40,7 @@ from ivslam_cli.contractors.ctc_polar_simd import (
     _tan_at_most,
     polar_simd_kernel,
 )
-from ivslam_cli.contractors.simd_polar_lanes import UH, UL, VH, VL
+from ivslam_cli.contractors.simd_polar_lanes import BIG, UH, UL, VH, VL, _cos_sin
 from tests.helpers.hyp import examples
 from tests.helpers.exact import around
 
@@ -151,6 +151,22 @@ def test_tan_comparisons_are_sure_and_close(p, x, rel):
     if 1e-8 <= p <= 1.2:
         assert _tan_at_most(p, float(t * x * (1 + 1e-6)), x)
         assert _tan_at_least(p, float(t * x * (1 - 1e-6)), x)
+
+
+@settings(max_examples=examples(ci=500))
+@given(st.one_of(st.floats(0.0, 10.0), st.floats(0.0, BIG), st.floats(0.0, 1e-150),
+                 st.sampled_from([0.0, -0.0, 5e-324, 1e-160, 1.0, 1e8, 1e75, BIG])))
+def test_cos_sin_of_a_tangent_bound_hold_the_real_values(t):
+    """The lane's cos and sin of ``psi = atan(t)`` (one sqrt, one quotient, ``1 ∓ 2^-50``) are on
+    their sides of the real values (mpmath), and within ~1e-15 of them."""
+    cl, ch, sl, sh = _cos_sin(t)
+    with mpmath.workprec(2300):  # sin = t (1 - t^2 / 2 + ...) told apart from t for t ~ 2^-1074
+        T = mpmath.mpf(t)
+        c, s = 1 / mpmath.sqrt(1 + T * T), T / mpmath.sqrt(1 + T * T)
+        assert mpmath.mpf(cl) <= c <= mpmath.mpf(ch)
+        assert mpmath.mpf(sl) <= s <= mpmath.mpf(sh)
+        assert t == 0.0 or mpmath.mpf(sl) < s
+    assert ch - cl <= 1e-14 * float(c) and sh - sl <= 1e-14 * float(s) + 1e-320
 
 
 def test_most_boxes_take_the_fast_path():
