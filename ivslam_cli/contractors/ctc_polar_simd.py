@@ -1,28 +1,38 @@
-"""Polar contractor over structure-of-arrays chunks: branch-free stages LLVM vectorises.
+"""Polar contractor over structure-of-arrays chunks: one fused SIMD loop per chunk.
 
 Same constraint and guarantee as :mod:`~ivslam_cli.contractors.ctc_polar` (``dx = rho
 cos(theta)``, ``dy = rho sin(theta)``, ``rho >= 0``, theta in its own branch): every solution in
 the input box is in the output box. :func:`~ivslam_cli.contractors.ctc_polar.polar_scalar` stays
-the reference; tests/test_polar_simd.py compares the two.
+the reference; tests/contractors/test_polar_simd.py compares the two.
 
 The fast path takes a box whose ``(dx, dy)`` lies in one open quadrant, with finite bounds and a
 theta narrower than ``3 pi / 2`` that meets exactly one copy of that quadrant's arc (the usual
-case in a SLAM sweep); every other box goes to ``polar_scalar`` (origin, axes, unbounded or
-very wide boxes). In the quadrant, with ``u = |dx|``, ``v = |dy|`` and ``phi in [0, pi/2]``
-given by ``theta = s phi + C`` (``s = ±1``, ``C`` a multiple of ``pi / 2`` fixed per box and
-enclosed once), the constraint is ``u = rho cos(phi)``, ``v = rho sin(phi)``: every function is
-monotone on the quadrant and every interval nonnegative, so each step is a fixed sequence of
-min/max, products, quotients and square roots, rounded outward with
-:func:`~ivslam_cli.interval.rounding.down` / ``up`` (``down2`` / ``up2`` for libm results), with
-no sign cases and no branches: a chunk of boxes goes through each step as one loop LLVM turns
-into SIMD code. The libm calls (atan, sin, cos; tan is bounded by ``sin / cos``) are each in a
-loop of their own, memoised per lane by argument.
+case in a SLAM sweep; :func:`_setup` states the condition); every other box goes to
+``polar_scalar`` (origin, axes, unbounded or very wide boxes). In the quadrant, with ``u =
+|dx|``, ``v = |dy|`` and ``psi in [0, pi/2]`` given by ``theta = s psi + C`` (``s = ±1``, ``C``
+a multiple of ``pi / 2`` fixed per box and enclosed once), the constraint is the polar lane of
+:mod:`~ivslam_cli.contractors.simd_polar_lanes` on ``(u, v, rho, t)``, ``t = tan(psi)``
+(:func:`~ivslam_cli.contractors.simd_polar_lanes._polar_lane_pass`: ``v = u t`` forward and
+backward, ``rho^2 = u^2 + v^2`` forward-backward, ``u ∩= rho cos(psi)``, ``v ∩= rho sin(psi)``
+with cos and sin from ``t`` by a square root and a quotient, ``t ∩= v / u``), a fixed sequence
+of min/max, products, quotients and square roots rounded outward: one branch-free loop over the
+chunk that LLVM turns into SIMD code. The box's piece is found and its lane built
+(:func:`_entry`, ``t ∩= v / u`` once before the first pass), and the result taken back
+(:func:`_exit`: ``psi ∩= atan(t)``, ``theta ∩= s psi + C``, out of the quadrant frame), by
+select loops of the same kind.
 
-A pass (the body of Codac's ``CtcPolar``, in the quadrant): ``v = u tan(phi)`` backward and
-forward, ``phi ∩= atan(v / u)``, ``rho^2 = u^2 + v^2`` forward-backward, ``u ∩= rho cos(phi)``,
-``v ∩= rho sin(phi)``. Passes repeat over the whole chunk while some lane shrinks a width by at
-least ``RELATIVE_STOP`` (at least two, at most ``MAX_PASSES``): a lane never gets fewer passes
-than the scalar kernel would give it, and an extra pass is only a further sound contraction.
+libm is called at most twice per box on entry (tan of the two ``psi`` bounds) and twice on exit
+(atan of the two ``t`` bounds), on packed lists of the lanes that need them: a tan is skipped
+when its bound is 0 or pi/2 or when series bounds of tan show that ``v / u`` bounds ``t`` at
+least as tightly (:func:`_tan_at_most`, :func:`_tan_at_least`), an atan when ``t`` did not move
+(``atan(tan(psi))`` holds ``psi`` already). On the bench's regular boxes that is about one tan
+and 1.3 atan per box.
+
+Passes repeat per lane while one shrinks some width by at least ``RELATIVE_STOP`` (at least
+two, at most ``MAX_PASSES``; :func:`~ivslam_cli.contractors.simd_polar_lanes._to_fixpoint`):
+a lane never gets fewer passes than the scalar kernel's stopping rule would give it, and an
+extra pass is only a further sound contraction. (With ``t ∩= v / u`` at the end of each pass,
+the regular boxes' lanes all stop after two.)
 """
 
 from __future__ import annotations
@@ -34,38 +44,46 @@ from numba import njit
 
 from ivslam_cli.contractors.ctc_polar import (
     MAX_PASSES,
-    RELATIVE_STOP,
     _atan_hi,
     _atan_lo,
-    _tan_hi,
-    _tan_lo,
     _two_pi_times,
     polar_scalar,
+)
+from ivslam_cli.contractors.simd_polar_lanes import (
+    CHUNK,
+    OK,
+    RH,
+    RL,
+    ROWS,
+    TH,
+    TL,
+    UH,
+    UL,
+    VH,
+    VL,
+    _dnf,
+    _mn,
+    _mx,
+    _to_fixpoint,
 )
 from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO
 from ivslam_cli.interval.rounding import (
     HALF_PI_HI,
+    INF,
     INV_TWO_PI_LO,
     PI_HI,
     PI_LO,
+    TWO_PI_HI,
+    TWO_PI_LO,
     down,
     up,
+    up_raw,
 )
 
-CHUNK = 256
+E = EMPTY_LO
+F = EMPTY_HI
 # quadrant q: (sign of x, sign of y) = q0 (+,+), q1 (+,-), q2 (-,-), q3 (-,+);
-# theta = s phi + 2 k pi + c with (s, c) = q0 (1, 0), q1 (-1, 0), q2 (1, -pi), q3 (-1, pi)
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _mx(a, b):
-    """``max`` as a select (``a`` when ``b`` is NaN)."""
-    return b if b > a else a
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _mn(a, b):
-    return b if b < a else a
+# theta = s psi + 2 k pi + c with (s, c) = q0 (1, 0), q1 (-1, 0), q2 (1, -pi), q3 (-1, pi)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -81,7 +99,7 @@ def _offset(q, k):
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _to_phi(s, cl, ch, tl, th):
-    """``phi = s (theta - C)`` enclosed, ∩ ``[0, HALF_PI_HI]``."""
+    """``psi = s (theta - C)`` enclosed, ∩ ``[0, HALF_PI_HI]``."""
     if s > 0.0:
         pl, ph = down(tl - ch), up(th - cl)
     else:
@@ -91,7 +109,10 @@ def _to_phi(s, cl, ch, tl, th):
 
 @njit(cache=True, error_model="numpy")
 def _setup(xl, xh, yl, yh, rl, rh, tl, th):
-    """Is the box on the fast path? Returns ``(ok, q, s, cl, ch, ul, uh, vl, vh, pl, ph)``."""
+    """Is the box on the fast path? Returns ``(ok, q, s, cl, ch, ul, uh, vl, vh, pl, ph)``:
+    its quadrant, ``theta = s psi + C`` with ``C`` in ``[cl, ch]``, the piece ``u``, ``v`` and
+    ``psi``. The statement of the condition :func:`_entry` evaluates as selects (``rl`` is the
+    rho lower bound after ``max(rl, 0)``)."""
     z = 0.0
     bad = (False, 0, z, z, z, z, z, z, z, z, z)
     if not (-1e300 < xl <= xh < 1e300 and -1e300 < yl <= yh < 1e300 and 0.0 <= rl <= rh < 1e300
@@ -131,188 +152,227 @@ def _setup(xl, xh, yl, yh, rl, rh, tl, th):
     return (True, q, s, cl, ch, ul, uh, vl, vh, pl, ph)
 
 
-BIG = 1e150  # tan bounds above this are treated as unbounded in the sin/cos step (no overflow)
+# tan on [0, 1.5] bounded by Taylor polynomials of sin and cos (alternating series, truncated
+# after a term of known sign), for deciding which tan calls can be skipped: a wrong decision
+# would only cost tightness (a t bound left to the passes), never a solution.
+@njit(cache=True, inline="always", error_model="numpy")
+def _sin_cos_series(p):
+    """``(sin_hi, sin_lo, cos_hi, cos_lo)`` bounding sin and cos of ``p`` in ``[0, 1.5]``
+    (up to the rounding of the polynomials, a few ulps)."""
+    p2 = p * p
+    s_hi = p * (1.0 + p2 * (-1.0 / 6 + p2 * (1.0 / 120 + p2 * (-1.0 / 5040 + p2 / 362880))))
+    s_lo = s_hi - p * p2 ** 5 / 39916800
+    c_lo = 1.0 + p2 * (-0.5 + p2 * (1.0 / 24 + p2 * (-1.0 / 720 + p2 * (1.0 / 40320
+                                                                         - p2 / 3628800))))
+    c_hi = c_lo + p2 ** 6 / 479001600
+    return s_hi, s_lo, c_hi, c_lo
 
 
-# Lane state of a chunk: one flat float64 buffer, row r of lane i at L[r * CHUNK + i], so every
-# access in the pass loop is one base pointer plus a compile-time offset (LLVM can then prove
-# the rows independent and vectorise without runtime alias checks).
-UL, UH, VL, VH, RL, RH, TL, TH = 0, 1, 2, 3, 4, 5, 6, 7
-OLD = 8  # rows 8..15: the same before the pass
-OK = 16  # 1.0 while the lane is non-empty
-ROWS = 17
+@njit(cache=True, inline="always", error_model="numpy")
+def _tan_at_most(p, y, x):
+    """Is ``tan(p) <= y / x`` for sure (``x, y > 0``)? True only for ``p`` in ``[0, 1.5]`` with
+    ``cos(p) > 0.01`` and the series bound of ``tan(p)`` at least ``2e-12`` (relative) below
+    ``y / x``: far above the polynomials' rounding; both products normal (``> 1e-300``) or
+    the left one 0. Products, no quotient."""
+    s_hi, _, _, c_lo = _sin_cos_series(p)
+    lhs = s_hi * x * (1.0 + 2e-12)
+    rhs = y * c_lo
+    ok = (p >= 0.0) & (p <= 1.5) & (c_lo > 0.01) & ((lhs == 0.0) | (lhs > 1e-300)) & (rhs > 1e-300)
+    return ok & (lhs <= rhs)
 
 
-@njit(cache=True, error_model="numpy")
-def _passes(n, L):
-    """One pass over lanes ``0..n-1``, straight-line code (a SIMD loop): ``v = u t`` backward and
-    forward; ``rho^2 = u^2 + v^2`` forward-backward; ``u ∩= rho cos(phi)``, ``v ∩= rho sin(phi)``
-    with ``cos = 1 / sqrt(1 + t^2)`` (decreasing in t) and ``sin = t / sqrt(1 + t^2)``
-    (increasing) on ``t = tan(phi) >= 0``. Rows ``OLD..`` receive the bounds before the pass."""
+@njit(cache=True, inline="always", error_model="numpy")
+def _tan_at_least(p, y, x):
+    """Is ``tan(p) >= y / x`` for sure (``x, y > 0``)? As :func:`_tan_at_most`."""
+    _, s_lo, c_hi, c_lo = _sin_cos_series(p)
+    lhs = s_lo * x * (1.0 - 2e-12)
+    rhs = y * c_hi
+    ok = (p >= 0.0) & (p <= 1.5) & (c_lo > 0.01) & (lhs > 1e-300) & (rhs > 1e-300)
+    return ok & (lhs >= rhs)
+
+
+# The fast path's buffer W: the lane rows (0..ROWS-1, as simd_polar_lanes lays them out; packed
+# during the fixpoint), then per box of the chunk (slot = box): its 8 bounds (dx dy rho theta,
+# lo hi; replaced by the results on exit), the psi bounds of its lane, the psi bounds handed to
+# tan, its quadrant, its kind (1.0 on the fast path), the enclosure of its offset C. Every SIMD
+# loop over W reads and writes one base pointer at compile-time row offsets.
+BX = ROWS
+PSL, PSH, QL, QH, QD, KD, CL, CH = BX + 8, BX + 9, BX + 10, BX + 11, BX + 12, BX + 13, BX + 14, BX + 15
+WROWS = BX + 16
+
+
+@njit(cache=True, inline="always")
+def _rows_in(s, nb, a, W, r):
+    """Bounds ``s..s+nb-1`` of the flat ``[lo, hi, ...]`` array ``a`` into rows ``r``, ``r + 1``
+    of ``W``."""
     C = CHUNK
-    for i in range(n):
-        a, b, c, d = L[UL * C + i], L[UH * C + i], L[VL * C + i], L[VH * C + i]
-        e, f, g, h = L[RL * C + i], L[RH * C + i], L[TL * C + i], L[TH * C + i]
-        L[(OLD + UL) * C + i], L[(OLD + UH) * C + i] = a, b
-        L[(OLD + VL) * C + i], L[(OLD + VH) * C + i] = c, d
-        L[(OLD + RL) * C + i], L[(OLD + RH) * C + i] = e, f
-        L[(OLD + TL) * C + i], L[(OLD + TH) * C + i] = g, h
-        # v = u t (u, v > 0, t >= 0; t may be +inf above)
-        a = _mx(a, down(c / h))
-        b = _mn(b, up(d / g))
-        g = _mx(g, down(c / b))
-        h = _mn(h, up(d / a))
-        c = _mx(c, down(a * g))
-        d = _mn(d, up(b * h))
-        # rho^2 = u^2 + v^2
-        u2l, u2h = down(a * a), up(b * b)
-        v2l, v2h = down(c * c), up(d * d)
-        sl = _mx(_mx(down(u2l + v2l), down(e * e)), 0.0)
-        sh = _mn(up(u2h + v2h), up(f * f))
-        e = _mx(e, down(math.sqrt(sl)))
-        f = _mn(f, up(math.sqrt(_mx(sh, 0.0))))
-        u2l = _mx(u2l, down(sl - v2h))
-        u2h = _mn(u2h, up(sh - v2l))
-        v2l = _mx(v2l, down(sl - u2h))
-        v2h = _mn(v2h, up(sh - u2l))
-        a = _mx(a, down(math.sqrt(_mx(u2l, 0.0))))
-        b = _mn(b, up(math.sqrt(_mx(u2h, 0.0))))
-        c = _mx(c, down(math.sqrt(_mx(v2l, 0.0))))
-        d = _mn(d, up(math.sqrt(_mx(v2h, 0.0))))
-        # cos and sin of phi from t (bounds of t above BIG: cos >= 0, sin <= 1)
-        big = h > BIG
-        hb = _mn(h, BIG)
-        gb = _mn(g, BIG)  # a lower bound of t lowered: still a lower bound
-        cos_l = _mx(0.0, down(1.0 / up(math.sqrt(up(1.0 + up(hb * hb))))))
-        sin_h = _mn(1.0, up(hb / down(math.sqrt(down(1.0 + down(hb * hb))))))
-        cos_l = 0.0 if big else cos_l
-        sin_h = 1.0 if big else sin_h
-        cos_h = _mn(1.0, up(1.0 / down(math.sqrt(down(1.0 + down(gb * gb))))))
-        sin_l = _mx(0.0, down(gb / up(math.sqrt(up(1.0 + up(gb * gb))))))
-        a = _mx(a, down(e * cos_l))
-        b = _mn(b, up(f * cos_h))
-        c = _mx(c, down(e * sin_l))
-        d = _mn(d, up(f * sin_h))
-        L[UL * C + i], L[UH * C + i], L[VL * C + i], L[VH * C + i] = a, b, c, d
-        L[RL * C + i], L[RH * C + i], L[TL * C + i], L[TH * C + i] = e, f, g, h
-        good = ((a <= b) & (c <= d) & (e <= f) & (g <= h) & (sl <= sh) & (u2l <= u2h)
-                & (v2l <= v2h))
-        L[OK * C + i] = L[OK * C + i] if good else 0.0
+    for j in range(nb):
+        W[r * C + j] = a[2 * (s + j)]
+        W[(r + 1) * C + j] = a[2 * (s + j) + 1]
 
 
-@njit(cache=True, error_model="numpy")
-def _shrink(ol, oh, nl, nh):
-    w0 = oh - ol
-    return (w0 - (nh - nl)) / w0 if w0 > 0.0 else 0.0  # NaN (inf widths) is ignored by _mx
-
-
-@njit(cache=True, error_model="numpy")
-def _write(i, ok, q, s, cl, ch, ul, uh, vl, vh, rl, rh, pl, ph, tl, th, dx, dy, rho, theta,
-           ok_out):
-    """Row ``i`` of the output from one lane (back from the quadrant frame; phi ∩= atan(t))."""
-    pl = _mx(pl, _atan_lo(tl))
-    ph = _mn(ph, _atan_hi(th))
-    if not ok or not (pl <= ph):
-        dx[i, 0], dx[i, 1], dy[i, 0], dy[i, 1] = EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI
-        rho[i, 0], rho[i, 1], theta[i, 0], theta[i, 1] = EMPTY_LO, EMPTY_HI, EMPTY_LO, EMPTY_HI
-        ok_out[i] = False
-        return
-    if q == 0 or q == 1:
-        dx[i, 0], dx[i, 1] = ul, uh
-    else:
-        dx[i, 0], dx[i, 1] = -uh, -ul
-    if q == 0 or q == 3:
-        dy[i, 0], dy[i, 1] = vl, vh
-    else:
-        dy[i, 0], dy[i, 1] = -vh, -vl
-    rho[i, 0], rho[i, 1] = rl, rh
-    if s > 0.0:
-        a, b = down(pl + cl), up(ph + ch)
-    else:
-        a, b = down(cl - ph), up(ch - pl)
-    theta[i, 0] = _mx(theta[i, 0], a)
-    theta[i, 1] = _mn(theta[i, 1], b)
-    ok_out[i] = True
-
-
-@njit(cache=True, error_model="numpy")
-def _flush(n, idx, q, s, cl, ch, pl, ph, L, dx, dy, rho, theta, ok_out):
-    """Contract the ``n`` lanes of the chunk (state in ``L``) and write them to the output rows
-    ``idx``.
-
-    After each pass from the second on, a lane whose pass shrank no width by ``RELATIVE_STOP``
-    (or that was emptied) is written out and the remaining lanes are packed to the front, so
-    the next pass runs on the lanes still contracting only (the scalar kernel's stopping rule,
-    lane by lane)."""
+@njit(cache=True, inline="always")
+def _rows_out(s, nb, a, W, r):
+    """Rows ``r``, ``r + 1`` of ``W`` back into bounds ``s..s+nb-1`` of ``a``."""
     C = CHUNK
-    for i in range(n):
-        L[OK * C + i] = 1.0
-        L[TL * C + i] = _tan_lo(pl[i])
-        L[TH * C + i] = _tan_hi(ph[i])
-    for p in range(MAX_PASSES):
-        _passes(n, L)
-        if p == 0:
-            continue
-        m = 0
-        for i in range(n):
-            sh = 0.0
-            for r in range(0, 8, 2):
-                sh = _mx(sh, _shrink(L[(OLD + r) * C + i], L[(OLD + r + 1) * C + i],
-                                     L[r * C + i], L[(r + 1) * C + i]))
-            ok = L[OK * C + i] > 0.5
-            if not ok or not (sh >= RELATIVE_STOP) or p + 1 == MAX_PASSES:
-                _write(idx[i], ok, q[i], s[i], cl[i], ch[i], L[UL * C + i], L[UH * C + i],
-                       L[VL * C + i], L[VH * C + i], L[RL * C + i], L[RH * C + i], pl[i], ph[i],
-                       L[TL * C + i], L[TH * C + i], dx, dy, rho, theta, ok_out)
-                continue
-            if m != i:  # pack lane i into slot m
-                idx[m], q[m], s[m], cl[m], ch[m], pl[m], ph[m] = idx[i], q[i], s[i], cl[i], ch[i], pl[i], ph[i]
-                for r in range(ROWS):
-                    L[r * C + m] = L[r * C + i]
-            m += 1
-        n = m
-        if n == 0:
-            break
+    for j in range(nb):
+        a[2 * (s + j)] = W[r * C + j]
+        a[2 * (s + j) + 1] = W[(r + 1) * C + j]
+
+
+@njit(cache=True, error_model="numpy")
+def _entry(s, nb, dx, dy, rho, theta, W):
+    """Boxes ``s..s+nb-1`` into ``W`` and, as selects (a SIMD loop), :func:`_setup`'s condition
+    and results: a box on the fast path gets its lane at its slot (``u``, ``v``, ``rho``, ``OK``
+    1; ``psi`` in rows ``PSL``, ``PSH`` and ``QL``, ``QH``), any other box a dead lane (``OK``
+    0, ``u = v = rho = [1, 1]``, ``psi = [0, pi/2]``: no libm call)."""
+    C = CHUNK
+    _rows_in(s, nb, dx, W, BX)
+    _rows_in(s, nb, dy, W, BX + 2)
+    _rows_in(s, nb, rho, W, BX + 4)
+    _rows_in(s, nb, theta, W, BX + 6)
+    for j in range(nb):
+        xl, xh = W[(BX + 0) * C + j], W[(BX + 1) * C + j]
+        yl, yh = W[(BX + 2) * C + j], W[(BX + 3) * C + j]
+        rl, rh = _mx(W[(BX + 4) * C + j], 0.0), W[(BX + 5) * C + j]
+        tl, th = W[(BX + 6) * C + j], W[(BX + 7) * C + j]
+        fin = ((-1e300 < xl) & (xl <= xh) & (xh < 1e300) & (-1e300 < yl) & (yl <= yh)
+               & (yh < 1e300) & (0.0 <= rl) & (rl <= rh) & (rh < 1e300) & (-1e6 < tl)
+               & (tl <= th) & (th < 1e6) & (th - tl < 4.7))
+        xp, yp = xl > 0.0, yl > 0.0
+        quad = (xp | (xh < 0.0)) & (yp | (yh < 0.0))
+        q = (0.0 if yp else 1.0) if xp else (3.0 if yp else 2.0)
+        pos = xp == yp  # s = 1 (q0, q2) or -1 (q1, q3)
+        c0 = 0.0 if xp else (math.pi if yp else -math.pi)
+        k0 = np.floor((0.5 * (tl + th) - c0 - (0.25 if pos else -0.25) * math.pi) * INV_TWO_PI_LO
+                      + 0.5)
+        # _offset and _to_phi of the copy k0, as selects: the only one that can meet theta (its
+        # arc's centre is the one nearest to theta's midpoint, and a copy meeting theta has its
+        # centre within w(theta) / 2 + pi / 4 < 3.1354 < pi of that midpoint), so _setup's
+        # count over k0 - 1, k0, k0 + 1 is 1 exactly when k0's piece is non-empty
+        ol = down(k0 * (TWO_PI_LO if k0 >= 0.0 else TWO_PI_HI))
+        oh = up(k0 * (TWO_PI_HI if k0 >= 0.0 else TWO_PI_LO))
+        cl = ol if xp else down(ol + (PI_LO if yp else -PI_HI))
+        ch = oh if xp else up(oh + (PI_HI if yp else -PI_LO))
+        pl = _mx(down((tl - ch) if pos else (cl - th)), 0.0)
+        ph = _mn(up((th - cl) if pos else (ch - tl)), HALF_PI_HI)
+        fast = fin & quad & (pl <= ph)
+        ul, uh = (xl, xh) if xp else (-xh, -xl)
+        vl, vh = (yl, yh) if yp else (-yh, -yl)
+        W[UL * C + j], W[UH * C + j] = (ul, uh) if fast else (1.0, 1.0)
+        W[VL * C + j], W[VH * C + j] = (vl, vh) if fast else (1.0, 1.0)
+        W[RL * C + j], W[RH * C + j] = (rl, rh) if fast else (1.0, 1.0)
+        W[OK * C + j] = 1.0 if fast else 0.0
+        W[TL * C + j] = _dnf(vl / uh) if fast else 0.0  # t = v / u, before the first pass
+        W[TH * C + j] = up_raw(vh / ul) if fast else INF
+        W[KD * C + j] = 1.0 if fast else 0.0
+        W[QD * C + j] = q
+        W[CL * C + j], W[CH * C + j] = cl, ch
+        W[PSL * C + j] = pl if fast else 0.0
+        W[PSH * C + j] = ph if fast else HALF_PI_HI
+        # tan of a psi bound is wanted only where it may contract: where tan(pl) <= vl / uh
+        # (or tan(ph) >= vh / ul) the first pass's v / u bounds of t hold it already
+        need_l = fast & (not _tan_at_most(pl, vl, uh))
+        need_h = fast & (not _tan_at_least(ph, vh, ul))
+        W[QL * C + j] = pl if need_l else 0.0
+        W[QH * C + j] = ph if need_h else HALF_PI_HI
+
+
+@njit(cache=True, error_model="numpy")
+def _exit(s, nb, dx, dy, rho, theta, W, t0l, t0h, idx):
+    """Rows ``s..s+nb-1`` of the fast path from their lanes (final states in ``W``): ``psi ∩=
+    atan(t)`` where ``t`` moved, then as selects (a SIMD loop) ``theta ∩= s psi + C`` and ``u``,
+    ``v`` back from the quadrant frame; a lane emptied (or a psi or theta emptied) empties its
+    row. A row off the fast path takes the bounds its box rows hold (``polar_scalar``'s result,
+    put there by :func:`_kernel`). All rows are then written out (an unconditional copy)."""
+    C = CHUNK
+    # atan only where t moved (atan(tan(psi)) holds psi already), on a packed list of those
+    # lanes (``idx``: no branch to mispredict)
+    m = 0
+    for i in range(nb):
+        idx[m] = i
+        m += 1 if (W[TL * C + i] != t0l[i]) & (W[OK * C + i] > 0.5) else 0
+    for k in range(m):
+        i = idx[k]
+        W[PSL * C + i] = _mx(W[PSL * C + i], _atan_lo(W[TL * C + i]))
+    m = 0
+    for i in range(nb):
+        idx[m] = i
+        m += 1 if (W[TH * C + i] != t0h[i]) & (W[OK * C + i] > 0.5) else 0
+    for k in range(m):
+        i = idx[k]
+        W[PSH * C + i] = _mn(W[PSH * C + i], _atan_hi(W[TH * C + i]))
+    for i in range(nb):
+        pl, ph, q = W[PSL * C + i], W[PSH * C + i], W[QD * C + i]
+        cl, ch = W[CL * C + i], W[CH * C + i]
+        xp = (q == 0.0) | (q == 1.0)
+        yp = (q == 0.0) | (q == 3.0)
+        pos = (q == 0.0) | (q == 2.0)
+        al = down((pl + cl) if pos else (cl - ph))
+        ah = up((ph + ch) if pos else (ch - pl))
+        tl = _mx(W[(BX + 6) * C + i], al)
+        th = _mn(W[(BX + 7) * C + i], ah)
+        a, b = W[UL * C + i], W[UH * C + i]
+        xl, xh = (a, b) if xp else (-b, -a)
+        a, b = W[VL * C + i], W[VH * C + i]
+        yl, yh = (a, b) if yp else (-b, -a)
+        rl, rh = W[RL * C + i], W[RH * C + i]
+        live = (W[OK * C + i] > 0.5) & (pl <= ph) & (tl <= th)
+        fast = W[KD * C + i] > 0.5  # a row off the fast path holds polar_scalar's result
+        xl, xh = ((xl, xh) if live else (E, F)) if fast else (W[BX * C + i], W[(BX + 1) * C + i])
+        yl, yh = (((yl, yh) if live else (E, F)) if fast
+                  else (W[(BX + 2) * C + i], W[(BX + 3) * C + i]))
+        rl, rh = (((rl, rh) if live else (E, F)) if fast
+                  else (W[(BX + 4) * C + i], W[(BX + 5) * C + i]))
+        tl, th = (((tl, th) if live else (E, F)) if fast
+                  else (W[(BX + 6) * C + i], W[(BX + 7) * C + i]))
+        W[(BX + 0) * C + i], W[(BX + 1) * C + i] = xl, xh
+        W[(BX + 2) * C + i], W[(BX + 3) * C + i] = yl, yh
+        W[(BX + 4) * C + i], W[(BX + 5) * C + i] = rl, rh
+        W[(BX + 6) * C + i], W[(BX + 7) * C + i] = tl, th
+    _rows_out(s, nb, dx, W, BX)
+    _rows_out(s, nb, dy, W, BX + 2)
+    _rows_out(s, nb, rho, W, BX + 4)
+    _rows_out(s, nb, theta, W, BX + 6)
 
 
 @njit(cache=True, error_model="numpy")
 def _kernel(dx, dy, rho, theta):
-    n = dx.shape[0]
+    """Over four flat ``[lo0, hi0, lo1, hi1, ...]`` arrays, a chunk of ``CHUNK`` boxes at a time:
+    :func:`_entry`, the boxes off the fast path to ``polar_scalar`` (results into their box
+    rows of ``W``), the fixpoint of the lanes, :func:`_exit`."""
+    n = dx.shape[0] // 2
     C = CHUNK
-    ok_out = np.empty(n, np.bool_)
-    idx = np.empty(C, np.int64)
-    q = np.empty(C, np.int64)
-    s = np.empty(C)
-    cl = np.empty(C)
-    ch = np.empty(C)
-    pl = np.empty(C)
-    ph = np.empty(C)
-    L = np.empty(ROWS * C)
-    m = 0
+    okm = np.empty(n, np.bool_)
+    W = np.empty(WROWS * C)
+    S = np.empty(ROWS * C)
+    orig = np.empty(C, np.int64)
+    t0l, t0h = np.empty(C), np.empty(C)
+    ql, qh = W[QL * C:(QL + 1) * C], W[QH * C:(QH + 1) * C]
+    for s in range(0, n, C):
+        nb = min(C, n - s)
+        _entry(s, nb, dx, dy, rho, theta, W)
+        for j in range(nb):
+            if W[KD * C + j] < 0.5:
+                k = 2 * (s + j)
+                r = polar_scalar(dx[k], dx[k + 1], dy[k], dy[k + 1], rho[k], rho[k + 1],
+                                 theta[k], theta[k + 1])
+                for v in range(8):  # into the box rows, written out by _exit
+                    W[(BX + v) * C + j] = r[v]
+        _to_fixpoint(nb, W, S, orig, ql, qh, t0l, t0h, MAX_PASSES, True)
+        _exit(s, nb, dx, dy, rho, theta, W, t0l, t0h, orig)
     for i in range(n):
-        xl, xh, yl, yh = dx[i, 0], dx[i, 1], dy[i, 0], dy[i, 1]
-        r0, r1, t0, t1 = max(rho[i, 0], 0.0), rho[i, 1], theta[i, 0], theta[i, 1]
-        f = _setup(xl, xh, yl, yh, r0, r1, t0, t1)
-        if not f[0]:
-            r = polar_scalar(xl, xh, yl, yh, rho[i, 0], r1, t0, t1)
-            dx[i, 0], dx[i, 1], dy[i, 0], dy[i, 1] = r[0], r[1], r[2], r[3]
-            rho[i, 0], rho[i, 1], theta[i, 0], theta[i, 1] = r[4], r[5], r[6], r[7]
-            ok_out[i] = r[0] <= r[1]
-            continue
-        idx[m] = i
-        q[m], s[m], cl[m], ch[m] = f[1], f[2], f[3], f[4]
-        L[UL * C + m], L[UH * C + m], L[VL * C + m], L[VH * C + m] = f[5], f[6], f[7], f[8]
-        L[RL * C + m], L[RH * C + m] = r0, r1
-        pl[m], ph[m] = f[9], f[10]
-        m += 1
-        if m == C:
-            _flush(m, idx, q, s, cl, ch, pl, ph, L, dx, dy, rho, theta, ok_out)
-            m = 0
-    if m > 0:
-        _flush(m, idx, q, s, cl, ch, pl, ph, L, dx, dy, rho, theta, ok_out)
-    return ok_out
+        okm[i] = dx[2 * i] <= dx[2 * i + 1]
+    return okm
 
 
 def polar_simd_kernel(dx, dy, rho, theta):
-    """In place over ``(N, 2)`` arrays; returns the mask of rows that stayed non-empty."""
-    return _kernel(dx, dy, rho, theta)
+    """In place over four ``(N, 2)`` arrays; returns the mask of rows that stayed non-empty."""
+    arrs = (dx, dy, rho, theta)
+    if all(a.flags.c_contiguous for a in arrs):
+        return _kernel(*(a.reshape(-1) for a in arrs))
+    flat = [np.ascontiguousarray(a).reshape(-1) for a in arrs]
+    ok = _kernel(*flat)
+    for a, f in zip(arrs, flat):
+        a[...] = f.reshape(a.shape)
+    return ok

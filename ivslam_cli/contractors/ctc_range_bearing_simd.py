@@ -47,7 +47,6 @@ import numpy as np
 from numba import njit
 
 from ivslam_cli.contractors.ctc_polar import _atan_hi, _atan_lo
-from ivslam_cli.contractors.ctc_polar_simd import _mn, _mx
 from ivslam_cli.contractors.simd_polar_lanes import (
     CHUNK,
     MAX_PASSES,
@@ -71,6 +70,8 @@ from ivslam_cli.contractors.simd_polar_lanes import (
     VL,
     _flip,
     _lane,
+    _mn,
+    _mx,
     _to_fixpoint,
 )
 from ivslam_cli.contractors.simd_quadrants import _arc, _from_psi, _meet, _meet3, _shift, _to_psi

@@ -50,7 +50,6 @@ import numpy as np
 from numba import njit
 
 from ivslam_cli.contractors.ctc_polar import _atan_hi, _atan_lo
-from ivslam_cli.contractors.ctc_polar_simd import _mn, _mx
 from ivslam_cli.contractors.simd_polar_lanes import (
     CHUNK,
     MXH,
@@ -69,6 +68,8 @@ from ivslam_cli.contractors.simd_polar_lanes import (
     TL,
     _flip,
     _lane,
+    _mn,
+    _mx,
     _to_fixpoint,
 )
 from ivslam_cli.contractors.simd_quadrants import _angle_difference, _arc, _meet3t, _shift, _to_psi

@@ -1,13 +1,15 @@
-"""The polar lane of the SIMD range-bearing and unicycle contractors: state, pass, fixpoint.
+"""The polar lane of the SIMD polar, range-bearing and unicycle contractors: state, pass, fixpoint.
 
 A lane is one closed quadrant piece of the range-bearing constraint (Jaulin's contractor
 programming: ``u = mx - sx``, ``v = my - sy``, the polar constraint on ``(u, v, rho, t)`` with
 ``t = tan(psi)``, ``u, v >= 0`` after the quadrant's sign flips), kept as rows of one buffer so
-that a pass over the lanes is one branch-free loop LLVM turns into SIMD code. Every bound is
+that a pass over the lanes is one branch-free loop LLVM turns into SIMD code; a polar lane
+(:func:`_polar_lane_pass`) is the polar constraint on ``(u, v, rho, t)`` alone. Every bound is
 rounded outward (:func:`~ivslam_cli.interval.rounding.down` / ``up`` or their sign-aware forms,
-bit for bit); a lane keeps every solution of its piece.
-:mod:`~ivslam_cli.contractors.ctc_range_bearing_simd` and
-:mod:`~ivslam_cli.contractors.ctc_unicycle_simd` build the lanes and take them back.
+bit for bit, or products by ``LO_SLACK`` / ``HI_SLACK`` where stated); a lane keeps every
+solution of its piece. :mod:`~ivslam_cli.contractors.ctc_range_bearing_simd`,
+:mod:`~ivslam_cli.contractors.ctc_unicycle_simd` and
+:mod:`~ivslam_cli.contractors.ctc_polar_simd` build the lanes and take them back.
 """
 
 from __future__ import annotations
@@ -16,10 +18,9 @@ import numpy as np
 from numba import njit
 
 from ivslam_cli.contractors.ctc_polar import _tan_hi, _tan_lo
-from ivslam_cli.contractors.ctc_polar_simd import BIG, _mn, _mx
 from ivslam_cli.contractors.ctc_range_bearing import RELATIVE_STOP
 from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO
-from ivslam_cli.interval.rounding import INF, down, down_pos, down_raw, up_pos, up_raw
+from ivslam_cli.interval.rounding import HALF_PI_LO, INF, down, down_pos, down_raw, up_pos, up_raw
 
 # Lanes per chunk, and the stride of the rows of every lane buffer: not a multiple of 512 (4 KiB
 # rows apart alias in the store buffer: a scalar loop writing a lane across the rows of L
@@ -37,6 +38,19 @@ OK = 16  # 1.0 while the lane is non-empty
 PROG = 17  # 1.0 if the last pass shrank some width by RELATIVE_STOP
 ACT = 18  # 1.0 while the lane takes passes (the passes of _passes_live leave the others)
 ROWS = 19
+BIG = 1e150  # tan bounds above this are treated as unbounded in the sin/cos step (no overflow)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _mx(a, b):
+    """``max`` as a select (``a`` when ``b`` is NaN)."""
+    return b if b > a else a
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _mn(a, b):
+    """``min`` as a select (``a`` when ``b`` is NaN)."""
+    return b if b < a else a
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -149,6 +163,125 @@ def _lane_pass(L, i):
     return (a, b, c, d, e, f, g, h, sxl, sxh, mxl, mxh, syl, syh, myl, myh, good, prog)
 
 
+# cos(psi) = 1 / sqrt(1 + t^2), sin(psi) = t cos(psi) for t = tan(psi) in [0, BIG]: the float
+# R = fl(1 / fl(sqrt(fl(1 + fl(t t))))) is within a factor (1 ± 3.01 u) of cos (u = 2^-53: one
+# rounding of t t, relative to 1 + t^2 even when t t is subnormal, one of the sum, both halved
+# by the sqrt, one of the sqrt, one of the quotient), fl(t R) within (1 ± 4.01 u) of sin. A
+# product by LO_SLACK = 1 - 2^-50 (one more rounding) is then below the real value,
+# (1 + 4.01 u)(1 - 8 u)(1 + u) < 1, and by HI_SLACK = 1 + 2^-50 above it, (1 - 4.01 u)(1 + 8 u)
+# (1 - u) > 1. The results are >= 0 (or -0), and none is subnormal (R >= 1e-150).
+LO_SLACK = 1.0 - 2.0**-50
+HI_SLACK = 1.0 + 2.0**-50
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _cos_sin(t):
+    """``(cos_lo, cos_hi, sin_lo, sin_hi)`` of ``psi = atan(t)`` for ``t`` in ``[0, BIG]`` (or
+    ``-0``): ``cos = 1 / sqrt(1 + t^2)``, ``sin = t cos``, from one rounded sqrt and quotient and
+    products by ``LO_SLACK`` / ``HI_SLACK`` (see there): each bound on its side of the real
+    value. ``t r`` is subnormal for ``t < 2^-1022``, where the slack products cannot move it:
+    the sine's lower bound then steps one subnormal down (``sin < t``, and ``t - sin < t^3 / 2``
+    is far below 2^-1074), which leaves a normal bound unchanged."""
+    r = 1.0 / np.sqrt(1.0 + t * t)
+    st = t * r
+    return r * LO_SLACK, r * HI_SLACK, _mx(0.0, st * LO_SLACK - 2.0**-1074), st * HI_SLACK
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _polar_lane_pass(L, i):
+    """One pass of the polar lane ``i`` (the polar constraint on ``(u, v, rho, t)`` alone, rows
+    ``UL..TH``): its 8 new bounds, whether it stays non-empty, whether it shrank some width by
+    ``RELATIVE_STOP``. The steps and roundings of :func:`_lane_pass` without its difference
+    steps (``u``, ``v`` are the lane's own variables here), except that cos and sin of each t
+    bound come from one sqrt and one quotient (``LO_SLACK``, ``HI_SLACK``: two sqrt and two
+    quotients fewer per pass); the same invariants: every bound ``>= 0`` or ``-0`` in a lane
+    that stays non-empty, NaN only where ``_mx`` / ``_mn`` ignore it; every result holds every
+    solution of the lane."""
+    C = CHUNK
+    a0, b0, c0, d0 = L[UL * C + i], L[UH * C + i], L[VL * C + i], L[VH * C + i]
+    e0, f0, g0, h0 = L[RL * C + i], L[RH * C + i], L[TL * C + i], L[TH * C + i]
+    # v = u t (u, v >= 0, t >= 0; t may be +inf above; 0 / 0 and 0 * inf are NaN: ignored);
+    # t = v / u comes at the end of the pass (and before the first: _to_fixpoint's polar lanes)
+    a = _mx(a0, _dnf(c0 / h0))
+    b = _mn(b0, up_raw(d0 / g0))
+    g, h = g0, h0
+    c = _mx(c0, _dnf(a * g))
+    d = _mn(d0, up_pos(b * h))
+    e, f = e0, f0
+    # rho^2 = u^2 + v^2 (u2l, v2l and their sum enter _mx first: guarded)
+    u2l, u2h = down(a * a), up_pos(b * b)
+    v2l, v2h = down(c * c), up_pos(d * d)
+    sl = _mx(_mx(_down_tiny(u2l + v2l), down_pos(e * e)), 0.0)
+    sh = _mn(up_pos(u2h + v2h), up_pos(f * f))
+    e = _mx(e, down_pos(np.sqrt(sl)))
+    f = _mn(f, up_pos(np.sqrt(_mx(sh, 0.0))))
+    u2l = _mx(u2l, down_raw(sl - v2h))
+    u2h = _mn(u2h, up_raw(sh - v2l))
+    v2l = _mx(v2l, down_raw(sl - u2h))
+    v2h = _mn(v2h, up_raw(sh - u2l))
+    a = _mx(a, down_pos(np.sqrt(_mx(u2l, 0.0))))
+    b = _mn(b, up_pos(np.sqrt(_mx(u2h, 0.0))))
+    c = _mx(c, down_pos(np.sqrt(_mx(v2l, 0.0))))
+    d = _mn(d, up_pos(np.sqrt(_mx(v2h, 0.0))))
+    # u ∩= rho cos(psi), v ∩= rho sin(psi), cos and sin of the t bounds by _cos_sin (bounds of
+    # t above BIG: cos >= 0, sin <= 1; a lower bound of t lowered to BIG is still one)
+    big = h > BIG
+    cos_l, _, _, sin_h = _cos_sin(_mn(h, BIG))
+    cos_l = 0.0 if big else cos_l
+    sin_h = 1.0 if big else _mn(1.0, sin_h)
+    _, cos_h, sin_l, _ = _cos_sin(_mn(g, BIG))
+    cos_h = _mn(1.0, cos_h)
+    a = _mx(a, down_pos(e * cos_l))
+    b = _mn(b, up_pos(f * cos_h))
+    c = _mx(c, down_pos(e * sin_l))
+    d = _mn(d, up_pos(f * sin_h))
+    # t = v / u again: what u and v gained above reaches t in this pass, not the next one
+    g = _mx(g, _dnf(c / b))
+    h = _mn(h, up_raw(d / a))
+    good = ((a <= b) & (c <= d) & (e <= f) & (g <= h) & (sl <= sh) & (u2l <= u2h)
+            & (v2l <= v2h))
+    prog = (_shrunk(a0, b0, a, b) | _shrunk(c0, d0, c, d) | _shrunk(e0, f0, e, f)
+            | _shrunk(g0, h0, g, h))
+    return (a, b, c, d, e, f, g, h, good, prog)
+
+
+@njit(cache=True, error_model="numpy")
+def _polar_passes(n, L):
+    """One pass of the polar lanes ``0..n-1`` (straight-line code: a SIMD loop)."""
+    C = CHUNK
+    for i in range(n):
+        r = _polar_lane_pass(L, i)
+        L[UL * C + i] = r[0]
+        L[UH * C + i] = r[1]
+        L[VL * C + i] = r[2]
+        L[VH * C + i] = r[3]
+        L[RL * C + i] = r[4]
+        L[RH * C + i] = r[5]
+        L[TL * C + i] = r[6]
+        L[TH * C + i] = r[7]
+        L[OK * C + i] = L[OK * C + i] if r[8] else 0.0
+        L[PROG * C + i] = 1.0 if r[9] else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _polar_passes_live(n, L):
+    """:func:`_polar_passes` on the lanes with ``L[ACT]`` set; the others keep their state."""
+    C = CHUNK
+    for i in range(n):
+        r = _polar_lane_pass(L, i)
+        act = L[ACT * C + i] > 0.5
+        L[UL * C + i] = r[0] if act else L[UL * C + i]
+        L[UH * C + i] = r[1] if act else L[UH * C + i]
+        L[VL * C + i] = r[2] if act else L[VL * C + i]
+        L[VH * C + i] = r[3] if act else L[VH * C + i]
+        L[RL * C + i] = r[4] if act else L[RL * C + i]
+        L[RH * C + i] = r[5] if act else L[RH * C + i]
+        L[TL * C + i] = r[6] if act else L[TL * C + i]
+        L[TH * C + i] = r[7] if act else L[TH * C + i]
+        L[OK * C + i] = (L[OK * C + i] if r[8] else 0.0) if act else L[OK * C + i]
+        L[PROG * C + i] = (1.0 if r[9] else 0.0) if act else L[PROG * C + i]
+
+
 @njit(cache=True, error_model="numpy")
 def _passes(n, L):
     """One pass over lanes ``0..n-1`` (straight-line code: a SIMD loop)."""
@@ -212,29 +345,52 @@ def _flip(sign, lo, hi):
 
 
 @njit(cache=True, error_model="numpy")
-def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes):
+def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes, polar=False):
     """Load the ``n`` lanes' tangents of their ψ bounds ``pl``, ``ph`` and run passes (at most
     ``passes``) until every lane has stopped; the final states are left in ``L``, each lane at
-    its slot. After each pass from the second on, a lane stops if it shrank no width by
-    ``RELATIVE_STOP`` or is empty (a dead lane, ``L[OK]`` 0 from the start, stops there too; it
+    its slot. The passes are :func:`_passes` (range-bearing lanes) or, with ``polar``,
+    :func:`_polar_passes` (polar lanes: rows ``SXL..MYH`` unused; their ``TL``, ``TH`` rows
+    hold ``t ∩= v / u`` on entry, intersected with the tangents). After each pass from the
+    second on, a lane stops if it shrank no width by ``RELATIVE_STOP`` or is empty (a dead lane, ``L[OK]`` 0 from the start, stops there too; it
     should have ``pl = 0``, ``ph = pi/2``: no libm call).
 
     While at least half the lanes take passes they stay in place (:func:`_passes_live`: the
     stopped ones keep their state); then the others are packed into ``S`` (``orig``: their
     slots), contracted there, and each written back when it stops."""
     C = CHUNK
+    # the libm calls on a packed list of the lanes that need them (no branch to mispredict);
+    # elsewhere _tan_lo is 0 (pl <= 0) and _tan_hi +inf (ph >= HALF_PI_LO)
+    m = 0
     for i in range(n):
-        t0l[i] = _tan_lo(pl[i])
+        t0l[i] = 0.0
+        orig[m] = i
+        m += 1 if pl[i] > 0.0 else 0
+    for k in range(m):
+        t0l[orig[k]] = _tan_lo(pl[orig[k]])
+    m = 0
     for i in range(n):
-        t0h[i] = _tan_hi(ph[i])
-    for i in range(n):
-        L[TL * C + i], L[TH * C + i] = t0l[i], t0h[i]
+        t0h[i] = INF
+        orig[m] = i
+        m += 1 if ph[i] < HALF_PI_LO else 0
+    for k in range(m):
+        t0h[orig[k]] = _tan_hi(ph[orig[k]])
+    for i in range(n):  # a polar lane's t rows hold v / u already: intersected
+        L[TL * C + i] = _mx(L[TL * C + i], t0l[i]) if polar else t0l[i]
+        L[TH * C + i] = _mn(L[TH * C + i], t0h[i]) if polar else t0h[i]
         L[ACT * C + i] = 1.0
-    _passes(n, L)
+    if polar:
+        _polar_passes(n, L)
+    else:
+        _passes(n, L)
     p = 1
     na = n
     while p < passes and 2 * na >= n:
-        if na == n:
+        if polar:
+            if na == n:
+                _polar_passes(n, L)
+            else:
+                _polar_passes_live(n, L)
+        elif na == n:
             _passes(n, L)
         else:
             _passes_live(n, L)
@@ -252,21 +408,27 @@ def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes):
         if L[ACT * C + i] > 0.5:
             orig[m] = i
             for r in range(ROWS):
-                S[r * C + m] = L[r * C + i]
+                if not (polar and SXL <= r <= MYH):
+                    S[r * C + m] = L[r * C + i]
             m += 1
     while m > 0:
-        _passes(m, S)
+        if polar:
+            _polar_passes(m, S)
+        else:
+            _passes(m, S)
         k = 0
         for i in range(m):
             if S[OK * C + i] < 0.5 or S[PROG * C + i] < 0.5 or p + 1 == passes:
                 o = orig[i]
                 for r in range(OK + 1):
-                    L[r * C + o] = S[r * C + i]
+                    if not (polar and SXL <= r <= MYH):
+                        L[r * C + o] = S[r * C + i]
                 continue
             if k != i:
                 orig[k] = orig[i]
                 for r in range(ROWS):
-                    S[r * C + k] = S[r * C + i]
+                    if not (polar and SXL <= r <= MYH):
+                        S[r * C + k] = S[r * C + i]
             k += 1
         m = k
         p += 1
