@@ -7,8 +7,11 @@ the reference; tests/contractors/test_polar_simd.py compares the two.
 
 The fast path takes a box whose ``(dx, dy)`` lies in one open quadrant, with finite bounds and a
 theta narrower than ``3 pi / 2`` that meets exactly one copy of that quadrant's arc (the usual
-case in a SLAM sweep; :func:`_setup` states the condition); every other box goes to
-``polar_scalar`` (origin, axes, unbounded or very wide boxes). In the quadrant, with ``u =
+case in a SLAM sweep; :func:`_setup` states the condition); every other box goes to the pieces
+route of :mod:`~ivslam_cli.contractors.ctc_polar_pieces` (boxes near an axis or around the
+origin, with finite bounds: each closed quadrant piece a polar lane of its own, hulled per box)
+or, if it does not fit there either, to ``polar_scalar`` (unbounded or very wide boxes, the
+origin with ``rho`` reaching 0). In the quadrant, with ``u =
 |dx|``, ``v = |dy|`` and ``psi in [0, pi/2]`` given by ``theta = s psi + C`` (``s = ±1``, ``C``
 a multiple of ``pi / 2`` fixed per box and enclosed once), the constraint is the polar lane of
 :mod:`~ivslam_cli.contractors.simd_polar_lanes` on ``(u, v, rho, t)``, ``t = tan(psi)``
@@ -47,8 +50,10 @@ from ivslam_cli.contractors.ctc_polar import (
     _atan_hi,
     _atan_lo,
     _two_pi_times,
-    polar_scalar,
 )
+from ivslam_cli.contractors.ctc_polar_pieces import buffers as pieces_buffers
+from ivslam_cli.contractors.ctc_polar_pieces import flush as flush_pieces
+from ivslam_cli.contractors.ctc_polar_pieces import off_fast_path
 from ivslam_cli.contractors.simd_polar_lanes import (
     CHUNK,
     OK,
@@ -283,8 +288,8 @@ def _exit(s, nb, dx, dy, rho, theta, W, t0l, t0h, idx):
     """Rows ``s..s+nb-1`` of the fast path from their lanes (final states in ``W``): ``psi ∩=
     atan(t)`` where ``t`` moved, then as selects (a SIMD loop) ``theta ∩= s psi + C`` and ``u``,
     ``v`` back from the quadrant frame; a lane emptied (or a psi or theta emptied) empties its
-    row. A row off the fast path takes the bounds its box rows hold (``polar_scalar``'s result,
-    put there by :func:`_kernel`). All rows are then written out (an unconditional copy)."""
+    row. A row off the fast path takes the bounds its box rows hold (its input, contracted
+    afterwards by :func:`_kernel`). All rows are then written out (an unconditional copy)."""
     C = CHUNK
     # atan only where t moved (atan(tan(psi)) holds psi already), on a packed list of those
     # lanes (``idx``: no branch to mispredict)
@@ -318,7 +323,7 @@ def _exit(s, nb, dx, dy, rho, theta, W, t0l, t0h, idx):
         yl, yh = (a, b) if yp else (-b, -a)
         rl, rh = W[RL * C + i], W[RH * C + i]
         live = (W[OK * C + i] > 0.5) & (pl <= ph) & (tl <= th)
-        fast = W[KD * C + i] > 0.5  # a row off the fast path holds polar_scalar's result
+        fast = W[KD * C + i] > 0.5  # a row off the fast path holds its input
         xl, xh = ((xl, xh) if live else (E, F)) if fast else (W[BX * C + i], W[(BX + 1) * C + i])
         yl, yh = (((yl, yh) if live else (E, F)) if fast
                   else (W[(BX + 2) * C + i], W[(BX + 3) * C + i]))
@@ -339,8 +344,9 @@ def _exit(s, nb, dx, dy, rho, theta, W, t0l, t0h, idx):
 @njit(cache=True, error_model="numpy")
 def _kernel(dx, dy, rho, theta):
     """Over four flat ``[lo0, hi0, lo1, hi1, ...]`` arrays, a chunk of ``CHUNK`` boxes at a time:
-    :func:`_entry`, the boxes off the fast path to ``polar_scalar`` (results into their box
-    rows of ``W``), the fixpoint of the lanes, :func:`_exit`."""
+    :func:`_entry`, the fixpoint of the lanes, :func:`_exit`, then the boxes off the fast path
+    onto the pieces route (buffered across chunks, flushed when full and at the end) or through
+    ``polar_scalar``."""
     n = dx.shape[0] // 2
     C = CHUNK
     okm = np.empty(n, np.bool_)
@@ -349,18 +355,15 @@ def _kernel(dx, dy, rho, theta):
     orig = np.empty(C, np.int64)
     t0l, t0h = np.empty(C), np.empty(C)
     ql, qh = W[QL * C:(QL + 1) * C], W[QH * C:(QH + 1) * C]
+    kind = W[KD * C:(KD + 1) * C]
+    B = pieces_buffers()
     for s in range(0, n, C):
         nb = min(C, n - s)
         _entry(s, nb, dx, dy, rho, theta, W)
-        for j in range(nb):
-            if W[KD * C + j] < 0.5:
-                k = 2 * (s + j)
-                r = polar_scalar(dx[k], dx[k + 1], dy[k], dy[k + 1], rho[k], rho[k + 1],
-                                 theta[k], theta[k + 1])
-                for v in range(8):  # into the box rows, written out by _exit
-                    W[(BX + v) * C + j] = r[v]
         _to_fixpoint(nb, W, S, orig, ql, qh, t0l, t0h, MAX_PASSES, True)
         _exit(s, nb, dx, dy, rho, theta, W, t0l, t0h, orig)
+        off_fast_path(s, nb, kind, dx, dy, rho, theta, B)  # their rows hold their input again
+    flush_pieces(dx, dy, rho, theta, B)
     for i in range(n):
         okm[i] = dx[2 * i] <= dx[2 * i + 1]
     return okm
