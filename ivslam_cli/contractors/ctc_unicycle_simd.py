@@ -15,9 +15,8 @@ of ``s`` (``s <= 0`` is the polar constraint on ``-s`` and ``th0 + pi``), the cl
 of ``(dx, dy)``, and the copy of that quadrant's arc the heading meets (the solutions are the
 union of those of the pieces, so the hull of the pieces' contractions is sound). Each piece is
 contracted by the fused branch-free loop of
-:mod:`~ivslam_cli.contractors.ctc_range_bearing_simd` (the polar steps of
-:mod:`~ivslam_cli.contractors.ctc_polar_simd` on ``(|dx|, |dy|, |s|, tan psi)`` with the
-difference ``dx = a - q``), rounded outward with
+:mod:`~ivslam_cli.contractors.simd_polar_lanes` (the polar steps on ``(|dx|, |dy|, |s|,
+tan psi)`` with the difference ``dx = a - q``), rounded outward with
 :func:`~ivslam_cli.interval.rounding.down` / ``up``; on exit ``psi ∩= atan(t)`` gives ``th0``
 back in its branch, ``s = v dt`` is contracted backward onto ``v, dt`` and ``a = x1 - x0``
 onto ``x1, x0``. libm is called at most four times per piece and round.
@@ -35,9 +34,9 @@ plus rounding, and that the widths are on average no larger. A heading wider tha
 Execution: ``NB`` slots hold boxes in flight, each at its own round; a slot whose box is done
 writes it out and takes the next one, so every pass over the slots works on live boxes. A pass
 is: the heading of every slot as selects (:func:`_headings`, the interval operations in select
-form: ``mul_s``, ``bwd_mul_s``, ``_meet3t``; the rare heading outside their range takes
+form: ``mul_s``, ``bwd_mul_s``, ``_meet1t``; the rare heading outside their range takes
 :func:`_heading`); the plan of the position part (:func:`_plan`: a box with at most two
-pieces and a heading narrower than 2 pi has them found by selects, any other by
+pieces and a heading narrower than 4.7 has them found by selects, any other by
 :func:`_pieces`); the lanes built (scalar, a few stores each), contracted to their fixpoint,
 taken back to their boxes (:func:`_exit`, selects) and hulled per box; the end of the round
 (:func:`_progress`, selects). The bounds are those of the per-box kernel of the scalar steps
@@ -66,13 +65,17 @@ from ivslam_cli.contractors.simd_polar_lanes import (
     SYL,
     TH,
     TL,
+    UH,
+    UL,
+    VH,
+    VL,
     _flip,
     _lane,
     _mn,
     _mx,
     _to_fixpoint,
 )
-from ivslam_cli.contractors.simd_quadrants import _angle_difference, _arc, _meet3t, _shift, _to_psi
+from ivslam_cli.contractors.simd_quadrants import _angle_difference, _arc, _meet1t, _shift, _to_psi
 from ivslam_cli.contractors.ctc_unicycle import MAX_PASSES as MAX_ROUNDS
 from ivslam_cli.contractors.ctc_unicycle import RELATIVE_STOP
 from ivslam_cli.interval.arith import (
@@ -132,6 +135,7 @@ def _heading(b, j):
 # and the plan of its position part. The SIMD loops over slots use B only, at compile-time row
 # offsets (LLVM needs no runtime alias checks then).
 NB = 128
+assert 2 * NB <= CHUNK  # the lanes of the SIMD slots of a round fit in one chunk
 ACC = 24
 LT0L, LT0H, LDTL, LDTH = 48, 49, 50, 51  # th0 and dt after the slot's last position part
 LIVE, RND, HOK, POS, NPC = 52, 53, 54, 55, 56
@@ -196,20 +200,8 @@ def _pieces(b, slot, L, m, box):
                 box[m] = slot
                 L[MQ * C + m], L[MPL * C + m], L[MPH * C + m], L[MSG * C + m] = qq, a, c, sgn
                 L[MKK * C + m] = np.nan if wide else k0 + dk
-                L[(MB + 0) * C + m] = b[0, T0]
-                L[(MB + 1) * C + m] = b[0, T0 + 1]
-                L[(MB + 2) * C + m] = b[0, V]
-                L[(MB + 3) * C + m] = b[0, V + 1]
-                L[(MB + 4) * C + m] = b[0, DT]
-                L[(MB + 5) * C + m] = b[0, DT + 1]
-                L[(MB + 6) * C + m] = b[0, X0]
-                L[(MB + 7) * C + m] = b[0, X0 + 1]
-                L[(MB + 8) * C + m] = b[0, X1]
-                L[(MB + 9) * C + m] = b[0, X1 + 1]
-                L[(MB + 10) * C + m] = b[0, Y0]
-                L[(MB + 11) * C + m] = b[0, Y0 + 1]
-                L[(MB + 12) * C + m] = b[0, Y1]
-                L[(MB + 13) * C + m] = b[0, Y1 + 1]
+                for r, v in enumerate((T0, V, DT, X0, X1, Y0, Y1)):  # MB's 14 rows
+                    L[(MB + 2 * r) * C + m], L[(MB + 2 * r + 1) * C + m] = b[0, v], b[0, v + 1]
                 m += 1
     return m
 
@@ -218,8 +210,8 @@ def _pieces(b, slot, L, m, box):
 def _headings(B):
     """The heading block of ``unicycle_pass`` (:func:`_heading`) for every slot, as selects (a
     SIMD loop), written back in the live slots where it holds: the same float operations as
-    ``mul``, ``add``, ``_angle_difference`` (with ``_meet3``), ``bwd_add`` and ``bwd_mul``.
-    ``B[HOK]``: 1 if it holds, 0 if the box is emptied, -1 if ``_meet3t`` does not apply (then
+    ``mul``, ``add``, ``_angle_difference`` (with ``_meet``: :func:`_meet1t`), ``bwd_add`` and ``bwd_mul``.
+    ``B[HOK]``: 1 if it holds, 0 if the box is emptied, -1 if ``_meet1t`` does not apply (then
     :func:`_heading` is to be run)."""
     N = NB
     for j in range(N):
@@ -229,10 +221,10 @@ def _headings(B):
         t0l, t0h = B[T0 * N + j], B[(T0 + 1) * N + j]
         pl, ph = mul_s(wl, wh, dl, dh)
         ul, uh = down(pl + ql), up(ph + qh)
-        # (an empty meet empties the box whatever _meet3t returns after it)
-        ul, uh, ok1 = _meet3t(ul, uh, down(t1l - t0h), up(t1h - t0l))
-        t1l, t1h, ok2 = _meet3t(t1l, t1h, down(ul + t0l), up(uh + t0h))
-        t0l, t0h, ok3 = _meet3t(t0l, t0h, down(t1l - uh), up(t1h - ul))
+        # (an empty meet empties the box whatever _meet1t returns after it)
+        ul, uh, ok1 = _meet1t(ul, uh, down(t1l - t0h), up(t1h - t0l))
+        t1l, t1h, ok2 = _meet1t(t1l, t1h, down(ul + t0l), up(uh + t0h))
+        t0l, t0h, ok3 = _meet1t(t0l, t0h, down(t1l - uh), up(t1h - ul))
         # bwd_add(u, p, qth): p ∩= u - qth, qth ∩= u - p
         pl, ph = _mx(pl, down(ul - qh)), _mn(ph, up(uh - ql))
         ql, qh = _mx(ql, down(ul - ph)), _mn(qh, up(uh - pl))
@@ -277,10 +269,12 @@ def _plan(B):
     """The position part of each live slot's round, as selects (a SIMD loop). ``B[POS]`` is
     ``NOTHING`` (the heading emptied the box), ``KEEP`` (``th0`` and ``dt`` as after the slot's
     last position part, which would give its own output again), ``SIMD`` (``B[NPC]`` pieces,
-    at most two, in the ``PC`` rows) or ``GEN`` (a heading wider than 2 pi or more pieces:
-    :func:`_pieces`). The pieces are those :func:`_pieces` finds: for a heading narrower than
-    2 pi every copy of it meeting a quadrant's arc is one of the copies ``K - 1, K, K + 1``
-    around the one nearest to 0, and a copy meeting the arc gives a non-empty ψ (checked).
+    at most two, in the ``PC`` rows) or ``GEN`` (a heading wider than 4.7 or more pieces:
+    :func:`_pieces`). The pieces are those :func:`_pieces` finds: only one copy of a heading
+    narrower than 4.7 (bounds below 1e6 in magnitude) can meet a quadrant's arc: the one whose
+    midpoint is nearest to the arc's centre (a meeting copy's midpoint is within ``w / 2 +
+    pi / 4 < 3.136`` of that centre, the next copy's at least ``pi`` away, up to roundings
+    below 1e-9), and a copy meeting the arc gives a non-empty ψ (checked).
     Also ``s``, ``dx``, ``dy``, ``x1 - x0``, ``y1 - y0``, and the round's hull: the box for
     ``KEEP``, empty otherwise."""
     N = NB
@@ -297,12 +291,9 @@ def _plan(B):
         dyl, dyh = down(ayl - qyh), up(ayh - qyl)
         # the signs of s: s >= 0 with the heading th0, s <= 0 with th0 + pi
         f1l, f1h = down(t0l + PI_LO), up(t0h + PI_HI)
-        n0 = (t0h - t0l < TWO_PI_LO) & (-1e15 < t0l) & (t0h < 1e15)
-        n1 = (f1h - f1l < TWO_PI_LO) & (-1e15 < f1l) & (f1h < 1e15)
-        k0 = np.floor(-0.5 * (t0l + t0h) * INV_TWO_PI_LO + 0.5)
-        k1 = np.floor(-0.5 * (f1l + f1h) * INV_TWO_PI_LO + 0.5)
-        k0 = k0 if n0 else 0.0
-        k1 = k1 if n1 else 0.0
+        # (one copy of each quadrant's arc can meet a heading narrower than 4.7: _plan)
+        n0 = (t0h - t0l < 4.7) & (-1e6 < t0l) & (t0h < 1e6)
+        n1 = (f1h - f1l < 4.7) & (-1e6 < f1l) & (f1h < 1e6)
         # the quadrants (dx, dy) meets: x >= 0 (q0, q1), x <= 0 (q2, q3), y >= 0 (q0, q3), y <= 0
         xp, xn = _mx(dxl, 0.0) <= dxh, _mx(-dxh, 0.0) <= -dxl
         yp, yn = _mx(dyl, 0.0) <= dyh, _mx(-dyh, 0.0) <= -dyl
@@ -313,31 +304,33 @@ def _plan(B):
         for br in range(2):
             sgn = 1.0 if br == 0 else -1.0
             brok = f0p if br == 0 else f1p
-            kb = k0 if br == 0 else k1
+            nb_ = n0 if br == 0 else n1
             fl = t0l if br == 0 else f1l
             fh = t0h if br == 0 else f1h
-            for dk in range(-1, 2):
-                k = kb + dk
+            mid = 0.5 * (fl + fh)
+            for qi in range(4):
+                cl, ch = _arc(qi)
+                # the copy of the heading whose midpoint is nearest to the arc's centre
+                k = np.floor((0.5 * (cl + ch) - mid) * INV_TWO_PI_LO + 0.5)
+                k = k if nb_ else 0.0
                 wl0, wh0 = _shifted(k, fl, fh)
-                for qi in range(4):
-                    cl, ch = _arc(qi)
-                    qok = (xp if qi < 2 else xn) & (yp if (qi == 0 or qi == 3) else yn)
-                    wl = cl if cl > wl0 else wl0
-                    wh = ch if ch < wh0 else wh0
-                    meets = brok & qok & (wl <= wh)
-                    first = meets & (cnt == 0)
-                    second = meets & (cnt == 1)
-                    g1 = sgn if first else g1
-                    q1 = float(qi) if first else q1
-                    c1 = k if first else c1
-                    l1 = wl if first else l1
-                    h1 = wh if first else h1
-                    g2 = sgn if second else g2
-                    q2 = float(qi) if second else q2
-                    c2 = k if second else c2
-                    l2 = wl if second else l2
-                    h2 = wh if second else h2
-                    cnt += 1 if meets else 0
+                qok = (xp if qi < 2 else xn) & (yp if (qi == 0 or qi == 3) else yn)
+                wl = cl if cl > wl0 else wl0
+                wh = ch if ch < wh0 else wh0
+                meets = brok & qok & (wl <= wh)
+                first = meets & (cnt == 0)
+                second = meets & (cnt == 1)
+                g1 = sgn if first else g1
+                q1 = float(qi) if first else q1
+                c1 = k if first else c1
+                l1 = wl if first else l1
+                h1 = wh if first else h1
+                g2 = sgn if second else g2
+                q2 = float(qi) if second else q2
+                c2 = k if second else c2
+                l2 = wl if second else l2
+                h2 = wh if second else h2
+                cnt += 1 if meets else 0
         a1, b1 = _psi_s(q1, l1, h1)
         a2, b2 = _psi_s(q2, l2, h2)
         simd = (n0 | (not f0p)) & (n1 | (not f1p)) & (cnt <= 2)
@@ -361,40 +354,65 @@ def _plan(B):
             B[(ACC + r) * N + j] = B[r * N + j] if keep else (E if r % 2 == 0 else F)
 
 
-@njit(cache=True, inline="always")
-def _simd_lane(B, j, t, L, m, box):
-    """Lane ``m`` from piece ``t`` of slot ``j`` (as :func:`_pieces` builds it)."""
+@njit(cache=True, error_model="numpy")
+def _simd_lanes(B, L, box, idx):
+    """Lanes ``0..m-1`` from the pieces of the ``SIMD`` slots (as :func:`_pieces` builds them,
+    slot by slot, piece by piece); returns ``m``. The list of (slot, piece) is packed first
+    (``idx``: ``2 j + t``, no branch), then the lanes are filled by a loop of gathers and
+    selects. At most ``2 NB <= CHUNK`` lanes."""
     N = NB
     C = CHUNK
-    p = PC + 5 * t
-    sgn, qq, k = B[p * N + j], B[(p + 1) * N + j], B[(p + 2) * N + j]
-    a, c = B[(p + 3) * N + j], B[(p + 4) * N + j]
-    rl, rh = _flip(sgn, B[SL_ * N + j], B[SH_ * N + j])
-    rl = max(rl, 0.0)
-    xs = 1.0 if (qq == 0.0 or qq == 1.0) else -1.0
-    ys = 1.0 if (qq == 0.0 or qq == 3.0) else -1.0
-    ul, uh = _flip(xs, B[DXL * N + j], B[DXH * N + j])
-    vl, vh = _flip(ys, B[DYL * N + j], B[DYH * N + j])
-    ul, vl = max(ul, 0.0), max(vl, 0.0)
-    _lane(L, m, ul, uh, vl, vh, rl, rh, xs, ys, B[QX * N + j], B[(QX + 1) * N + j],
-          B[AXL * N + j], B[AXH * N + j], B[QY * N + j], B[(QY + 1) * N + j],
-          B[AYL * N + j], B[AYH * N + j])
-    box[m] = j
-    L[MQ * C + m], L[MPL * C + m], L[MPH * C + m], L[MSG * C + m], L[MKK * C + m] = qq, a, c, sgn, k
-    L[(MB + 0) * C + m] = B[(T0) * N + j]
-    L[(MB + 1) * C + m] = B[(T0 + 1) * N + j]
-    L[(MB + 2) * C + m] = B[(V) * N + j]
-    L[(MB + 3) * C + m] = B[(V + 1) * N + j]
-    L[(MB + 4) * C + m] = B[(DT) * N + j]
-    L[(MB + 5) * C + m] = B[(DT + 1) * N + j]
-    L[(MB + 6) * C + m] = B[(X0) * N + j]
-    L[(MB + 7) * C + m] = B[(X0 + 1) * N + j]
-    L[(MB + 8) * C + m] = B[(X1) * N + j]
-    L[(MB + 9) * C + m] = B[(X1 + 1) * N + j]
-    L[(MB + 10) * C + m] = B[(Y0) * N + j]
-    L[(MB + 11) * C + m] = B[(Y0 + 1) * N + j]
-    L[(MB + 12) * C + m] = B[(Y1) * N + j]
-    L[(MB + 13) * C + m] = B[(Y1 + 1) * N + j]
+    m = 0
+    for j in range(N):
+        simd = B[POS * N + j] == SIMD
+        npc = B[NPC * N + j]
+        idx[m] = 2 * j
+        m += 1 if simd & (npc > 0.5) else 0
+        idx[m] = 2 * j + 1
+        m += 1 if simd & (npc > 1.5) else 0
+    for k in range(m):
+        j = idx[k] >> 1
+        p = PC + 5 * (idx[k] & 1)
+        sgn, qq, kk = B[p * N + j], B[(p + 1) * N + j], B[(p + 2) * N + j]
+        a, c = B[(p + 3) * N + j], B[(p + 4) * N + j]
+        s0, s1 = B[SL_ * N + j], B[SH_ * N + j]
+        rl, rh = (s0 if sgn > 0.0 else -s1), (s1 if sgn > 0.0 else -s0)
+        xp = (qq == 0.0) | (qq == 1.0)
+        yp = (qq == 0.0) | (qq == 3.0)
+        d0, d1 = B[DXL * N + j], B[DXH * N + j]
+        ul, uh = (d0 if xp else -d1), (d1 if xp else -d0)
+        d0, d1 = B[DYL * N + j], B[DYH * N + j]
+        vl, vh = (d0 if yp else -d1), (d1 if yp else -d0)
+        L[UL * C + k], L[UH * C + k] = _mx(ul, 0.0), uh
+        L[VL * C + k], L[VH * C + k] = _mx(vl, 0.0), vh
+        L[RL * C + k], L[RH * C + k] = _mx(rl, 0.0), rh
+        L[OK * C + k] = 1.0
+        d0, d1 = B[QX * N + j], B[(QX + 1) * N + j]
+        L[SXL * C + k], L[SXH * C + k] = (d0 if xp else -d1), (d1 if xp else -d0)
+        d0, d1 = B[AXL * N + j], B[AXH * N + j]
+        L[MXL * C + k], L[MXH * C + k] = (d0 if xp else -d1), (d1 if xp else -d0)
+        d0, d1 = B[QY * N + j], B[(QY + 1) * N + j]
+        L[SYL * C + k], L[SYH * C + k] = (d0 if yp else -d1), (d1 if yp else -d0)
+        d0, d1 = B[AYL * N + j], B[AYH * N + j]
+        L[MYL * C + k], L[MYH * C + k] = (d0 if yp else -d1), (d1 if yp else -d0)
+        box[k] = j
+        L[MQ * C + k], L[MPL * C + k], L[MPH * C + k], L[MSG * C + k] = qq, a, c, sgn
+        L[MKK * C + k] = kk
+        L[(MB + 0) * C + k] = B[(T0) * N + j]
+        L[(MB + 1) * C + k] = B[(T0 + 1) * N + j]
+        L[(MB + 2) * C + k] = B[(V) * N + j]
+        L[(MB + 3) * C + k] = B[(V + 1) * N + j]
+        L[(MB + 4) * C + k] = B[(DT) * N + j]
+        L[(MB + 5) * C + k] = B[(DT + 1) * N + j]
+        L[(MB + 6) * C + k] = B[(X0) * N + j]
+        L[(MB + 7) * C + k] = B[(X0 + 1) * N + j]
+        L[(MB + 8) * C + k] = B[(X1) * N + j]
+        L[(MB + 9) * C + k] = B[(X1 + 1) * N + j]
+        L[(MB + 10) * C + k] = B[(Y0) * N + j]
+        L[(MB + 11) * C + k] = B[(Y0 + 1) * N + j]
+        L[(MB + 12) * C + k] = B[(Y1) * N + j]
+        L[(MB + 13) * C + k] = B[(Y1 + 1) * N + j]
+    return m
 
 
 @njit(cache=True, error_model="numpy")
@@ -483,7 +501,7 @@ def _into(B, r, j, lo, hi):
 
 @njit(cache=True, error_model="numpy")
 def _flush(n, L, S, orig, B, box):
-    """Contract the ``n`` lanes to their fixpoint (``ctc_range_bearing_simd._to_fixpoint``),
+    """Contract the ``n`` lanes to their fixpoint (:func:`_to_fixpoint`),
     back to their boxes, hull into the boxes' ``ACC`` rows."""
     C = CHUNK
     N = NB
@@ -619,6 +637,7 @@ def _kernel(arrs):
     S = np.empty(ROWS * C)
     orig = np.empty(C, np.int64)
     box = np.empty(C, np.int64)
+    idx = np.empty(2 * N + 2, np.int64)
     row = np.empty((1, 24))
     nxt = 0
     for j in range(N):
@@ -631,7 +650,7 @@ def _kernel(arrs):
         if live == 0:
             break
         _headings(B)
-        for j in range(N):  # the heading steps outside _meet3t's range
+        for j in range(N):  # the heading steps outside _meet1t's range
             if B[LIVE * N + j] > 0.5 and B[HOK * N + j] < -0.5:
                 for r in range(24):
                     row[0, r] = B[r * N + j]
@@ -640,17 +659,10 @@ def _kernel(arrs):
                     B[r * N + j] = row[0, r]
                 B[HOK * N + j] = 1.0 if good else 0.0
         _plan(B)
-        m = 0
+        m = _simd_lanes(B, L, box, idx)
         for j in range(N):
             pos = B[POS * N + j]
-            if pos == SIMD:
-                if m + 2 > C:
-                    _flush(m, L, S, orig, B, box)
-                    m = 0
-                for t in range(int(B[NPC * N + j])):
-                    _simd_lane(B, j, t, L, m, box)
-                    m += 1
-            elif pos == GEN:
+            if pos == GEN:
                 if m + PIECES > C:
                     _flush(m, L, S, orig, B, box)
                     m = 0

@@ -96,8 +96,10 @@ def _lane_pass(L, i):
     bounds of quotients keep the ``abs`` (``up_raw``: NaN, ignored, where ``up`` gives
     ``+inf``); their lower bounds (``_dnf``) give NaN there, ignored too. A bound that only
     enters ``_mx`` / ``_mn`` as the argument whose NaN is ignored takes no NaN guard. The
-    results are those of ``down`` / ``up`` everywhere, bit for bit; an emptied lane's values
-    are never used."""
+    results are those of ``down`` / ``up`` everywhere, bit for bit, except cos and sin of the t
+    bounds (:func:`_cos_sin`, each on its side of the real value); an emptied lane's values are
+    never used. The polar steps are those of :func:`_polar_lane_pass`, ``t = v / u`` at the
+    end."""
     C = CHUNK
     a0, b0, c0, d0 = L[UL * C + i], L[UH * C + i], L[VL * C + i], L[VH * C + i]
     e0, f0, g0, h0 = L[RL * C + i], L[RH * C + i], L[TL * C + i], L[TH * C + i]
@@ -110,11 +112,10 @@ def _lane_pass(L, i):
     c = _mx(c0, down_raw(myl - syh))
     d = _mn(d0, up_raw(myh - syl))
     e, f, g, h = e0, f0, g0, h0
-    # v = u t (u, v >= 0, t >= 0; t may be +inf above; 0 / 0 and 0 * inf are NaN: ignored)
+    # v = u t (u, v >= 0, t >= 0; t may be +inf above; 0 / 0 and 0 * inf are NaN: ignored);
+    # t = v / u comes at the end of the pass (and before the first: _to_fixpoint)
     a = _mx(a, _dnf(c / h))
     b = _mn(b, up_raw(d / g))
-    g = _mx(g, _dnf(c / b))
-    h = _mn(h, up_raw(d / a))
     c = _mx(c, _dnf(a * g))
     d = _mn(d, up_pos(b * h))
     # rho^2 = u^2 + v^2 (u2l, v2l and their sum enter _mx first: guarded)
@@ -132,20 +133,21 @@ def _lane_pass(L, i):
     b = _mn(b, up_pos(np.sqrt(_mx(u2h, 0.0))))
     c = _mx(c, down_pos(np.sqrt(_mx(v2l, 0.0))))
     d = _mn(d, up_pos(np.sqrt(_mx(v2h, 0.0))))
-    # u ∩= rho cos(psi), v ∩= rho sin(psi), cos and sin from t = tan(psi)
+    # u ∩= rho cos(psi), v ∩= rho sin(psi), cos and sin of the t bounds by _cos_sin (bounds of
+    # t above BIG: cos >= 0, sin <= 1; a lower bound of t lowered to BIG is still one)
     big = h > BIG
-    hb = _mn(h, BIG)
-    gb = _mn(g, BIG)
-    cos_l = _mx(0.0, down_pos(1.0 / up_pos(np.sqrt(up_pos(1.0 + up_pos(hb * hb))))))
-    sin_h = _mn(1.0, up_pos(hb / down_pos(np.sqrt(down_pos(1.0 + down_pos(hb * hb))))))
+    cos_l, _, _, sin_h = _cos_sin(_mn(h, BIG))
     cos_l = 0.0 if big else cos_l
-    sin_h = 1.0 if big else sin_h
-    cos_h = _mn(1.0, up_pos(1.0 / down_pos(np.sqrt(down_pos(1.0 + down_pos(gb * gb))))))
-    sin_l = _mx(0.0, down_pos(gb / up_pos(np.sqrt(up_pos(1.0 + up_pos(gb * gb))))))
+    sin_h = 1.0 if big else _mn(1.0, sin_h)
+    _, cos_h, sin_l, _ = _cos_sin(_mn(g, BIG))
+    cos_h = _mn(1.0, cos_h)
     a = _mx(a, down_pos(e * cos_l))
     b = _mn(b, up_pos(f * cos_h))
     c = _mx(c, down_pos(e * sin_l))
     d = _mn(d, up_pos(f * sin_h))
+    # t = v / u again: what u and v gained above reaches t in this pass, not the next one
+    g = _mx(g, _dnf(c / b))
+    h = _mn(h, up_raw(d / a))
     # back to the differences: mx ∩= u + sx, sx ∩= mx - u (y likewise)
     mxl = _mx(mxl, down_raw(a + sxl))
     mxh = _mn(mxh, up_raw(b + sxh))
@@ -348,11 +350,12 @@ def _flip(sign, lo, hi):
 def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes, polar=False):
     """Load the ``n`` lanes' tangents of their ψ bounds ``pl``, ``ph`` and run passes (at most
     ``passes``) until every lane has stopped; the final states are left in ``L``, each lane at
-    its slot. The passes are :func:`_passes` (range-bearing lanes) or, with ``polar``,
-    :func:`_polar_passes` (polar lanes: rows ``SXL..MYH`` unused; their ``TL``, ``TH`` rows
-    hold ``t ∩= v / u`` on entry, intersected with the tangents). After each pass from the
-    second on, a lane stops if it shrank no width by ``RELATIVE_STOP`` or is empty (a dead lane, ``L[OK]`` 0 from the start, stops there too; it
-    should have ``pl = 0``, ``ph = pi/2``: no libm call).
+    its slot. The passes are :func:`_passes` (range-bearing lanes: ``t = v / u`` from their
+    ``u``, ``v`` rows first) or, with ``polar``, :func:`_polar_passes` (polar lanes: rows
+    ``SXL..MYH`` unused; their ``TL``, ``TH`` rows hold ``v / u`` on entry); either way the
+    tangents are intersected with it. After each pass from the second on, a lane stops if it
+    shrank no width by ``RELATIVE_STOP`` or is empty (a dead lane, ``L[OK]`` 0 from the start,
+    stops there too; it should have ``pl = 0``, ``ph = pi/2``: no libm call).
 
     While at least half the lanes take passes they stay in place (:func:`_passes_live`: the
     stopped ones keep their state); then the others are packed into ``S`` (``orig``: their
@@ -374,9 +377,13 @@ def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes, polar=False):
         m += 1 if ph[i] < HALF_PI_LO else 0
     for k in range(m):
         t0h[orig[k]] = _tan_hi(ph[orig[k]])
-    for i in range(n):  # a polar lane's t rows hold v / u already: intersected
-        L[TL * C + i] = _mx(L[TL * C + i], t0l[i]) if polar else t0l[i]
-        L[TH * C + i] = _mn(L[TH * C + i], t0h[i]) if polar else t0h[i]
+    if not polar:  # t = v / u from the lane's own u, v (a polar lane's entry has set it)
+        for i in range(n):
+            L[TL * C + i] = _mx(0.0, _dnf(L[VL * C + i] / L[UH * C + i]))
+            L[TH * C + i] = _mn(INF, up_raw(L[VH * C + i] / L[UL * C + i]))
+    for i in range(n):
+        L[TL * C + i] = _mx(L[TL * C + i], t0l[i])
+        L[TH * C + i] = _mn(L[TH * C + i], t0h[i])
         L[ACT * C + i] = 1.0
     if polar:
         _polar_passes(n, L)

@@ -132,6 +132,28 @@ def _meet3t(tl, th, al, ah):
     return (tl if whole else lo), (th if whole else hi), whole | ok
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _meet1t(tl, th, al, ah):
+    """``simd_quadrants._meet3t`` (``angle_meet`` of non-empty ``[t]``, ``[a]`` as selects, ``ok``
+    False where it does not apply) from the one copy ``k0`` of ``[a]`` nearest to ``[t]``: for
+    ``w(t) + w(a) < 6`` and bounds below 1e6 in magnitude the copies ``k0 ± 1`` cannot meet
+    ``[t]`` (their midpoints are at least ``pi - 1e-9`` from ``[t]``'s, a meeting copy's within
+    ``3 + 1e-9``), so ``_meet3``'s hull is ``k0``'s piece, the same bounds."""
+    whole = (ah - al >= TWO_PI_LO) | (tl == -INF) | (th == INF)
+    ok = ((th - tl) + (ah - al) < 6.0) & (-1e6 < tl) & (th < 1e6) & (-1e6 < al) & (ah < 1e6)
+    k = np.floor((0.5 * (tl + th) - 0.5 * (al + ah)) * INV_TWO_PI_LO + 0.5)
+    ol = down_raw(k * (TWO_PI_LO if k >= 0.0 else TWO_PI_HI))
+    oh = up_raw(k * (TWO_PI_HI if k >= 0.0 else TWO_PI_LO))
+    sl = al if k == 0.0 else down_raw(al + ol)
+    sh = ah if k == 0.0 else up_raw(ah + oh)
+    pl = sl if sl > tl else tl
+    ph = sh if sh < th else th
+    meets = pl <= ph
+    lo = pl if meets else E
+    hi = ph if meets else F
+    return (tl if whole else lo), (th if whole else hi), whole | ok
+
+
 @njit(cache=True, inline="always")
 def _angle_difference(al, ah, bl, bh, cl, ch):
     """``angle_difference_scalar`` (``a = b - c`` mod 2 pi), the same bounds (``_meet``)."""

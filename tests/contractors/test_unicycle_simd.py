@@ -215,3 +215,24 @@ def test_meet3t_is_angle_meet_where_it_applies(tl, tw, al, aw):
     ref = angle_meet(tl, th, al, al + aw)
     if ok:
         assert (lo, hi) == ref or (not lo <= hi and not ref[0] <= ref[1])
+
+
+@settings(max_examples=examples(ci=500))
+@given(st.one_of(st.floats(-20, 20), st.floats(-2e6, 2e6), st.just(-INF)),
+       st.one_of(st.floats(0, 8), st.floats(2.5, 3.5), st.just(INF)),
+       st.one_of(st.floats(-20, 20), st.floats(-2e6, 2e6)),
+       st.one_of(st.floats(0, 8), st.floats(2.5, 3.5), st.floats(6.2, 7.0)))
+def test_meet1t_is_meet3t_where_it_applies(tl, tw, al, aw):
+    """The one-copy meet of the heading step gives ``_meet3t``'s bounds, bit for bit, where it
+    says it applies (``_meet3t`` applies there too)."""
+    from ivslam_cli.contractors.simd_quadrants import _meet3t
+    from ivslam_cli.contractors.simd_quadrants import _meet1t
+
+    th = tl + tw
+    if not th == th:
+        return
+    lo, hi, ok = _meet1t(tl, th, al, al + aw)
+    lo3, hi3, ok3 = _meet3t(tl, th, al, al + aw)
+    if ok:
+        assert ok3
+        assert _same((lo, hi), (lo3, hi3)) or (not lo <= hi and not lo3 <= hi3)
