@@ -98,8 +98,7 @@ def _lane_pass(L, i):
     enters ``_mx`` / ``_mn`` as the argument whose NaN is ignored takes no NaN guard. The
     results are those of ``down`` / ``up`` everywhere, bit for bit, except cos and sin of the t
     bounds (:func:`_cos_sin`, each on its side of the real value); an emptied lane's values are
-    never used. The polar steps are those of :func:`_polar_lane_pass`, ``t = v / u`` at the
-    end."""
+    never used. Between the differences, :func:`_polar_steps` (``t = v / u`` at their end)."""
     C = CHUNK
     a0, b0, c0, d0 = L[UL * C + i], L[UH * C + i], L[VL * C + i], L[VH * C + i]
     e0, f0, g0, h0 = L[RL * C + i], L[RH * C + i], L[TL * C + i], L[TH * C + i]
@@ -111,9 +110,57 @@ def _lane_pass(L, i):
     b = _mn(b0, up_raw(mxh - sxl))
     c = _mx(c0, down_raw(myl - syh))
     d = _mn(d0, up_raw(myh - syl))
-    e, f, g, h = e0, f0, g0, h0
-    # v = u t (u, v >= 0, t >= 0; t may be +inf above; 0 / 0 and 0 * inf are NaN: ignored);
-    # t = v / u comes at the end of the pass (and before the first: _to_fixpoint)
+    # the polar steps (t = v / u at their end, and before the first pass: _to_fixpoint)
+    a, b, c, d, e, f, g, h, ok = _polar_steps(a, b, c, d, e0, f0, g0, h0)
+    # back to the differences: mx ∩= u + sx, sx ∩= mx - u (y likewise)
+    mxl = _mx(mxl, down_raw(a + sxl))
+    mxh = _mn(mxh, up_raw(b + sxh))
+    sxl = _mx(sxl, down_raw(mxl - b))
+    sxh = _mn(sxh, up_raw(mxh - a))
+    myl = _mx(myl, down_raw(c + syl))
+    myh = _mn(myh, up_raw(d + syh))
+    syl = _mx(syl, down_raw(myl - d))
+    syh = _mn(syh, up_raw(myh - c))
+    good = (ok & (a <= b) & (c <= d) & (e <= f) & (g <= h) & (sxl <= sxh) & (mxl <= mxh)
+            & (syl <= syh) & (myl <= myh))
+    prog = (_shrunk(a0, b0, a, b) | _shrunk(c0, d0, c, d) | _shrunk(e0, f0, e, f)
+            | _shrunk(g0, h0, g, h) | _shrunk(p0, q0, sxl, sxh) | _shrunk(r0, s0, mxl, mxh)
+            | _shrunk(w0, x0, syl, syh) | _shrunk(y0, z0, myl, myh))
+    return (a, b, c, d, e, f, g, h, sxl, sxh, mxl, mxh, syl, syh, myl, myh, good, prog)
+
+
+# cos(psi) = 1 / sqrt(1 + t^2), sin(psi) = t cos(psi) for t = tan(psi) in [0, BIG]: the float
+# R = fl(1 / fl(sqrt(fl(1 + fl(t t))))) is within a factor (1 ± 3.01 u) of cos (u = 2^-53: one
+# rounding of t t, relative to 1 + t^2 even when t t is subnormal, one of the sum, both halved
+# by the sqrt, one of the sqrt, one of the quotient), fl(t R) within (1 ± 4.01 u) of sin. A
+# product by LO_SLACK = 1 - 2^-50 (one more rounding) is then below the real value,
+# (1 + 4.01 u)(1 - 8 u)(1 + u) < 1, and by HI_SLACK = 1 + 2^-50 above it, (1 - 4.01 u)(1 + 8 u)
+# (1 - u) > 1. The results are >= 0 (or -0), and none is subnormal (R >= 1e-150).
+LO_SLACK = 1.0 - 2.0**-50
+HI_SLACK = 1.0 + 2.0**-50
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _cos_sin(t):
+    """``(cos_lo, cos_hi, sin_lo, sin_hi)`` of ``psi = atan(t)`` for ``t`` in ``[0, BIG]`` (or
+    ``-0``): ``cos = 1 / sqrt(1 + t^2)``, ``sin = t cos``, from one rounded sqrt and quotient and
+    products by ``LO_SLACK`` / ``HI_SLACK`` (see there): each bound on its side of the real
+    value. ``t r`` is subnormal for ``t < 2^-1022``, where the slack products cannot move it:
+    the sine's lower bound then steps one subnormal down (``sin < t``, and ``t - sin < t^3 / 2``
+    is far below 2^-1074), which leaves a normal bound unchanged."""
+    r = 1.0 / np.sqrt(1.0 + t * t)
+    st = t * r
+    return r * LO_SLACK, r * HI_SLACK, _mx(0.0, st * LO_SLACK - 2.0**-1074), st * HI_SLACK
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _polar_steps(a, b, c, d, e, f, g, h):
+    """The polar constraint on ``u = [a, b]``, ``v = [c, d]``, ``rho = [e, f]``, ``t = [g, h]``
+    (``t = tan(psi)``, all ``>= 0`` or ``-0``) in one sweep: ``v = u t`` backward and forward,
+    ``rho^2 = u^2 + v^2`` forward and backward, ``u ∩= rho cos``, ``v ∩= rho sin``
+    (:func:`_cos_sin`), then ``t ∩= v / u``; every rounding outward, every solution kept.
+    Returns the 8 bounds and whether the intermediate squares stayed non-empty."""
+    # v = u t (u, v >= 0, t >= 0; t may be +inf above; 0 / 0 and 0 * inf are NaN: ignored)
     a = _mx(a, _dnf(c / h))
     b = _mn(b, up_raw(d / g))
     c = _mx(c, _dnf(a * g))
@@ -148,100 +195,23 @@ def _lane_pass(L, i):
     # t = v / u again: what u and v gained above reaches t in this pass, not the next one
     g = _mx(g, _dnf(c / b))
     h = _mn(h, up_raw(d / a))
-    # back to the differences: mx ∩= u + sx, sx ∩= mx - u (y likewise)
-    mxl = _mx(mxl, down_raw(a + sxl))
-    mxh = _mn(mxh, up_raw(b + sxh))
-    sxl = _mx(sxl, down_raw(mxl - b))
-    sxh = _mn(sxh, up_raw(mxh - a))
-    myl = _mx(myl, down_raw(c + syl))
-    myh = _mn(myh, up_raw(d + syh))
-    syl = _mx(syl, down_raw(myl - d))
-    syh = _mn(syh, up_raw(myh - c))
-    good = ((a <= b) & (c <= d) & (e <= f) & (g <= h) & (sl <= sh) & (u2l <= u2h)
-            & (v2l <= v2h) & (sxl <= sxh) & (mxl <= mxh) & (syl <= syh) & (myl <= myh))
-    prog = (_shrunk(a0, b0, a, b) | _shrunk(c0, d0, c, d) | _shrunk(e0, f0, e, f)
-            | _shrunk(g0, h0, g, h) | _shrunk(p0, q0, sxl, sxh) | _shrunk(r0, s0, mxl, mxh)
-            | _shrunk(w0, x0, syl, syh) | _shrunk(y0, z0, myl, myh))
-    return (a, b, c, d, e, f, g, h, sxl, sxh, mxl, mxh, syl, syh, myl, myh, good, prog)
-
-
-# cos(psi) = 1 / sqrt(1 + t^2), sin(psi) = t cos(psi) for t = tan(psi) in [0, BIG]: the float
-# R = fl(1 / fl(sqrt(fl(1 + fl(t t))))) is within a factor (1 ± 3.01 u) of cos (u = 2^-53: one
-# rounding of t t, relative to 1 + t^2 even when t t is subnormal, one of the sum, both halved
-# by the sqrt, one of the sqrt, one of the quotient), fl(t R) within (1 ± 4.01 u) of sin. A
-# product by LO_SLACK = 1 - 2^-50 (one more rounding) is then below the real value,
-# (1 + 4.01 u)(1 - 8 u)(1 + u) < 1, and by HI_SLACK = 1 + 2^-50 above it, (1 - 4.01 u)(1 + 8 u)
-# (1 - u) > 1. The results are >= 0 (or -0), and none is subnormal (R >= 1e-150).
-LO_SLACK = 1.0 - 2.0**-50
-HI_SLACK = 1.0 + 2.0**-50
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _cos_sin(t):
-    """``(cos_lo, cos_hi, sin_lo, sin_hi)`` of ``psi = atan(t)`` for ``t`` in ``[0, BIG]`` (or
-    ``-0``): ``cos = 1 / sqrt(1 + t^2)``, ``sin = t cos``, from one rounded sqrt and quotient and
-    products by ``LO_SLACK`` / ``HI_SLACK`` (see there): each bound on its side of the real
-    value. ``t r`` is subnormal for ``t < 2^-1022``, where the slack products cannot move it:
-    the sine's lower bound then steps one subnormal down (``sin < t``, and ``t - sin < t^3 / 2``
-    is far below 2^-1074), which leaves a normal bound unchanged."""
-    r = 1.0 / np.sqrt(1.0 + t * t)
-    st = t * r
-    return r * LO_SLACK, r * HI_SLACK, _mx(0.0, st * LO_SLACK - 2.0**-1074), st * HI_SLACK
+    return a, b, c, d, e, f, g, h, (sl <= sh) & (u2l <= u2h) & (v2l <= v2h)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _polar_lane_pass(L, i):
     """One pass of the polar lane ``i`` (the polar constraint on ``(u, v, rho, t)`` alone, rows
     ``UL..TH``): its 8 new bounds, whether it stays non-empty, whether it shrank some width by
-    ``RELATIVE_STOP``. The steps and roundings of :func:`_lane_pass` without its difference
-    steps (``u``, ``v`` are the lane's own variables here), except that cos and sin of each t
-    bound come from one sqrt and one quotient (``LO_SLACK``, ``HI_SLACK``: two sqrt and two
-    quotients fewer per pass); the same invariants: every bound ``>= 0`` or ``-0`` in a lane
-    that stays non-empty, NaN only where ``_mx`` / ``_mn`` ignore it; every result holds every
-    solution of the lane."""
+    ``RELATIVE_STOP``. :func:`_lane_pass` without its difference steps (``u``, ``v`` are the
+    lane's own variables here): :func:`_polar_steps`, with the same invariants (every bound
+    ``>= 0`` or ``-0`` in a lane that stays non-empty, NaN only where ``_mx`` / ``_mn`` ignore
+    it); every result holds every solution of the lane."""
     C = CHUNK
     a0, b0, c0, d0 = L[UL * C + i], L[UH * C + i], L[VL * C + i], L[VH * C + i]
     e0, f0, g0, h0 = L[RL * C + i], L[RH * C + i], L[TL * C + i], L[TH * C + i]
-    # v = u t (u, v >= 0, t >= 0; t may be +inf above; 0 / 0 and 0 * inf are NaN: ignored);
-    # t = v / u comes at the end of the pass (and before the first: _to_fixpoint's polar lanes)
-    a = _mx(a0, _dnf(c0 / h0))
-    b = _mn(b0, up_raw(d0 / g0))
-    g, h = g0, h0
-    c = _mx(c0, _dnf(a * g))
-    d = _mn(d0, up_pos(b * h))
-    e, f = e0, f0
-    # rho^2 = u^2 + v^2 (u2l, v2l and their sum enter _mx first: guarded)
-    u2l, u2h = down(a * a), up_pos(b * b)
-    v2l, v2h = down(c * c), up_pos(d * d)
-    sl = _mx(_mx(_down_tiny(u2l + v2l), down_pos(e * e)), 0.0)
-    sh = _mn(up_pos(u2h + v2h), up_pos(f * f))
-    e = _mx(e, down_pos(np.sqrt(sl)))
-    f = _mn(f, up_pos(np.sqrt(_mx(sh, 0.0))))
-    u2l = _mx(u2l, down_raw(sl - v2h))
-    u2h = _mn(u2h, up_raw(sh - v2l))
-    v2l = _mx(v2l, down_raw(sl - u2h))
-    v2h = _mn(v2h, up_raw(sh - u2l))
-    a = _mx(a, down_pos(np.sqrt(_mx(u2l, 0.0))))
-    b = _mn(b, up_pos(np.sqrt(_mx(u2h, 0.0))))
-    c = _mx(c, down_pos(np.sqrt(_mx(v2l, 0.0))))
-    d = _mn(d, up_pos(np.sqrt(_mx(v2h, 0.0))))
-    # u ∩= rho cos(psi), v ∩= rho sin(psi), cos and sin of the t bounds by _cos_sin (bounds of
-    # t above BIG: cos >= 0, sin <= 1; a lower bound of t lowered to BIG is still one)
-    big = h > BIG
-    cos_l, _, _, sin_h = _cos_sin(_mn(h, BIG))
-    cos_l = 0.0 if big else cos_l
-    sin_h = 1.0 if big else _mn(1.0, sin_h)
-    _, cos_h, sin_l, _ = _cos_sin(_mn(g, BIG))
-    cos_h = _mn(1.0, cos_h)
-    a = _mx(a, down_pos(e * cos_l))
-    b = _mn(b, up_pos(f * cos_h))
-    c = _mx(c, down_pos(e * sin_l))
-    d = _mn(d, up_pos(f * sin_h))
-    # t = v / u again: what u and v gained above reaches t in this pass, not the next one
-    g = _mx(g, _dnf(c / b))
-    h = _mn(h, up_raw(d / a))
-    good = ((a <= b) & (c <= d) & (e <= f) & (g <= h) & (sl <= sh) & (u2l <= u2h)
-            & (v2l <= v2h))
+    # the polar steps (t = v / u at their end, and before the first pass: _to_fixpoint's entry)
+    a, b, c, d, e, f, g, h, ok = _polar_steps(a0, b0, c0, d0, e0, f0, g0, h0)
+    good = ok & (a <= b) & (c <= d) & (e <= f) & (g <= h)
     prog = (_shrunk(a0, b0, a, b) | _shrunk(c0, d0, c, d) | _shrunk(e0, f0, e, f)
             | _shrunk(g0, h0, g, h))
     return (a, b, c, d, e, f, g, h, good, prog)
