@@ -52,9 +52,11 @@ from ivslam_cli.contractors.ctc_polar import (
     _two_pi_times,
 )
 from ivslam_cli.contractors.ctc_polar_pieces import buffers as pieces_buffers
+from ivslam_cli.contractors.ctc_polar_pieces import _arc_copy
 from ivslam_cli.contractors.ctc_polar_pieces import flush as flush_pieces
 from ivslam_cli.contractors.ctc_polar_pieces import off_fast_path
 from ivslam_cli.contractors.simd_polar_lanes import (
+    in_place,
     CHUNK,
     OK,
     RH,
@@ -78,8 +80,6 @@ from ivslam_cli.interval.rounding import (
     INV_TWO_PI_LO,
     PI_HI,
     PI_LO,
-    TWO_PI_HI,
-    TWO_PI_LO,
     down,
     up,
     up_raw,
@@ -247,20 +247,9 @@ def _entry(s, nb, dx, dy, rho, theta, W):
         xp, yp = xl > 0.0, yl > 0.0
         quad = (xp | (xh < 0.0)) & (yp | (yh < 0.0))
         q = (0.0 if yp else 1.0) if xp else (3.0 if yp else 2.0)
-        pos = xp == yp  # s = 1 (q0, q2) or -1 (q1, q3)
-        c0 = 0.0 if xp else (math.pi if yp else -math.pi)
-        k0 = np.floor((0.5 * (tl + th) - c0 - (0.25 if pos else -0.25) * math.pi) * INV_TWO_PI_LO
-                      + 0.5)
-        # _offset and _to_phi of the copy k0, as selects: the only one that can meet theta (its
-        # arc's centre is the one nearest to theta's midpoint, and a copy meeting theta has its
-        # centre within w(theta) / 2 + pi / 4 < 3.1354 < pi of that midpoint), so _setup's
-        # count over k0 - 1, k0, k0 + 1 is 1 exactly when k0's piece is non-empty
-        ol = down(k0 * (TWO_PI_LO if k0 >= 0.0 else TWO_PI_HI))
-        oh = up(k0 * (TWO_PI_HI if k0 >= 0.0 else TWO_PI_LO))
-        cl = ol if xp else down(ol + (PI_LO if yp else -PI_HI))
-        ch = oh if xp else up(oh + (PI_HI if yp else -PI_LO))
-        pl = _mx(down((tl - ch) if pos else (cl - th)), 0.0)
-        ph = _mn(up((th - cl) if pos else (ch - tl)), HALF_PI_HI)
+        # the copy k0 of the quadrant's arc nearest theta, the only one that can meet it, so
+        # _setup's count over k0 - 1, k0, k0 + 1 is 1 exactly when its piece is non-empty
+        cl, ch, pl, ph = _arc_copy(q, tl, th)
         fast = fin & quad & (pl <= ph)
         ul, uh = (xl, xh) if xp else (-xh, -xl)
         vl, vh = (yl, yh) if yp else (-yh, -yl)
@@ -371,11 +360,4 @@ def _kernel(dx, dy, rho, theta):
 
 def polar_simd_kernel(dx, dy, rho, theta):
     """In place over four ``(N, 2)`` arrays; returns the mask of rows that stayed non-empty."""
-    arrs = (dx, dy, rho, theta)
-    if all(a.flags.c_contiguous for a in arrs):
-        return _kernel(*(a.reshape(-1) for a in arrs))
-    flat = [np.ascontiguousarray(a).reshape(-1) for a in arrs]
-    ok = _kernel(*flat)
-    for a, f in zip(arrs, flat):
-        a[...] = f.reshape(a.shape)
-    return ok
+    return in_place(lambda flat: _kernel(*flat), (dx, dy, rho, theta))

@@ -48,6 +48,7 @@ from numba import njit
 
 from ivslam_cli.contractors.ctc_polar import _atan_hi, _atan_lo
 from ivslam_cli.contractors.simd_polar_lanes import (
+    in_place,
     CHUNK,
     MAX_PASSES,
     MXH,
@@ -447,11 +448,4 @@ def _kernel(sx, sy, st, mx, my, rho, alpha):
 
 def range_bearing_simd_kernel(sx, sy, sth, mx, my, rho, alpha):
     """In place over seven ``(N, 2)`` arrays; returns the mask of rows that stayed non-empty."""
-    arrs = (sx, sy, sth, mx, my, rho, alpha)
-    if all(a.flags.c_contiguous for a in arrs):
-        return _kernel(*(a.reshape(-1) for a in arrs))
-    flat = [np.ascontiguousarray(a).reshape(-1) for a in arrs]
-    ok = _kernel(*flat)
-    for a, f in zip(arrs, flat):
-        a[...] = f.reshape(a.shape)
-    return ok
+    return in_place(lambda flat: _kernel(*flat), (sx, sy, sth, mx, my, rho, alpha))

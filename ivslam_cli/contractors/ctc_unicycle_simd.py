@@ -50,6 +50,7 @@ from numba import njit
 
 from ivslam_cli.contractors.ctc_polar import _atan_hi, _atan_lo
 from ivslam_cli.contractors.simd_polar_lanes import (
+    in_place,
     CHUNK,
     MXH,
     MXL,
@@ -685,11 +686,4 @@ def _kernel(arrs):
 
 def unicycle_simd_kernel(x0, y0, th0, x1, y1, th1, v, w, dt, qx, qy, qth):
     """In place over twelve ``(N, 2)`` arrays; returns the mask of rows that stayed non-empty."""
-    arrs = (x0, y0, th0, x1, y1, th1, v, w, dt, qx, qy, qth)
-    if all(a.flags.c_contiguous for a in arrs):
-        return _kernel(tuple(a.reshape(-1) for a in arrs))
-    flat = [np.ascontiguousarray(a).reshape(-1) for a in arrs]
-    ok = _kernel(tuple(flat))
-    for a, f in zip(arrs, flat):
-        a[...] = f.reshape(a.shape)
-    return ok
+    return in_place(lambda flat: _kernel(tuple(flat)), (x0, y0, th0, x1, y1, th1, v, w, dt, qx, qy, qth))

@@ -422,3 +422,15 @@ def _lane(L, m, ul, uh, vl, vh, rl, rh, xs, ys, sxl, sxh, mxl, mxh, syl, syh, my
     L[MXL * C + m], L[MXH * C + m] = _flip(xs, mxl, mxh)
     L[SYL * C + m], L[SYH * C + m] = _flip(ys, syl, syh)
     L[MYL * C + m], L[MYH * C + m] = _flip(ys, myl, myh)
+
+
+def in_place(kernel, arrs):
+    """``kernel(flat)`` on the C-contiguous flat views of the ``(N, 2)`` arrays ``arrs`` (copies
+    of the others, written back after): a SIMD kernel's in-place call; returns its result."""
+    if all(a.flags.c_contiguous for a in arrs):
+        return kernel([a.reshape(-1) for a in arrs])
+    flat = [np.ascontiguousarray(a).reshape(-1) for a in arrs]
+    ok = kernel(flat)
+    for a, f in zip(arrs, flat):
+        a[...] = f.reshape(a.shape)
+    return ok
