@@ -144,7 +144,8 @@ PC = 57  # the pieces _plan found: piece t at PC + 5 t + (sign of s, quadrant, c
 SL_, SH_ = 67, 68  # s = v dt
 DXL, DXH, DYL, DYH = 69, 70, 71, 72  # dx = (x1 - x0) - qx, dy likewise
 AXL, AXH, AYL, AYH = 73, 74, 75, 76  # x1 - x0, y1 - y0
-BROWS = 77
+START = 77  # 24 rows: the bounds at the start of the round (before its heading)
+BROWS = START + 24
 # B[POS]: the round's position part
 KEEP, SIMD, GEN, NOTHING = 0.0, 1.0, 2.0, 3.0
 # rows of the lane buffer L after the lane state (ROWS rows, packed during the fixpoint), each
@@ -213,8 +214,11 @@ def _headings(B):
     SIMD loop), written back in the live slots where it holds: the same float operations as
     ``mul``, ``add``, ``_angle_difference`` (with ``_meet``: :func:`_meet1t`), ``bwd_add`` and ``bwd_mul``.
     ``B[HOK]``: 1 if it holds, 0 if the box is emptied, -1 if ``_meet1t`` does not apply (then
-    :func:`_heading` is to be run)."""
+    :func:`_heading` is to be run). The bounds before it are kept in the ``START`` rows."""
     N = NB
+    for r in range(24):
+        for j in range(N):
+            B[(START + r) * N + j] = B[r * N + j]
     for j in range(N):
         wl, wh, dl, dh = B[W * N + j], B[(W + 1) * N + j], B[DT * N + j], B[(DT + 1) * N + j]
         ql, qh = B[QT * N + j], B[(QT + 1) * N + j]
@@ -531,15 +535,16 @@ def _flush(n, L, S, orig, B, box):
 @njit(cache=True, error_model="numpy")
 def _progress(B):
     """End of the round of every live slot, as selects (a SIMD loop): its box becomes the hull
-    of the round (empty if that is); ``B[LIVE]`` stays 1 while the round shrank some width by
-    ``RELATIVE_STOP`` and rounds are left, else it is 2 (done)."""
+    of the round (empty if that is); ``B[LIVE]`` stays 1 while the round (its heading and its
+    position part, from the ``START`` rows) shrank some width by ``RELATIVE_STOP`` and rounds
+    are left, else it is 2 (done)."""
     N = NB
     for j in range(N):
         live = B[LIVE * N + j] > 0.5
         empty = not (B[ACC * N + j] <= B[(ACC + 1) * N + j])
         prog = 0.0
         for k in range(0, 24, 2):
-            w0 = B[(k + 1) * N + j] - B[k * N + j]
+            w0 = B[(START + k + 1) * N + j] - B[(START + k) * N + j]
             w1 = B[(ACC + k + 1) * N + j] - B[(ACC + k) * N + j]
             s = (1.0 if w1 < INF else 0.0) if w0 == INF else ((w0 - w1) / w0 if w0 > 0.0 else 0.0)
             prog = s if s > prog else prog

@@ -239,8 +239,6 @@ def test_meet1t_is_meet3t_where_it_applies(tl, tw, al, aw):
         assert _same((lo, hi), (lo3, hi3)) or (not lo <= hi and not lo3 <= hi3)
 
 
-@pytest.mark.xfail(strict=True, reason="known: with dt unbounded below the SIMD kernel leaves x0, y0, th0, th1 "
-                   "and dt far wider than the scalar kernel (row 51736 of unicycle_truths(200_000, seed=3))")
 def test_unbounded_duration_is_contracted_as_by_the_scalar_kernel():
     row = {"x0": [-26.93018624694655, -26.010071434205454], "y0": [-33.359369420730566, -33.27728664873216],
            "th0": [3.3085461959501052, 7.46286036226577], "x1": [-26.966222263666197, -26.966221456204313],
