@@ -35,7 +35,10 @@ Execution: ``NB`` slots hold boxes in flight, each at its own round; a slot whos
 writes it out and takes the next one, so every pass over the slots works on live boxes. A pass
 is: the heading of every slot as selects (:func:`_headings`, the interval operations in select
 form: ``mul_s``, ``bwd_mul_s``, ``_meet1t``; the rare heading outside their range takes
-:func:`_heading`); the plan of the position part (:func:`_plan`: a box with at most two
+:func:`_heading`); the boxes whose round ends there (their position part would be ``KEEP``
+and the heading shrank no width by ``RELATIVE_STOP``: :func:`_finish_kept`, most second
+rounds) written out, their slots' new boxes taking their heading step at once; the plan of the
+position part (:func:`_plan`: a box with at most two
 pieces and a heading narrower than 4.7 has them found by selects, any other by
 :func:`_pieces`); the lanes built (scalar, a few stores each), contracted to their fixpoint,
 taken back to their boxes (:func:`_exit`, selects) and hulled per box; the end of the round
@@ -145,7 +148,8 @@ SL_, SH_ = 67, 68  # s = v dt
 DXL, DXH, DYL, DYH = 69, 70, 71, 72  # dx = (x1 - x0) - qx, dy likewise
 AXL, AXH, AYL, AYH = 73, 74, 75, 76  # x1 - x0, y1 - y0
 START = 77  # 24 rows: the bounds at the start of the round (before its heading)
-BROWS = START + 24
+NEED = START + 24  # 1 while the slot's round is to start with its heading
+BROWS = NEED + 1
 # B[POS]: the round's position part
 KEEP, SIMD, GEN, NOTHING = 0.0, 1.0, 2.0, 3.0
 # rows of the lane buffer L after the lane state (ROWS rows, packed during the fixpoint), each
@@ -214,11 +218,9 @@ def _headings(B):
     SIMD loop), written back in the live slots where it holds: the same float operations as
     ``mul``, ``add``, ``_angle_difference`` (with ``_meet``: :func:`_meet1t`), ``bwd_add`` and ``bwd_mul``.
     ``B[HOK]``: 1 if it holds, 0 if the box is emptied, -1 if ``_meet1t`` does not apply (then
-    :func:`_heading` is to be run). The bounds before it are kept in the ``START`` rows."""
+    :func:`_heading` is to be run). Only the slots with ``B[NEED]`` 1 take the step (their
+    ``START`` rows hold their bounds before it)."""
     N = NB
-    for r in range(24):
-        for j in range(N):
-            B[(START + r) * N + j] = B[r * N + j]
     for j in range(N):
         wl, wh, dl, dh = B[W * N + j], B[(W + 1) * N + j], B[DT * N + j], B[(DT + 1) * N + j]
         ql, qh = B[QT * N + j], B[(QT + 1) * N + j]
@@ -237,8 +239,9 @@ def _headings(B):
         wl, wh, dl, dh = bwd_mul_s(pl, ph, wl, wh, dl, dh)
         good = good & (wl <= wh)
         hok = (1.0 if good else 0.0) if (ok1 & ok2 & ok3) else -1.0
-        put = (hok > 0.5) & (B[LIVE * N + j] > 0.5)
-        B[HOK * N + j] = hok
+        need = B[NEED * N + j] > 0.5
+        put = (hok > 0.5) & (B[LIVE * N + j] > 0.5) & need
+        B[HOK * N + j] = hok if need else B[HOK * N + j]
         B[T1 * N + j] = t1l if put else B[T1 * N + j]
         B[(T1 + 1) * N + j] = t1h if put else B[(T1 + 1) * N + j]
         B[T0 * N + j] = t0l if put else B[T0 * N + j]
@@ -532,6 +535,40 @@ def _flush(n, L, S, orig, B, box):
         _into(B, QT, j, B[QT * N + j], B[(QT + 1) * N + j])
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def _shrunk(B, j, at):
+    """The largest relative width reduction over the 24 bounds of slot ``j`` from the ``START``
+    rows to the rows from ``at`` on (as ``ctc_unicycle.shrink``)."""
+    N = NB
+    prog = 0.0
+    for k in range(0, 24, 2):
+        w0 = B[(START + k + 1) * N + j] - B[(START + k) * N + j]
+        w1 = B[(at + k + 1) * N + j] - B[(at + k) * N + j]
+        s = (1.0 if w1 < INF else 0.0) if w0 == INF else ((w0 - w1) / w0 if w0 > 0.0 else 0.0)
+        prog = s if s > prog else prog
+    return prog
+
+
+@njit(cache=True, error_model="numpy")
+def _finish_kept(B):
+    """After the heading step, as selects (a SIMD loop): a live slot whose position part is to
+    be ``KEEP`` (:func:`_plan`'s test) and whose heading shrank no width by ``RELATIVE_STOP``
+    (or whose rounds are used up) is done now, with the bounds :func:`_progress` would give it
+    after the round (the box as it is); ``B[LIVE]`` is 2 there. Returns how many."""
+    N = NB
+    done = 0
+    for j in range(N):
+        keep = (B[LIVE * N + j] > 0.5) & (B[HOK * N + j] > 0.5) & (B[RND * N + j] > 0.5)
+        keep = keep & (B[T0 * N + j] == B[LT0L * N + j]) & (B[(T0 + 1) * N + j] == B[LT0H * N + j])
+        keep = keep & (B[DT * N + j] == B[LDTL * N + j]) & (B[(DT + 1) * N + j] == B[LDTH * N + j])
+        more = (_shrunk(B, j, 0) >= RELATIVE_STOP) & (B[RND * N + j] + 1.0 < MAX_ROUNDS)
+        end = keep & (not more)
+        B[RND * N + j] = B[RND * N + j] + 1.0 if end else B[RND * N + j]
+        B[LIVE * N + j] = 2.0 if end else B[LIVE * N + j]
+        done += 1 if end else 0
+    return done
+
+
 @njit(cache=True, error_model="numpy")
 def _progress(B):
     """End of the round of every live slot, as selects (a SIMD loop): its box becomes the hull
@@ -542,13 +579,7 @@ def _progress(B):
     for j in range(N):
         live = B[LIVE * N + j] > 0.5
         empty = not (B[ACC * N + j] <= B[(ACC + 1) * N + j])
-        prog = 0.0
-        for k in range(0, 24, 2):
-            w0 = B[(START + k + 1) * N + j] - B[(START + k) * N + j]
-            w1 = B[(ACC + k + 1) * N + j] - B[(ACC + k) * N + j]
-            s = (1.0 if w1 < INF else 0.0) if w0 == INF else ((w0 - w1) / w0 if w0 > 0.0 else 0.0)
-            prog = s if s > prog else prog
-        more = (not empty) & (prog >= RELATIVE_STOP) & (B[RND * N + j] + 1.0 < MAX_ROUNDS)
+        more = (not empty) & (_shrunk(B, j, ACC) >= RELATIVE_STOP) & (B[RND * N + j] + 1.0 < MAX_ROUNDS)
         for r in range(24):
             v = (E if r % 2 == 0 else F) if empty else B[(ACC + r) * N + j]
             B[r * N + j] = v if live else B[r * N + j]
@@ -629,10 +660,47 @@ def _store(arrs, B, j, i):
 
 
 @njit(cache=True, error_model="numpy")
+def _heading_step(B, row):
+    """The heading step of the slots with ``B[NEED]`` 1 (:func:`_headings`, and
+    :func:`_heading` where ``_meet1t`` does not apply); ``B[NEED]`` is 0 after it."""
+    N = NB
+    _headings(B)
+    for j in range(N):  # the heading steps outside _meet1t's range
+        if B[NEED * N + j] > 0.5 and B[LIVE * N + j] > 0.5 and B[HOK * N + j] < -0.5:
+            for r in range(24):
+                row[0, r] = B[r * N + j]
+            good = _heading(row, 0)
+            for r in range(24):
+                B[r * N + j] = row[0, r]
+            B[HOK * N + j] = 1.0 if good else 0.0
+    for j in range(N):
+        B[NEED * N + j] = 0.0
+
+
+@njit(cache=True, inline="always")
+def _swap(arrs, B, boxid, ok, nxt, n):
+    """Every done slot writes its box out and takes the next one (``B[NEED]`` 1 there, its
+    ``START`` rows set); returns the next row to take."""
+    N = NB
+    for j in range(N):
+        if B[LIVE * N + j] < 1.5:
+            continue
+        i = boxid[j]
+        _store(arrs, B, j, i)
+        ok[i] = B[X0 * N + j] <= B[(X0 + 1) * N + j]
+        nxt = _load(arrs, B, j, nxt, n, ok)
+        boxid[j] = nxt - 1 if B[LIVE * N + j] > 0.5 else -1
+        B[NEED * N + j] = B[LIVE * N + j]
+        for r in range(24):
+            B[(START + r) * N + j] = B[r * N + j]
+    return nxt
+
+
+@njit(cache=True, error_model="numpy")
 def _kernel(arrs):
     """Over twelve flat ``[lo0, hi0, lo1, hi1, ...]`` arrays: NB slots, a round of each at a
-    time (:func:`_headings`, :func:`_plan`, lanes, :func:`_flush`, :func:`_progress`); a slot
-    whose box is done writes it out and takes the next."""
+    time (:func:`_heading_step`, :func:`_finish_kept`, :func:`_plan`, lanes, :func:`_flush`,
+    :func:`_progress`); a slot whose box is done writes it out and takes the next."""
     n = arrs[0].shape[0] // 2
     N = NB
     C = CHUNK
@@ -652,18 +720,16 @@ def _kernel(arrs):
     while True:
         live = 0
         for j in range(N):
-            live += 1 if B[LIVE * N + j] > 0.5 else 0
+            go = B[LIVE * N + j] > 0.5
+            live += 1 if go else 0
+            B[NEED * N + j] = 1.0 if go else 0.0
         if live == 0:
             break
-        _headings(B)
-        for j in range(N):  # the heading steps outside _meet1t's range
-            if B[LIVE * N + j] > 0.5 and B[HOK * N + j] < -0.5:
-                for r in range(24):
-                    row[0, r] = B[r * N + j]
-                good = _heading(row, 0)
-                for r in range(24):
-                    B[r * N + j] = row[0, r]
-                B[HOK * N + j] = 1.0 if good else 0.0
+        B[START * N:(START + 24) * N] = B[:24 * N]  # the bounds at the start of the round
+        _heading_step(B, row)
+        if _finish_kept(B) > 0:  # their slots take new boxes, which start with the heading
+            nxt = _swap(arrs, B, boxid, ok, nxt, n)
+            _heading_step(B, row)
         _plan(B)
         m = _simd_lanes(B, L, box, idx)
         for j in range(N):
@@ -678,14 +744,7 @@ def _kernel(arrs):
         if m > 0:
             _flush(m, L, S, orig, B, box)
         _progress(B)
-        for j in range(N):
-            if B[LIVE * N + j] < 1.5:
-                continue
-            i = boxid[j]
-            _store(arrs, B, j, i)
-            ok[i] = B[X0 * N + j] <= B[(X0 + 1) * N + j]
-            nxt = _load(arrs, B, j, nxt, n, ok)
-            boxid[j] = nxt - 1 if B[LIVE * N + j] > 0.5 else -1
+        nxt = _swap(arrs, B, boxid, ok, nxt, n)
     return ok
 
 

@@ -160,6 +160,7 @@ def test_vectorised_heading_step_is_the_scalar_one_bit_for_bit():
         B = np.zeros(simd.BROWS * NB)
         B[:24 * NB] = a.T.reshape(-1)
         B[simd.LIVE * NB:(simd.LIVE + 1) * NB] = 1.0
+        B[simd.NEED * NB:(simd.NEED + 1) * NB] = 1.0
         _headings(B)
         c = a.copy()
         for j in range(NB):
