@@ -28,8 +28,9 @@ import math
 import numpy as np
 from numba import njit
 
-from ivslam_cli.contractors.ctc_polar import MAX_PASSES, _atan_hi, _atan_lo, polar_scalar
+from ivslam_cli.contractors.ctc_polar import MAX_PASSES, polar_scalar
 from ivslam_cli.contractors.simd_polar_lanes import (
+    psi_from_tangents,
     CHUNK,
     OK,
     RH,
@@ -148,20 +149,7 @@ def _finish(m, nb, L, P, t0l, t0h, idx, acc, tb, rows, dx, dy, rho, theta):
     back from the quadrant frame, hulled into their boxes' rows of ``acc``; boxes ``0..nb-1``
     written out to their rows (all bounds empty for a box with no non-empty piece)."""
     C = CHUNK
-    n = 0
-    for i in range(m):
-        idx[n] = i
-        n += 1 if (L[TL * C + i] != t0l[i]) & (L[OK * C + i] > 0.5) else 0
-    for j in range(n):
-        i = idx[j]
-        P[PSL * C + i] = _mx(P[PSL * C + i], _atan_lo(L[TL * C + i]))
-    n = 0
-    for i in range(m):
-        idx[n] = i
-        n += 1 if (L[TH * C + i] != t0h[i]) & (L[OK * C + i] > 0.5) else 0
-    for j in range(n):
-        i = idx[j]
-        P[PSH * C + i] = _mn(P[PSH * C + i], _atan_hi(L[TH * C + i]))
+    psi_from_tangents(m, L, t0l, t0h, P[PSL * C:(PSL + 1) * C], P[PSH * C:(PSH + 1) * C], idx)
     for b in range(nb):
         for v in range(4):
             acc[b, 2 * v], acc[b, 2 * v + 1] = E, F

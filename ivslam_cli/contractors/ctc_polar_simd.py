@@ -47,8 +47,6 @@ from numba import njit
 
 from ivslam_cli.contractors.ctc_polar import (
     MAX_PASSES,
-    _atan_hi,
-    _atan_lo,
     _two_pi_times,
 )
 from ivslam_cli.contractors.ctc_polar_pieces import buffers as pieces_buffers
@@ -56,6 +54,7 @@ from ivslam_cli.contractors.ctc_polar_pieces import _arc_copy
 from ivslam_cli.contractors.ctc_polar_pieces import flush as flush_pieces
 from ivslam_cli.contractors.ctc_polar_pieces import off_fast_path
 from ivslam_cli.contractors.simd_polar_lanes import (
+    psi_from_tangents,
     in_place,
     CHUNK,
     OK,
@@ -280,22 +279,7 @@ def _exit(s, nb, dx, dy, rho, theta, W, t0l, t0h, idx):
     row. A row off the fast path takes the bounds its box rows hold (its input, contracted
     afterwards by :func:`_kernel`). All rows are then written out (an unconditional copy)."""
     C = CHUNK
-    # atan only where t moved (atan(tan(psi)) holds psi already), on a packed list of those
-    # lanes (``idx``: no branch to mispredict)
-    m = 0
-    for i in range(nb):
-        idx[m] = i
-        m += 1 if (W[TL * C + i] != t0l[i]) & (W[OK * C + i] > 0.5) else 0
-    for k in range(m):
-        i = idx[k]
-        W[PSL * C + i] = _mx(W[PSL * C + i], _atan_lo(W[TL * C + i]))
-    m = 0
-    for i in range(nb):
-        idx[m] = i
-        m += 1 if (W[TH * C + i] != t0h[i]) & (W[OK * C + i] > 0.5) else 0
-    for k in range(m):
-        i = idx[k]
-        W[PSH * C + i] = _mn(W[PSH * C + i], _atan_hi(W[TH * C + i]))
+    psi_from_tangents(nb, W, t0l, t0h, W[PSL * C:(PSL + 1) * C], W[PSH * C:(PSH + 1) * C], idx)
     for i in range(nb):
         pl, ph, q = W[PSL * C + i], W[PSH * C + i], W[QD * C + i]
         cl, ch = W[CL * C + i], W[CH * C + i]

@@ -46,8 +46,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ivslam_cli.contractors.ctc_polar import _atan_hi, _atan_lo
 from ivslam_cli.contractors.simd_polar_lanes import (
+    psi_from_tangents,
     in_place,
     CHUNK,
     MAX_PASSES,
@@ -63,8 +63,6 @@ from ivslam_cli.contractors.simd_polar_lanes import (
     SXL,
     SYH,
     SYL,
-    TH,
-    TL,
     UH,
     UL,
     VH,
@@ -116,18 +114,11 @@ def _differences(n, q, pl, ph, G):
 
 
 @njit(cache=True, error_model="numpy")
-def _finish(n, D, box, q, pl, ph, t0l, t0h, ang, acc, G):
+def _finish(n, D, box, q, pl, ph, t0l, t0h, ang, acc, G, idx):
     """Lanes ``0..n-1`` done (final states in ``D``): ``psi ∩= atan(t)``, the periodic
     difference, hull into their boxes' rows of ``acc``."""
     C = CHUNK
-    for i in range(n):  # atan only where t moved (atan(tan(psi)) holds psi already)
-        tl = D[TL * C + i]
-        if tl != t0l[i]:
-            pl[i] = _mx(pl[i], _atan_lo(tl))
-    for i in range(n):
-        th = D[TH * C + i]
-        if th != t0h[i]:
-            ph[i] = _mn(ph[i], _atan_hi(th))
+    psi_from_tangents(n, D, t0l, t0h, pl, ph, idx)
     for i in range(n):  # the lanes' alpha and sth, then the periodic difference as a SIMD loop
         j = box[i]
         G[GAL * C + i], G[GAH * C + i] = ang[j, 0], ang[j, 1]
@@ -164,7 +155,7 @@ def _finish(n, D, box, q, pl, ph, t0l, t0h, ang, acc, G):
 def _flush(n, nb, rows, box, q, pl, ph, t0l, t0h, ang, acc, L, S, orig, out, G):
     """Contract the ``n`` lanes (pieces of ``nb`` boxes, output rows ``rows``) and write out."""
     _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, MAX_PASSES)
-    _finish(n, L, box, q, pl, ph, t0l, t0h, ang, acc, G)
+    _finish(n, L, box, q, pl, ph, t0l, t0h, ang, acc, G, orig)
     for j in range(nb):
         k = 2 * rows[j]
         ok = acc[j, 0] <= acc[j, 1]
@@ -278,21 +269,14 @@ def _entry(s, nb, out, W):
 
 
 @njit(cache=True, error_model="numpy")
-def _exit(s, nb, out, W, t0l, t0h):
+def _exit(s, nb, out, W, t0l, t0h, idx):
     """Rows ``s..s+nb-1`` from their lanes (final states in ``W``), as :func:`_finish` and
     :func:`_flush` give them for one piece: ``psi ∩= atan(t)``; then as selects (a SIMD loop)
     the periodic difference (``_meet3``), back from the quadrant frame, into ``W``'s box rows;
     the rare lanes outside ``_meet3``'s range take the scalar steps; then written out. Rows of
     kind ``NONE`` are emptied, rows of kind ``MORE`` left to the general path."""
     C = CHUNK
-    for i in range(nb):  # atan only where t moved (atan(tan(psi)) holds psi already)
-        tl = W[TL * C + i]
-        if tl != t0l[i] and W[OK * C + i] > 0.5:
-            W[PSL * C + i] = _mx(W[PSL * C + i], _atan_lo(tl))
-    for i in range(nb):
-        th = W[TH * C + i]
-        if th != t0h[i] and W[OK * C + i] > 0.5:
-            W[PSH * C + i] = _mn(W[PSH * C + i], _atan_hi(th))
+    psi_from_tangents(nb, W, t0l, t0h, W[PSL * C:(PSL + 1) * C], W[PSH * C:(PSH + 1) * C], idx)
     for i in range(nb):
         lo, hi, qi = W[PSL * C + i], W[PSH * C + i], W[QD * C + i]
         live = (W[KD * C + i] == ONE) & (W[OK * C + i] > 0.5) & (lo <= hi)
@@ -437,7 +421,7 @@ def _kernel(sx, sy, st, mx, my, rho, alpha):
                 _general_box(s + j, out, L2, S2, orig2, rows, box, q2, pl2, ph2, t0l2, t0h2,
                              ang, acc, G2, cnt)
         _to_fixpoint(nb, W, S, orig, pl, ph, t0l, t0h, MAX_PASSES)
-        _exit(s, nb, out, W, t0l, t0h)
+        _exit(s, nb, out, W, t0l, t0h, orig)
     if cnt[0] > 0:
         _flush(cnt[0], cnt[1], rows, box, q2, pl2, ph2, t0l2, t0h2, ang, acc, L2, S2, orig2, out,
                G2)

@@ -52,8 +52,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ivslam_cli.contractors.ctc_polar import _atan_hi, _atan_lo
 from ivslam_cli.contractors.simd_polar_lanes import (
+    psi_from_tangents,
     CHUNK,
     MXH,
     MXL,
@@ -67,8 +67,6 @@ from ivslam_cli.contractors.simd_polar_lanes import (
     SXL,
     SYH,
     SYL,
-    TH,
-    TL,
     UH,
     UL,
     VH,
@@ -448,20 +446,14 @@ def _simd_lanes(B, L, box, idx):
 
 
 @njit(cache=True, error_model="numpy")
-def _exit(n, L):
+def _exit(n, L, idx):
     """Lanes ``0..n-1`` done (final states in ``L``): ``psi ∩= atan(t)``; then as selects (a
     SIMD loop) back to the box's variables (``th0`` from ψ in its copy, ``s = v dt`` backward,
     ``x1 = x0 + (x1 - x0)``) into the ``MR`` rows; ``L[MV]``
     is 1 where the lane gives the box something."""
     C = CHUNK
-    for i in range(n):
-        tl = L[TL * C + i]
-        if tl != L[MT0L * C + i] and L[OK * C + i] > 0.5:
-            L[MPL * C + i] = _mx(L[MPL * C + i], _atan_lo(tl))
-    for i in range(n):
-        th = L[TH * C + i]
-        if th != L[MT0H * C + i] and L[OK * C + i] > 0.5:
-            L[MPH * C + i] = _mn(L[MPH * C + i], _atan_hi(th))
+    psi_from_tangents(n, L, L[MT0L * C:(MT0L + 1) * C], L[MT0H * C:(MT0H + 1) * C],
+                      L[MPL * C:(MPL + 1) * C], L[MPH * C:(MPH + 1) * C], idx)
     for i in range(n):
         qq, k, sgn = L[MQ * C + i], L[MKK * C + i], L[MSG * C + i]
         lo, hi = L[MPL * C + i], L[MPH * C + i]
@@ -540,7 +532,7 @@ def _flush(n, L, S, orig, B, box):
     pl, ph = L[MPL * C:(MPL + 1) * C], L[MPH * C:(MPH + 1) * C]
     t0l, t0h = L[MT0L * C:(MT0L + 1) * C], L[MT0H * C:(MT0H + 1) * C]
     _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, PASSES)
-    _exit(n, L)
+    _exit(n, L, orig)
     for i in range(n):
         if L[MV * C + i] < 0.5:
             continue

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ivslam_cli.contractors.ctc_polar import _tan_hi, _tan_lo
+from ivslam_cli.contractors.ctc_polar import _atan_hi, _atan_lo, _tan_hi, _tan_lo
 from ivslam_cli.contractors.ctc_range_bearing import RELATIVE_STOP
 from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO
 from ivslam_cli.interval.rounding import HALF_PI_LO, INF, down, down_pos, down_raw, up_pos, up_raw
@@ -422,6 +422,30 @@ def _lane(L, m, ul, uh, vl, vh, rl, rh, xs, ys, sxl, sxh, mxl, mxh, syl, syh, my
     L[MXL * C + m], L[MXH * C + m] = _flip(xs, mxl, mxh)
     L[SYL * C + m], L[SYH * C + m] = _flip(ys, syl, syh)
     L[MYL * C + m], L[MYH * C + m] = _flip(ys, myl, myh)
+
+
+@njit(cache=True, error_model="numpy")
+def psi_from_tangents(n, L, t0l, t0h, pl, ph, idx):
+    """``psi ∩= atan(t)`` for lanes ``0..n-1`` (final states in ``L``; ``t0l``, ``t0h`` the
+    tangents they were loaded with, ``pl``, ``ph`` their ψ bounds): only where the lane is
+    alive and its ``t`` bound moved (``atan(tan(psi))`` holds ψ already), on a packed list of
+    those lanes (``idx``, at least ``n`` long: no branch to mispredict). Outward: ``_atan_lo``,
+    ``_atan_hi``."""
+    C = CHUNK
+    m = 0
+    for i in range(n):
+        idx[m] = i
+        m += 1 if (L[TL * C + i] != t0l[i]) & (L[OK * C + i] > 0.5) else 0
+    for k in range(m):
+        i = idx[k]
+        pl[i] = _mx(pl[i], _atan_lo(L[TL * C + i]))
+    m = 0
+    for i in range(n):
+        idx[m] = i
+        m += 1 if (L[TH * C + i] != t0h[i]) & (L[OK * C + i] > 0.5) else 0
+    for k in range(m):
+        i = idx[k]
+        ph[i] = _mn(ph[i], _atan_hi(L[TH * C + i]))
 
 
 def in_place(kernel, arrs):
