@@ -1,0 +1,123 @@
+"""Witnesses of the landmark CSP (``bench/landmark_witness.py``): every witness is a world that
+meets every stated bound (checked here by code that does not use the module's path or
+constraints), and our enclosures hold every witness — a soundness check beyond the truth."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+pytest.importorskip("scipy")
+
+from bench.landmark_witness import Bounds, Problem, Witness, fit_base, wrap  # noqa: E402
+from ivslam_cli.config import resolve_config  # noqa: E402
+from ivslam_cli.logs import read_log  # noqa: E402
+from ivslam_cli.report.core import angle_in  # noqa: E402
+from ivslam_cli.slam.landmarks import Params  # noqa: E402
+from ivslam_cli.slam.landmarks.pipeline import solve  # noqa: E402
+from ivslam_cli.slam.motion import node_lags  # noqa: E402
+
+from tests.helpers.paths import CONFIGS  # noqa: E402
+
+SPAN = 40.0  # seconds of robot 1's log
+pytestmark = pytest.mark.datasets
+
+
+def _cut(stream, t1):
+    m = stream.stamp <= t1
+    return dataclasses.replace(stream, **{f.name: getattr(stream, f.name)[m] for f in dataclasses.fields(stream)
+                                          if isinstance(getattr(stream, f.name), np.ndarray)
+                                          and getattr(stream, f.name).shape[:1] == m.shape})
+
+
+@pytest.fixture(scope="module")
+def case(datasets):
+    log = read_log(datasets / "mrclam" / "MRCLAM_Dataset6", robot=1)
+    t1 = log.odometry.stamp[0] + SPAN
+    log = dataclasses.replace(log, odometry=_cut(log.odometry, t1), observations=_cut(log.observations, t1))
+    params = Params.from_config(resolve_config(CONFIGS / "mrclam.toml", {}))
+    out = solve(log, params)
+    pb = Problem(log, Bounds.from_params(params))
+    base = fit_base(pb)
+    return log, params, out, pb, base
+
+
+def check_world(log, params, pb, w):
+    """Every bound of the model, on the whole log, by a separate integration (Simpson's rule on
+    each held-command piece) — the witness is a world that explains the data."""
+    b = Bounds.from_params(params)
+    t0 = log.odometry.stamp[0]
+    to = log.odometry.stamp - t0
+    z = log.odometry.twist
+    ts = pb.ts
+    j = np.clip(np.searchsorted(to, ts[:-1], side="right") - 1, 0, to.size - 1)
+    zv, zw = z[j, 0], z[j, 1]
+    blk = np.minimum(np.floor(ts[:-1] / 0.5 + 1e-9).astype(int), w["d"].size - 1)
+    v = zv + w["a"][blk] * np.abs(zv) + w["c"][blk]
+    om = zw + w["d"][blk]
+    assert (np.abs(zv - v) <= b.v_abs + b.v_rel * np.abs(v) + 1e-15).all()
+    assert (np.abs(zw - om) <= b.w_abs + 1e-15).all()
+    h = np.diff(ts)
+    th = w["P0"][2] + np.concatenate([[0.0], np.cumsum(om * h)])
+    s = np.linspace(0.0, 1.0, 17)
+    wts = np.where(np.arange(17) % 2 == 1, 4.0, 2.0)
+    wts[0] = wts[-1] = 1.0
+    ang = th[:-1, None] + om[:, None] * h[:, None] * s[None, :]
+    dx = (v * h)[:, None] * np.cos(ang) @ wts / 48.0
+    dy = (v * h)[:, None] * np.sin(ang) @ wts / 48.0
+    X = np.column_stack([w["P0"][0] + np.concatenate([[0.0], np.cumsum(dx)]),
+                         w["P0"][1] + np.concatenate([[0.0], np.cumsum(dy)]), th])
+    lag = node_lags(to, z, ts, b.lag_xy, b.lag_th, b.lag_time, b.lag_memory)
+    truth0 = pb.truth(0.0)[0]
+    assert (np.abs(w["P0"] - truth0) <= b.margin + lag[0, [0, 0, 1]] + 1e-12).all()
+    f = np.searchsorted(ts, pb.frame_t)
+    off = w["frames"] - X[f]
+    assert (np.abs(off[:, :2]) <= lag[f, :1] + 1e-9).all() and (np.abs(off[:, 2]) <= lag[f, 1] + 1e-12).all()
+    pose = w["frames"][pb.frame]
+    m = np.array([w["landmarks"][i] for i in pb.lid])
+    r = np.hypot(m[:, 0] - pose[:, 0], m[:, 1] - pose[:, 1])
+    assert (np.abs(r - pb.rng) <= b.range_abs + b.range_rel * pb.rng + 1e-12).all()
+    brg = wrap(np.arctan2(m[:, 1] - pose[:, 1], m[:, 0] - pose[:, 0]) - pose[:, 2] - pb.brg)
+    assert (np.abs(brg) <= b.bearing + 1e-12).all()
+    return X
+
+
+def test_the_fitted_path_explains_the_truth(case):
+    log, params, out, pb, base = case
+    assert pb.n_outliers == 0 and pb.frame_t.size > 20
+    assert base.worst <= 0.95  # every true pose within 95 % of the lag of the fitted path
+
+
+@pytest.mark.parametrize("slam", [False, True])
+def test_witnesses_are_worlds_and_lie_in_our_enclosures(case, slam):
+    log, params, out, pb, base = case
+    wit = Witness(pb, base, slam=slam)
+    f = int(np.argmin(np.abs(pb.frame_t - 20.0)))  # a frame near the middle
+    k = int(pb.fstep[f])
+    node = int(np.searchsorted(out.poses.stamp, pb.t0 + pb.ts[k] - 1e-9))
+    assert abs(out.poses.stamp[node] - pb.t0 - pb.ts[k]) < 1e-9
+    truth = pb.truth(pb.ts[k])[0]
+    spread = []
+    for c, sign in ((2, +1), (2, -1), (0, +1), (1, -1)):
+        value = wit.push(pb.ts[k] - 15.0, pb.ts[k] + 15.0, ("pose", k, c), sign)
+        w = wit.world()
+        check_world(log, params, pb, w)
+        assert w["frames"][f, c] == pytest.approx(value, abs=1e-12)
+        assert sign * (value - truth[c]) >= 0.0
+        spread.append(abs(value - truth[c]))
+        # our enclosures hold the witness: its true pose at every frame of the log
+        stamps = pb.t0 + pb.frame_t
+        nodes = np.searchsorted(out.poses.stamp, stamps - 1e-9)
+        box = out.poses.box[nodes]
+        P = w["frames"]
+        assert (box[:, 0, 0] <= P[:, 0]).all() and (P[:, 0] <= box[:, 0, 1]).all()
+        assert (box[:, 1, 0] <= P[:, 1]).all() and (P[:, 1] <= box[:, 1, 1]).all()
+        assert angle_in(box[:, 2, 0], box[:, 2, 1], P[:, 2]).all()
+        if slam:
+            for i, lid in enumerate(out.landmarks.id):
+                x, y = w["landmarks"][int(lid)]
+                L = out.landmarks.box[i]
+                assert L[0, 0] <= x <= L[0, 1] and L[1, 0] <= y <= L[1, 1]
+    assert max(spread) > 0.05  # the witnesses moved (a check that could not fail would not)
