@@ -26,8 +26,10 @@ X0, Y0, T0, X1, Y1, T1, V, W, DT, QX, QY, QT = range(0, 24, 2)
 # box. The slot buffer B holds slot j's values at B[r * NB + j]: the 24 bounds (rows 0..23, in
 # unicycle_scalar's order), the hull of the round's pieces (ACC..ACC+23), the slot's state
 # and the plan of its position part. The SIMD loops over slots use B only, at compile-time row
-# offsets (LLVM needs no runtime alias checks then).
-NB = 128
+# offsets (LLVM needs no runtime alias checks then). Rows are 1056 bytes apart, so no two of
+# the first 128 rows are a multiple of 4 KiB apart: a slot's column (read and written value by
+# value when a box comes in or goes out) then has no loads that alias earlier stores.
+NB = 132
 assert 2 * NB <= CHUNK  # the lanes of the SIMD slots of a round fit in one chunk
 ACC = 24
 LT0L, LT0H, LDTL, LDTH = 48, 49, 50, 51  # th0 and dt after the slot's last position part
