@@ -222,6 +222,51 @@ def test_select_forms_are_the_interval_operations_bit_for_bit(a, b, c, d, e, f):
     assert _same(r, s) or (not r[0] <= r[1] and not s[0] <= s[1])
 
 
+def test_select_division_is_div_meet_bit_for_bit_on_every_special_case():
+    """``div_meet_s`` and ``bwd_mul_s`` (two quotients, their operands picked by the case) on
+    every ordered triple of intervals with bounds from a grid of special values (infinities,
+    ±0, the least subnormal, huge and plain numbers): the bounds of ``div_meet`` and
+    ``bwd_mul``, signs of zeros included (``inf / inf`` corners, ``[b] = [inf, inf]``, zeros
+    at either end of ``[b]``)."""
+    from numba import njit
+
+    from ivslam_cli.interval.arith import bwd_mul, div_meet
+    from ivslam_cli.interval.arith_select import bwd_mul_s, div_meet_s
+
+    grid = np.array([-INF, -1e300, -3.0, -1.0, -5e-324, -0.0, 0.0, 5e-324, 1.0, 2.0, 7.0, 1e300, INF])
+
+    @njit(error_model="numpy")
+    def same(x, y):
+        for i in range(len(x)):
+            if not ((x[i] == y[i] and np.copysign(1.0, x[i]) == np.copysign(1.0, y[i]))
+                    or (x[i] != x[i] and y[i] != y[i])):
+                return False
+        return True
+
+    @njit(error_model="numpy")
+    def mismatches(g):
+        n, bad, cases = len(g), 0, 0
+        for i in range(n):
+            for j in range(i, n):
+                for k in range(n):
+                    for m in range(k, n):
+                        for p in range(n):
+                            for q in range(p, n):
+                                t0, t1, a0, a1, b0, b1 = g[i], g[j], g[k], g[m], g[p], g[q]
+                                cases += 1
+                                if not same(div_meet_s(t0, t1, a0, a1, b0, b1),
+                                            div_meet(t0, t1, a0, a1, b0, b1)):
+                                    bad += 1
+                                r = bwd_mul_s(t0, t1, a0, a1, b0, b1)
+                                s = bwd_mul(t0, t1, a0, a1, b0, b1)
+                                if not (same(r, s) or (not r[0] <= r[1] and not s[0] <= s[1])):
+                                    bad += 1
+        return bad, cases
+
+    bad, cases = mismatches(grid)
+    assert cases == (13 * 14 // 2) ** 3 and bad == 0
+
+
 @settings(max_examples=examples(ci=300))
 @given(st.one_of(st.floats(-20, 20), st.just(-INF)), st.one_of(st.floats(0, 8), st.just(INF)),
        st.floats(-20, 20), st.one_of(st.floats(0, 8), st.floats(6.2, 7.0)))
