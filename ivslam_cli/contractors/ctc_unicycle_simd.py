@@ -112,7 +112,6 @@ from ivslam_cli.contractors.unicycle_slots import (  # the slot buffer's layout 
     SH_,
     SIMD,
     SL_,
-    START,
     T0,
     T1,
     X0,
@@ -241,7 +240,7 @@ def _headings(B):
     ``mul``, ``add``, ``_angle_difference`` (with ``_meet``: :func:`_meet1t`), ``bwd_add`` and ``bwd_mul``.
     ``B[HOK]``: 1 if it holds, 0 if the box is emptied, -1 if ``_meet1t`` does not apply (then
     :func:`_heading` is to be run). Only the slots with ``B[NEED]`` 1 take the step (their
-    ``START`` rows hold their bounds before it)."""
+    ``WID0`` rows hold the widths before it)."""
     N = NB
     for j in range(N):
         wl, wh, dl, dh = B[W * N + j], B[(W + 1) * N + j], B[DT * N + j], B[(DT + 1) * N + j]
@@ -598,7 +597,6 @@ def _kernel(arrs):
             B[NEED * N + j] = 1.0 if go else 0.0
         if live == 0:
             break
-        B[START * N:(START + 24) * N] = B[:24 * N]  # the bounds at the start of the round
         _heading_step(B, row)
         if _finish_kept(B) > 0:  # their slots take new boxes, which start with the heading
             nxt = _swap(arrs, B, boxid, ok, nxt, n)

@@ -334,7 +334,7 @@ def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes, polar=False, fixstop=F
     tangents are intersected with it. After each pass from the second on, a lane stops if it
     shrank no width by ``RELATIVE_STOP`` or is empty (a dead lane, ``L[OK]`` 0 from the start,
     stops there too; it should have ``pl = 0``, ``ph = pi/2``: no libm call). With ``fixstop``
-    (range-bearing lanes) a lane also stops after a pass that moved none of its bounds: it is
+    (the unicycle's lanes) a lane also stops after a pass that moved none of its bounds: it is
     at a fixpoint of the pass, so the passes it is spared would give the same bounds (a
     subnormal width counts as shrunk by ``RELATIVE_STOP`` even when nothing moved, and such a
     lane took all ``passes``, each slowed by subnormal operands).
