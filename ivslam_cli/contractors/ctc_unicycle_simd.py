@@ -530,7 +530,7 @@ def _flush(n, L, S, orig, B, box):
     N = NB
     pl, ph = L[MPL * C:(MPL + 1) * C], L[MPH * C:(MPH + 1) * C]
     t0l, t0h = L[MT0L * C:(MT0L + 1) * C], L[MT0H * C:(MT0H + 1) * C]
-    _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, PASSES, False, True)
+    _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, PASSES, fixstop=True)
     _exit(n, L, orig)
     for i in range(n):
         if L[MV * C + i] < 0.5:

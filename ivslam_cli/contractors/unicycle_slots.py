@@ -109,9 +109,8 @@ def _progress(B):
 def _load(arrs, B, j, i, n, ok):
     """Take boxes from row ``i`` on into slot ``j`` (its bounds and their widths, ``WID0``):
     rows with an empty variable are emptied on the way; returns the next row (``n`` if none is
-    left: the slot is then free). The twelve
-    arrays are named one by one: an index into the tuple that varies at run time costs a copy
-    of the tuple per access."""
+    left: the slot is then free). The twelve arrays are named one by one: an index into the
+    tuple that varies at run time costs a copy of the tuple per access."""
     N = NB
     a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11 = arrs
     while i < n:
