@@ -34,9 +34,10 @@ plus rounding, and that the widths are on average no larger. A heading wider tha
 Execution: ``NB`` slots hold boxes in flight (:mod:`~ivslam_cli.contractors.unicycle_slots`),
 each at its own round; a slot whose box is done writes it out and takes the next one, so every
 pass over the slots works on live boxes. A pass is: the heading of every slot as selects
-(:func:`_headings`, the interval operations in select form: ``mul_s``, ``bwd_mul_s``,
-``_meet1t``; the rare heading outside their range takes
-:func:`_heading`); the boxes whose round ends there (their position part would be ``KEEP``
+(:func:`~ivslam_cli.contractors.unicycle_heading._heading_step`: the interval operations in
+select form, ``mul_s``, ``bwd_mul_s``, ``_meet1t``; the headings outside the one-copy meet's
+range packed and taken by ``angle_meet``'s scans as selects, the rare rest by the scalar
+``_heading``); the boxes whose round ends there (their position part would be ``KEEP``
 and the heading shrank no width by ``RELATIVE_STOP``: :func:`_finish_kept`, most second
 rounds) written out, their slots' new boxes taking their heading step at once; the plan of the
 position part (:func:`_plan`: a box with at most two
@@ -73,12 +74,12 @@ from ivslam_cli.contractors.simd_polar_lanes import (
     VL,
     _flip,
     _lane,
-    _mn,
     _mx,
     _to_fixpoint,
     in_place,
 )
-from ivslam_cli.contractors.simd_quadrants import _angle_difference, _arc, _meet1t, _shift, _to_psi
+from ivslam_cli.contractors.simd_quadrants import _arc, _shift, _to_psi
+from ivslam_cli.contractors.unicycle_heading import HROWS, _heading_step, _shifted
 from ivslam_cli.contractors.unicycle_slots import (  # the slot buffer's layout and rows
     ACC,
     AXH,
@@ -112,7 +113,6 @@ from ivslam_cli.contractors.unicycle_slots import (  # the slot buffer's layout 
     SH_,
     SIMD,
     SL_,
-    START,
     T0,
     T1,
     X0,
@@ -130,8 +130,6 @@ from ivslam_cli.interval.arith import (
     EMPTY_HI,
     EMPTY_LO,
     add,
-    bwd_add,
-    bwd_mul,
     inter,
     mul,
     sub,
@@ -143,7 +141,6 @@ from ivslam_cli.interval.rounding import (
     INV_TWO_PI_LO,
     PI_HI,
     PI_LO,
-    TWO_PI_HI,
     TWO_PI_LO,
     down,
     up,
@@ -156,22 +153,6 @@ MAX_TURNS = 3.0  # a heading wider than 3 turns is not contracted by the positio
 PIECES = 56  # at most 2 signs x 4 quadrants x 7 copies per box
 
 
-@njit(cache=True)
-def _heading(b, j):
-    """The heading block of ``unicycle_pass`` on row ``j`` of ``b``; False if it empties."""
-    pl, ph = mul(b[j, W], b[j, W + 1], b[j, DT], b[j, DT + 1])
-    ul, uh = add(pl, ph, b[j, QT], b[j, QT + 1])
-    r = _angle_difference(ul, uh, b[j, T1], b[j, T1 + 1], b[j, T0], b[j, T0 + 1])
-    ul, uh = r[0], r[1]
-    if not (ul <= uh):
-        return False
-    b[j, T1], b[j, T1 + 1], b[j, T0], b[j, T0 + 1] = r[2], r[3], r[4], r[5]
-    pl, ph, ql, qh = bwd_add(ul, uh, pl, ph, b[j, QT], b[j, QT + 1])
-    wl, wh, dl, dh = bwd_mul(pl, ph, b[j, W], b[j, W + 1], b[j, DT], b[j, DT + 1])
-    if not (ql <= qh) or not (wl <= wh) or not (dl <= dh):
-        return False
-    b[j, QT], b[j, QT + 1], b[j, W], b[j, W + 1], b[j, DT], b[j, DT + 1] = ql, qh, wl, wh, dl, dh
-    return True
 
 
 # rows of the lane buffer L after the lane state (ROWS rows, packed during the fixpoint), each
@@ -234,54 +215,8 @@ def _pieces(b, slot, L, m, box):
     return m
 
 
-@njit(cache=True, error_model="numpy")
-def _headings(B):
-    """The heading block of ``unicycle_pass`` (:func:`_heading`) for every slot, as selects (a
-    SIMD loop), written back in the live slots where it holds: the same float operations as
-    ``mul``, ``add``, ``_angle_difference`` (with ``_meet``: :func:`_meet1t`), ``bwd_add`` and ``bwd_mul``.
-    ``B[HOK]``: 1 if it holds, 0 if the box is emptied, -1 if ``_meet1t`` does not apply (then
-    :func:`_heading` is to be run). Only the slots with ``B[NEED]`` 1 take the step (their
-    ``START`` rows hold their bounds before it)."""
-    N = NB
-    for j in range(N):
-        wl, wh, dl, dh = B[W * N + j], B[(W + 1) * N + j], B[DT * N + j], B[(DT + 1) * N + j]
-        ql, qh = B[QT * N + j], B[(QT + 1) * N + j]
-        t1l, t1h = B[T1 * N + j], B[(T1 + 1) * N + j]
-        t0l, t0h = B[T0 * N + j], B[(T0 + 1) * N + j]
-        pl, ph = mul_s(wl, wh, dl, dh)
-        ul, uh = down(pl + ql), up(ph + qh)
-        # (an empty meet empties the box whatever _meet1t returns after it)
-        ul, uh, ok1 = _meet1t(ul, uh, down(t1l - t0h), up(t1h - t0l))
-        t1l, t1h, ok2 = _meet1t(t1l, t1h, down(ul + t0l), up(uh + t0h))
-        t0l, t0h, ok3 = _meet1t(t0l, t0h, down(t1l - uh), up(t1h - ul))
-        # bwd_add(u, p, qth): p ∩= u - qth, qth ∩= u - p
-        pl, ph = _mx(pl, down(ul - qh)), _mn(ph, up(uh - ql))
-        ql, qh = _mx(ql, down(ul - ph)), _mn(qh, up(uh - pl))
-        good = (ul <= uh) & (t1l <= t1h) & (t0l <= t0h) & (pl <= ph) & (ql <= qh)
-        wl, wh, dl, dh = bwd_mul_s(pl, ph, wl, wh, dl, dh)
-        good = good & (wl <= wh)
-        hok = (1.0 if good else 0.0) if (ok1 & ok2 & ok3) else -1.0
-        need = B[NEED * N + j] > 0.5
-        put = (hok > 0.5) & (B[LIVE * N + j] > 0.5) & need
-        B[HOK * N + j] = hok if need else B[HOK * N + j]
-        B[T1 * N + j] = t1l if put else B[T1 * N + j]
-        B[(T1 + 1) * N + j] = t1h if put else B[(T1 + 1) * N + j]
-        B[T0 * N + j] = t0l if put else B[T0 * N + j]
-        B[(T0 + 1) * N + j] = t0h if put else B[(T0 + 1) * N + j]
-        B[QT * N + j] = ql if put else B[QT * N + j]
-        B[(QT + 1) * N + j] = qh if put else B[(QT + 1) * N + j]
-        B[W * N + j] = wl if put else B[W * N + j]
-        B[(W + 1) * N + j] = wh if put else B[(W + 1) * N + j]
-        B[DT * N + j] = dl if put else B[DT * N + j]
-        B[(DT + 1) * N + j] = dh if put else B[(DT + 1) * N + j]
 
 
-@njit(cache=True, inline="always", error_model="numpy")
-def _shifted(k, fl, fh):
-    """:func:`_shift` as selects."""
-    ol = down(k * (TWO_PI_LO if k >= 0.0 else TWO_PI_HI))
-    oh = up(k * (TWO_PI_HI if k >= 0.0 else TWO_PI_LO))
-    return (fl if k == 0.0 else down(fl + ol)), (fh if k == 0.0 else up(fh + oh))
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -531,7 +466,7 @@ def _flush(n, L, S, orig, B, box):
     N = NB
     pl, ph = L[MPL * C:(MPL + 1) * C], L[MPH * C:(MPH + 1) * C]
     t0l, t0h = L[MT0L * C:(MT0L + 1) * C], L[MT0H * C:(MT0H + 1) * C]
-    _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, PASSES)
+    _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, PASSES, fixstop=True)
     _exit(n, L, orig)
     for i in range(n):
         if L[MV * C + i] < 0.5:
@@ -551,22 +486,6 @@ def _flush(n, L, S, orig, B, box):
         _into(B, QT, j, B[QT * N + j], B[(QT + 1) * N + j])
 
 
-@njit(cache=True, error_model="numpy")
-def _heading_step(B, row):
-    """The heading step of the slots with ``B[NEED]`` 1 (:func:`_headings`, and
-    :func:`_heading` where ``_meet1t`` does not apply); ``B[NEED]`` is 0 after it."""
-    N = NB
-    _headings(B)
-    for j in range(N):  # the heading steps outside _meet1t's range
-        if B[NEED * N + j] > 0.5 and B[LIVE * N + j] > 0.5 and B[HOK * N + j] < -0.5:
-            for r in range(24):
-                row[0, r] = B[r * N + j]
-            good = _heading(row, 0)
-            for r in range(24):
-                B[r * N + j] = row[0, r]
-            B[HOK * N + j] = 1.0 if good else 0.0
-    for j in range(N):
-        B[NEED * N + j] = 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -586,6 +505,7 @@ def _kernel(arrs):
     box = np.empty(C, np.int64)
     idx = np.empty(2 * N + 2, np.int64)
     row = np.empty((1, 24))
+    hb = np.empty(HROWS * N)  # the headings _meet1t does not take, packed
     nxt = 0
     for j in range(N):
         nxt = _load(arrs, B, j, nxt, n, ok)
@@ -598,11 +518,10 @@ def _kernel(arrs):
             B[NEED * N + j] = 1.0 if go else 0.0
         if live == 0:
             break
-        B[START * N:(START + 24) * N] = B[:24 * N]  # the bounds at the start of the round
-        _heading_step(B, row)
+        _heading_step(B, row, idx, hb)
         if _finish_kept(B) > 0:  # their slots take new boxes, which start with the heading
             nxt = _swap(arrs, B, boxid, ok, nxt, n)
-            _heading_step(B, row)
+            _heading_step(B, row, idx, hb)
         _plan(B)
         m = _simd_lanes(B, L, box, idx)
         for j in range(N):

@@ -87,7 +87,7 @@ def _down_tiny(c):
 @njit(cache=True, inline="always", error_model="numpy")
 def _lane_pass(L, i):
     """One pass of lane ``i``: its 16 new bounds, whether it stays non-empty, whether it shrank
-    some width by ``RELATIVE_STOP``.
+    some width by ``RELATIVE_STOP``, whether it moved some bound (else it is at a fixpoint).
 
     In a lane that stays non-empty every bound of ``u, v, rho, t`` is ``>= 0`` or ``-0``
     throughout the pass (lower bounds start so and only grow, an upper bound below its lower
@@ -126,7 +126,14 @@ def _lane_pass(L, i):
     prog = (_shrunk(a0, b0, a, b) | _shrunk(c0, d0, c, d) | _shrunk(e0, f0, e, f)
             | _shrunk(g0, h0, g, h) | _shrunk(p0, q0, sxl, sxh) | _shrunk(r0, s0, mxl, mxh)
             | _shrunk(w0, x0, syl, syh) | _shrunk(y0, z0, myl, myh))
-    return (a, b, c, d, e, f, g, h, sxl, sxh, mxl, mxh, syl, syh, myl, myh, good, prog)
+    # a pass that moved no bound leaves the lane at a fixpoint of the pass: every bound above
+    # is replaced only by one strictly inside it (_mx, _mn), so equal bounds are the same
+    # floats, and a further pass gives them again. (A subnormal width has RELATIVE_STOP
+    # times it rounded to 0, so _shrunk holds for it even when nothing moved.)
+    moved = ((a != a0) | (b != b0) | (c != c0) | (d != d0) | (e != e0) | (f != f0) | (g != g0)
+             | (h != h0) | (sxl != p0) | (sxh != q0) | (mxl != r0) | (mxh != s0) | (syl != w0)
+             | (syh != x0) | (myl != y0) | (myh != z0))
+    return (a, b, c, d, e, f, g, h, sxl, sxh, mxl, mxh, syl, syh, myl, myh, good, prog, moved)
 
 
 # cos(psi) = 1 / sqrt(1 + t^2), sin(psi) = t cos(psi) for t = tan(psi) in [0, BIG]: the float
@@ -255,8 +262,9 @@ def _polar_passes_live(n, L):
 
 
 @njit(cache=True, error_model="numpy")
-def _passes(n, L):
-    """One pass over lanes ``0..n-1`` (straight-line code: a SIMD loop)."""
+def _passes(n, L, fixstop=False):
+    """One pass over lanes ``0..n-1`` (straight-line code: a SIMD loop). With ``fixstop`` a
+    lane that moved no bound has ``L[PROG]`` 0 (see :func:`_to_fixpoint`)."""
     C = CHUNK
     for i in range(n):
         r = _lane_pass(L, i)
@@ -277,11 +285,11 @@ def _passes(n, L):
         L[MYL * C + i] = r[14]
         L[MYH * C + i] = r[15]
         L[OK * C + i] = L[OK * C + i] if r[16] else 0.0
-        L[PROG * C + i] = 1.0 if r[17] else 0.0
+        L[PROG * C + i] = 1.0 if r[17] & (r[18] | (not fixstop)) else 0.0
 
 
 @njit(cache=True, error_model="numpy")
-def _passes_live(n, L):
+def _passes_live(n, L, fixstop=False):
     """:func:`_passes` on the lanes with ``L[ACT]`` set; the others keep their state (selects:
     a SIMD loop)."""
     C = CHUNK
@@ -305,7 +313,7 @@ def _passes_live(n, L):
         L[MYL * C + i] = r[14] if act else L[MYL * C + i]
         L[MYH * C + i] = r[15] if act else L[MYH * C + i]
         L[OK * C + i] = (L[OK * C + i] if r[16] else 0.0) if act else L[OK * C + i]
-        L[PROG * C + i] = (1.0 if r[17] else 0.0) if act else L[PROG * C + i]
+        L[PROG * C + i] = (1.0 if r[17] & (r[18] | (not fixstop)) else 0.0) if act else L[PROG * C + i]
 
 
 @njit(cache=True, inline="always")
@@ -317,7 +325,7 @@ def _flip(sign, lo, hi):
 
 
 @njit(cache=True, error_model="numpy")
-def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes, polar=False):
+def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes, polar=False, fixstop=False):
     """Load the ``n`` lanes' tangents of their ψ bounds ``pl``, ``ph`` and run passes (at most
     ``passes``) until every lane has stopped; the final states are left in ``L``, each lane at
     its slot. The passes are :func:`_passes` (range-bearing lanes: ``t = v / u`` from their
@@ -325,7 +333,11 @@ def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes, polar=False):
     ``SXL..MYH`` unused; their ``TL``, ``TH`` rows hold ``v / u`` on entry); either way the
     tangents are intersected with it. After each pass from the second on, a lane stops if it
     shrank no width by ``RELATIVE_STOP`` or is empty (a dead lane, ``L[OK]`` 0 from the start,
-    stops there too; it should have ``pl = 0``, ``ph = pi/2``: no libm call).
+    stops there too; it should have ``pl = 0``, ``ph = pi/2``: no libm call). With ``fixstop``
+    (the unicycle's lanes) a lane also stops after a pass that moved none of its bounds: it is
+    at a fixpoint of the pass, so the passes it is spared would give the same bounds (a
+    subnormal width counts as shrunk by ``RELATIVE_STOP`` even when nothing moved, and such a
+    lane took all ``passes``, each slowed by subnormal operands).
 
     While at least half the lanes take passes they stay in place (:func:`_passes_live`: the
     stopped ones keep their state); then the others are packed into ``S`` (``orig``: their
@@ -358,7 +370,7 @@ def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes, polar=False):
     if polar:
         _polar_passes(n, L)
     else:
-        _passes(n, L)
+        _passes(n, L, fixstop)
     p = 1
     na = n
     while p < passes and 2 * na >= n:
@@ -368,9 +380,9 @@ def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes, polar=False):
             else:
                 _polar_passes_live(n, L)
         elif na == n:
-            _passes(n, L)
+            _passes(n, L, fixstop)
         else:
-            _passes_live(n, L)
+            _passes_live(n, L, fixstop)
         na = 0
         for i in range(n):
             go = (L[ACT * C + i] > 0.5) & (L[OK * C + i] > 0.5) & (L[PROG * C + i] > 0.5)
@@ -392,7 +404,7 @@ def _to_fixpoint(n, L, S, orig, pl, ph, t0l, t0h, passes, polar=False):
         if polar:
             _polar_passes(m, S)
         else:
-            _passes(m, S)
+            _passes(m, S, fixstop)
         k = 0
         for i in range(m):
             if S[OK * C + i] < 0.5 or S[PROG * C + i] < 0.5 or p + 1 == passes:

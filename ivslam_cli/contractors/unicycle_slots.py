@@ -26,8 +26,10 @@ X0, Y0, T0, X1, Y1, T1, V, W, DT, QX, QY, QT = range(0, 24, 2)
 # box. The slot buffer B holds slot j's values at B[r * NB + j]: the 24 bounds (rows 0..23, in
 # unicycle_scalar's order), the hull of the round's pieces (ACC..ACC+23), the slot's state
 # and the plan of its position part. The SIMD loops over slots use B only, at compile-time row
-# offsets (LLVM needs no runtime alias checks then).
-NB = 128
+# offsets (LLVM needs no runtime alias checks then). Rows are 1056 bytes apart, so no two of
+# the first 128 rows are a multiple of 4 KiB apart: a slot's column (read and written value by
+# value when a box comes in or goes out) then has no loads that alias earlier stores.
+NB = 132
 assert 2 * NB <= CHUNK  # the lanes of the SIMD slots of a round fit in one chunk
 ACC = 24
 LT0L, LT0H, LDTL, LDTH = 48, 49, 50, 51  # th0 and dt after the slot's last position part
@@ -36,8 +38,8 @@ PC = 57  # the pieces _plan found: piece t at PC + 5 t + (sign of s, quadrant, c
 SL_, SH_ = 67, 68  # s = v dt
 DXL, DXH, DYL, DYH = 69, 70, 71, 72  # dx = (x1 - x0) - qx, dy likewise
 AXL, AXH, AYL, AYH = 73, 74, 75, 76  # x1 - x0, y1 - y0
-START = 77  # 24 rows: the bounds at the start of the round (before its heading)
-NEED = START + 24  # 1 while the slot's round is to start with its heading
+WID0 = 77  # 12 rows: the widths (hi - lo) of the 12 variables at the start of the round
+NEED = WID0 + 12  # 1 while the slot's round is to start with its heading
 BROWS = NEED + 1
 # B[POS]: the round's position part
 KEEP, SIMD, GEN, NOTHING = 0.0, 1.0, 2.0, 3.0
@@ -45,12 +47,13 @@ KEEP, SIMD, GEN, NOTHING = 0.0, 1.0, 2.0, 3.0
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _shrunk(B, j, at):
-    """The largest relative width reduction over the 24 bounds of slot ``j`` from the ``START``
-    rows to the rows from ``at`` on (as ``ctc_unicycle.shrink``)."""
+    """The largest relative width reduction over the 12 variables of slot ``j`` from the widths
+    at the round's start (``WID0`` rows) to the bounds in the rows from ``at`` on (as
+    ``ctc_unicycle.shrink``)."""
     N = NB
     prog = 0.0
     for k in range(0, 24, 2):
-        w0 = B[(START + k + 1) * N + j] - B[(START + k) * N + j]
+        w0 = B[(WID0 + k // 2) * N + j]
         w1 = B[(at + k + 1) * N + j] - B[(at + k) * N + j]
         s = (1.0 if w1 < INF else 0.0) if w0 == INF else ((w0 - w1) / w0 if w0 > 0.0 else 0.0)
         prog = s if s > prog else prog
@@ -81,8 +84,8 @@ def _finish_kept(B):
 def _progress(B):
     """End of the round of every live slot, as selects (a SIMD loop): its box becomes the hull
     of the round (empty if that is); ``B[LIVE]`` stays 1 while the round (its heading and its
-    position part, from the ``START`` rows) shrank some width by ``RELATIVE_STOP`` and rounds
-    are left, else it is 2 (done)."""
+    position part, from the ``WID0`` rows) shrank some width by ``RELATIVE_STOP`` and rounds
+    are left, else it is 2 (done); the ``WID0`` rows take the widths of the new bounds."""
     N = NB
     for j in range(N):
         live = B[LIVE * N + j] > 0.5
@@ -97,14 +100,17 @@ def _progress(B):
         B[LDTH * N + j] = B[(DT + 1) * N + j] if live else B[LDTH * N + j]
         B[RND * N + j] = B[RND * N + j] + 1.0 if live else B[RND * N + j]
         B[LIVE * N + j] = (1.0 if more else 2.0) if live else B[LIVE * N + j]
+        for k in range(12):  # the next round starts from this box
+            w = B[(2 * k + 1) * N + j] - B[2 * k * N + j]
+            B[(WID0 + k) * N + j] = w if live else B[(WID0 + k) * N + j]
 
 
 @njit(cache=True, inline="always")
 def _load(arrs, B, j, i, n, ok):
-    """Take boxes from row ``i`` on into slot ``j``: rows with an empty variable are emptied on
-    the way; returns the next row (``n`` if none is left: the slot is then free). The twelve
-    arrays are named one by one: an index into the tuple that varies at run time costs a copy
-    of the tuple per access."""
+    """Take boxes from row ``i`` on into slot ``j`` (its bounds and their widths, ``WID0``):
+    rows with an empty variable are emptied on the way; returns the next row (``n`` if none is
+    left: the slot is then free). The twelve arrays are named one by one: an index into the
+    tuple that varies at run time costs a copy of the tuple per access."""
     N = NB
     a0, a1, a2, a3, a4, a5, a6, a7, a8, a9, a10, a11 = arrs
     while i < n:
@@ -127,6 +133,8 @@ def _load(arrs, B, j, i, n, ok):
             B[18 * N + j], B[19 * N + j] = a9[2 * i], a9[2 * i + 1]
             B[20 * N + j], B[21 * N + j] = a10[2 * i], a10[2 * i + 1]
             B[22 * N + j], B[23 * N + j] = a11[2 * i], a11[2 * i + 1]
+            for k in range(12):
+                B[(WID0 + k) * N + j] = B[(2 * k + 1) * N + j] - B[2 * k * N + j]
             B[LIVE * N + j] = 1.0
             B[RND * N + j] = 0.0
             return i + 1
@@ -169,8 +177,8 @@ def _store(arrs, B, j, i):
 
 @njit(cache=True, inline="always")
 def _swap(arrs, B, boxid, ok, nxt, n):
-    """Every done slot writes its box out and takes the next one (``B[NEED]`` 1 there, its
-    ``START`` rows set); returns the next row to take."""
+    """Every done slot writes its box out and takes the next one (``B[NEED]`` 1 there);
+    returns the next row to take."""
     N = NB
     for j in range(N):
         if B[LIVE * N + j] < 1.5:
@@ -181,6 +189,4 @@ def _swap(arrs, B, boxid, ok, nxt, n):
         nxt = _load(arrs, B, j, nxt, n, ok)
         boxid[j] = nxt - 1 if B[LIVE * N + j] > 0.5 else -1
         B[NEED * N + j] = B[LIVE * N + j]
-        for r in range(24):
-            B[(START + r) * N + j] = B[r * N + j]
     return nxt

@@ -3,9 +3,10 @@
 :func:`mul_s`, :func:`div_meet_s` and :func:`bwd_mul_s` give the bounds of
 :func:`~ivslam_cli.interval.arith.mul`, :func:`~ivslam_cli.interval.arith.div_meet` and
 :func:`~ivslam_cli.interval.arith.bwd_mul` bit for bit on non-empty intervals (the same float
-operations, rounded outward by :func:`~ivslam_cli.interval.rounding.down` / ``up``), with every
-case computed and the one that applies selected: no branch, so LLVM vectorises the loop that
-calls them. tests/contractors/test_unicycle_simd.py compares them with the branching forms.
+operations, rounded outward by :func:`~ivslam_cli.interval.rounding.down` / ``up``), with the
+case that applies selected rather than branched to (a division's operands are picked before
+it: two quotients per ``div_meet_s``): no branch, so LLVM vectorises the loop that calls them.
+tests/contractors/test_unicycle_simd.py compares them with the branching forms.
 """
 
 from __future__ import annotations
@@ -32,44 +33,55 @@ def mul_s(al, ah, bl, bh):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _ql(a, b):
-    q = a / b
-    return INF if q != q else q
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _qh(a, b):
-    q = a / b
-    return -INF if q != q else q
-
-
-@njit(cache=True, inline="always", error_model="numpy")
 def div_meet_s(tl, th, al, ah, bl, bh):
     """:func:`~ivslam_cli.interval.arith.div_meet` (``[t] ∩ [a] / [b]``, both pieces of the
-    extended division) of non-empty intervals as selects: every case of
-    :func:`~ivslam_cli.interval.arith.div2` is computed and the one that applies is taken,
-    the same float operations in each."""
-    # 0 not in [b]
-    lo = down(min(min(_ql(al, bl), _ql(al, bh)), min(_ql(ah, bl), _ql(ah, bh))))
-    hi = up(max(max(_qh(al, bl), _qh(al, bh)), max(_qh(ah, bl), _qh(ah, bh))))
-    l1, h1, l2, h2 = lo, hi, E, F
+    extended division) of non-empty intervals as selects, from two quotients: the case of
+    :func:`~ivslam_cli.interval.arith.div2` that applies picks their operands, and each is
+    the quotient that case rounds (a bound of ``[a] / [b]`` for ``0`` not in ``[b]`` is the
+    quotient of the corner the signs give, which is the least or greatest of the four
+    quotients ``_div_nozero`` compares, the division being monotone; where a corner is
+    ``inf / inf`` its NaN is ignored there, and the next corner stands in)."""
     apos = al >= 0.0
+    bpos = bl > 0.0
+    nz = bpos | (bh < 0.0)
     zb = (bl == 0.0) & (bh == 0.0)
-    nz = (bl > 0.0) | (bh < 0.0)
-    # 0 in [b], [b] not {0}
     za = (al == 0.0) & (ah == 0.0)
     sa = (al < 0.0) & (0.0 < ah)
     lb = bl == 0.0  # [0, bh]
     hb = bh == 0.0  # [bl, 0]
+    # 0 not in [b]: the lower bound at a = al (b > 0) or ah (b < 0), the upper one at the other
+    # end; a nonnegative numerator over the end of [b] farthest from 0, a negative one over
+    # the nearest (b > 0), the other way round for b < 0
+    n1 = al if bpos else ah
+    n2 = ah if bpos else al
+    d1 = bh if n1 >= 0.0 else bl
+    d2 = bl if n2 >= 0.0 else bh
+    # inf / inf (an infinite numerator over an infinite end of [b]): NaN, ignored; the other
+    # end of [a] over the same end of [b] gives the bound (0, or NaN again if that end is
+    # infinite too, as every corner then is)
+    n1 = (ah if bpos else al) if (abs(n1) == INF) & (abs(d1) == INF) else n1
+    n2 = (al if bpos else ah) if (abs(n2) == INF) & (abs(d2) == INF) else n2
+    # 0 in [b]: the numerator a_lo for a >= 0, a_hi otherwise; [0, bh] and [bl, 0] one
+    # quotient, bl < 0 < bh two (t1h over bl for a >= 0, t2l over bh; the other way for a < 0)
+    na = al if apos else ah
+    n1 = n1 if nz else na
+    n2 = n2 if nz else na
+    d1 = d1 if nz else (bh if lb else (bl if hb else (bl if apos else bh)))
+    d2 = d2 if nz else (bh if apos else bl)
+    q1 = n1 / d1
+    q2 = n2 / d2
+    lo = down(INF if q1 != q1 else q1)
+    hi = up(-INF if q2 != q2 else q2)
+    l1, h1, l2, h2 = lo, hi, E, F
     # [b] = [0, bh]: a >= 0 -> [a_lo / bh, inf], else [-inf, a_hi / bh]
-    c1l = down(al / bh) if apos else -INF
-    c1h = INF if apos else up(ah / bh)
+    c1l = down(q1) if apos else -INF
+    c1h = INF if apos else up(q1)
     # [b] = [bl, 0]: a >= 0 -> [-inf, a_lo / bl], else [a_hi / bl, inf]
-    c2l = -INF if apos else down(ah / bl)
-    c2h = up(al / bl) if apos else INF
+    c2l = -INF if apos else down(q1)
+    c2h = up(q1) if apos else INF
     # bl < 0 < bh: two pieces
-    t1h = up(al / bl) if apos else up(ah / bh)
-    t2l = down(al / bh) if apos else down(ah / bl)
+    t1h = up(q1)
+    t2l = down(q2)
     l1 = l1 if nz else (0.0 if za else (-INF if sa else (c1l if lb else (c2l if hb else -INF))))
     h1 = h1 if nz else (0.0 if za else (INF if sa else (c1h if lb else (c2h if hb else t1h))))
     two = (not nz) & (not za) & (not sa) & (not lb) & (not hb)

@@ -24,7 +24,8 @@ from bench.bench_kernels import _lost, unicycle_truths
 from ivslam_cli.contractors import unicycle
 from ivslam_cli.contractors.ctc_unicycle import RELATIVE_STOP, unicycle_kernel
 from ivslam_cli.contractors import ctc_unicycle_simd as simd
-from ivslam_cli.contractors.ctc_unicycle_simd import NB, _heading, _headings, unicycle_simd_kernel
+from ivslam_cli.contractors.ctc_unicycle_simd import NB, unicycle_simd_kernel
+from ivslam_cli.contractors.unicycle_heading import _heading, _headings
 from tests.helpers.exact import around
 from tests.helpers.hyp import examples
 
@@ -193,6 +194,67 @@ def test_vectorised_heading_step_is_the_scalar_one_bit_for_bit():
     assert applied > 0.9 * rows.shape[0]
 
 
+def test_packed_heading_step_is_the_scalar_one_bit_for_bit():
+    """Where ``_meet1t`` does not apply (``_headings`` says ``HOK`` -1: a sum of widths of 6 or
+    more), ``_headings_listed`` on those slots packed: the verdict and bounds of ``_heading``
+    wherever it applies, and it applies to nearly all of them."""
+    from ivslam_cli.contractors.unicycle_heading import (
+        HOKP, HT0, HT1, HQT, HDT, HROWS, HW, _headings_listed)
+
+    boxes, _ = unicycle_truths(NB * 60, seed=17)
+    rows = np.stack(boxes, axis=1).reshape(-1, 24)
+    applied = packed = 0
+    hb = np.empty(HROWS * NB)
+    for s in range(0, rows.shape[0], NB):
+        a = rows[s:s + NB]
+        B = np.zeros(simd.BROWS * NB)
+        B[:24 * NB] = a.T.reshape(-1)
+        B[simd.LIVE * NB:(simd.LIVE + 1) * NB] = 1.0
+        B[simd.NEED * NB:(simd.NEED + 1) * NB] = 1.0
+        _headings(B)
+        sel = np.nonzero(B[simd.HOK * NB:(simd.HOK + 1) * NB] < -0.5)[0]
+        for t, j in enumerate(sel):
+            for r, v in enumerate((simd.W, simd.DT, simd.QT, simd.T1, simd.T0)):
+                hb[2 * r * NB + t], hb[(2 * r + 1) * NB + t] = a[j, v], a[j, v + 1]
+        _headings_listed(hb, len(sel))
+        c = a.copy()
+        for t, j in enumerate(sel):
+            packed += 1
+            hok = hb[HOKP * NB + t]
+            if hok < -0.5:
+                continue
+            applied += 1
+            assert (hok > 0.5) == _heading(c, j)
+            if hok > 0.5:
+                got = [hb[r * NB + t] for r in range(10)]
+                want = [c[j, v + k] for v in (simd.W, simd.DT, simd.QT, simd.T1, simd.T0) for k in (0, 1)]
+                assert _same(got, want)
+    assert (HW, HDT, HQT, HT1, HT0) == (0, 2, 4, 6, 8)
+    assert packed > 0.03 * rows.shape[0] and applied > 0.9 * packed
+
+
+@settings(max_examples=examples(ci=500))
+@given(st.one_of(st.floats(-40, 40), st.floats(-2e15, 2e15), st.just(-INF)),
+       st.one_of(st.floats(0, 30), st.floats(5.5, 7.0), st.just(0.0), st.just(INF)),
+       st.one_of(st.floats(-40, 40), st.floats(-2e15, 2e15)),
+       st.one_of(st.floats(0, 7), st.floats(6.2, 6.3), st.just(0.0)))
+def test_meet_scan_and_meet_wide_are_the_scalar_meets_where_they_apply(tl, tw, al, aw):
+    """``_meet_scan`` gives ``angle_meet``'s bounds and ``_meet_wide`` those of ``_meet``
+    (``_angle_difference``'s meet), bit for bit, where they say they apply."""
+    from ivslam_cli.contractors.simd_quadrants import _meet
+    from ivslam_cli.contractors.unicycle_heading import _meet_scan, _meet_wide
+    from ivslam_cli.interval.angles import angle_meet
+
+    th, ah = tl + tw, al + aw
+    if not (th == th and tl <= th and al <= ah):
+        return
+    for fn, ref in ((_meet_scan, angle_meet), (_meet_wide, _meet)):
+        lo, hi, ok = fn(tl, th, al, ah)
+        if ok:
+            r = ref(tl, th, al, ah)
+            assert _same((lo, hi), r) or (not lo <= hi and not r[0] <= r[1]), (fn, tl, th, al, ah)
+
+
 bound = st.one_of(st.floats(-1e6, 1e6), st.sampled_from([0.0, -0.0, 1.0, -1.0, INF, -INF, 5e-324]))
 
 
@@ -220,6 +282,51 @@ def test_select_forms_are_the_interval_operations_bit_for_bit(a, b, c, d, e, f):
     assert _same(div_meet_s(*x, *y, *z), div_meet(*x, *y, *z))
     r, s = bwd_mul_s(*z, *x, *y), bwd_mul(*z, *x, *y)
     assert _same(r, s) or (not r[0] <= r[1] and not s[0] <= s[1])
+
+
+def test_select_division_is_div_meet_bit_for_bit_on_every_special_case():
+    """``div_meet_s`` and ``bwd_mul_s`` (two quotients, their operands picked by the case) on
+    every ordered triple of intervals with bounds from a grid of special values (infinities,
+    ±0, the least subnormal, huge and plain numbers): the bounds of ``div_meet`` and
+    ``bwd_mul``, signs of zeros included (``inf / inf`` corners, ``[b] = [inf, inf]``, zeros
+    at either end of ``[b]``)."""
+    from numba import njit
+
+    from ivslam_cli.interval.arith import bwd_mul, div_meet
+    from ivslam_cli.interval.arith_select import bwd_mul_s, div_meet_s
+
+    grid = np.array([-INF, -1e300, -3.0, -1.0, -5e-324, -0.0, 0.0, 5e-324, 1.0, 2.0, 7.0, 1e300, INF])
+
+    @njit(error_model="numpy")
+    def same(x, y):
+        for i in range(len(x)):
+            if not ((x[i] == y[i] and np.copysign(1.0, x[i]) == np.copysign(1.0, y[i]))
+                    or (x[i] != x[i] and y[i] != y[i])):
+                return False
+        return True
+
+    @njit(error_model="numpy")
+    def mismatches(g):
+        n, bad, cases = len(g), 0, 0
+        for i in range(n):
+            for j in range(i, n):
+                for k in range(n):
+                    for m in range(k, n):
+                        for p in range(n):
+                            for q in range(p, n):
+                                t0, t1, a0, a1, b0, b1 = g[i], g[j], g[k], g[m], g[p], g[q]
+                                cases += 1
+                                if not same(div_meet_s(t0, t1, a0, a1, b0, b1),
+                                            div_meet(t0, t1, a0, a1, b0, b1)):
+                                    bad += 1
+                                r = bwd_mul_s(t0, t1, a0, a1, b0, b1)
+                                s = bwd_mul(t0, t1, a0, a1, b0, b1)
+                                if not (same(r, s) or (not r[0] <= r[1] and not s[0] <= s[1])):
+                                    bad += 1
+        return bad, cases
+
+    bad, cases = mismatches(grid)
+    assert cases == (13 * 14 // 2) ** 3 and bad == 0
 
 
 @settings(max_examples=examples(ci=300))
