@@ -69,10 +69,17 @@ os._exit(0)
 """
 
 
+#: the tree this benchmark belongs to: its ``ivslam_cli`` is the one measured
+TREE = Path(__file__).resolve().parents[1]
+
+
 def _env(tmp: Path) -> dict[str, str]:
-    """The children's environment: this one, with the bytecode cached in ``tmp``."""
+    """The children's environment: this one, with the bytecode cached in ``tmp`` and this tree's
+    ``ivslam_cli`` first on the path (the children run in ``tmp``, where ``-m ivslam_cli`` would
+    otherwise find whichever copy is installed, e.g. another worktree's editable install)."""
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     env["PYTHONPYCACHEPREFIX"] = str(tmp / "pycache")
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(TREE), env.get("PYTHONPATH")) if p)
     return env
 
 
@@ -114,6 +121,9 @@ def main(argv: list[str] | None = None) -> int:
         (d / "one_kernel.py").write_text(KERNEL)
         (d / "array_kernel.py").write_text(ARRAY_KERNEL)
         env = _env(d)
+        where = subprocess.run([py, "-c", "import ivslam_cli; print(ivslam_cli.__file__)"], cwd=d, env=env,
+                               check=True, capture_output=True, text=True).stdout.strip()
+        print(f"ivslam measured: {Path(where).parent}")
         subprocess.run([*ivslam, "simulate", "--scenario", "pairs", "--steps", "5", "-o", "tiny.mcap"], cwd=d,
                        env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         rows = {}
