@@ -15,7 +15,6 @@ file is left and no output is half written.
 from __future__ import annotations
 
 import errno
-import gc
 import importlib
 import os
 import signal
@@ -25,7 +24,7 @@ from typing import NoReturn
 
 import click
 
-from ivslam_cli import __version__
+from ivslam_cli import __version__, collector
 
 COMMANDS = {
     "simulate": "ivslam_cli.commands.simulate",
@@ -173,7 +172,7 @@ def cli(ctx: click.Context, debug: bool) -> None:
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point."""
     one_blas_thread()
-    collect_less_often()
+    collector.collect_less_often()
     end(cli.main(args=argv, prog_name="ivslam", standalone_mode=False))
 
 
@@ -186,24 +185,6 @@ def one_blas_thread() -> None:
     machine whose other cores are busy (a batch of runs, a shared host), CPU taken from the run.
     """
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-
-
-#: net allocations of container objects between two young collections of the cyclic garbage
-#: collector (CPython's default: 700)
-GC_YOUNG_THRESHOLD = 10_000
-
-
-def collect_less_often() -> None:
-    """Run the cyclic garbage collector every :data:`GC_YOUNG_THRESHOLD` allocations.
-
-    A run's start allocates ~115,000 objects that live as long as the process (modules, numba's
-    types and typing templates, the kernels loaded); at the default threshold the collector runs
-    some 250 times while they accumulate, twice over all of them, for 60-80 ms of a 0.5 s
-    ``ivslam run`` on a 5-step log (~30 ms at this threshold). A reference cycle waits longer to
-    be freed: at most this many allocations.
-    """
-    _, older, oldest = gc.get_threshold()
-    gc.set_threshold(GC_YOUNG_THRESHOLD, older, oldest)
 
 
 def end(code: int) -> NoReturn:

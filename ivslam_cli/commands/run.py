@@ -113,6 +113,9 @@ def command(ctx, logs, mode, output, config_file, force, fmt, robot, scan_topic,
       ivslam run sample_logs --mode auto --initial-pose-from-truth -o out/fleet --jobs 2
       ivslam run logs.txt --mode landmarks -o out/fleet --scheduler tcp://10.0.0.5:8786 --resume
     """
+    from ivslam_cli import collector
+
+    collector.pause()  # no collection while the run starts, until its pipeline does (run_pipeline)
     from ivslam_cli.errors import InconsistentData
     from ivslam_cli.fleet.inputs import single_log
     from ivslam_cli.fleet.job import RunOptions, default_output, run_one

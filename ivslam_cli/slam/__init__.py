@@ -13,6 +13,7 @@ from collections.abc import Sequence
 from types import ModuleType
 from typing import TYPE_CHECKING
 
+from ivslam_cli import collector
 from ivslam_cli.errors import IvslamError
 
 if TYPE_CHECKING:  # the registry stays light: ``ivslam run --help`` imports it
@@ -52,6 +53,7 @@ def run_pipeline(log: LogData, cfg: Config, mode: str, argv: Sequence[str] | Non
         raise IvslamError(f"a log of several robots (--robot all) needs --mode landmarks (not {mode})",
                           log.provenance.path)
     params = pipe.Params.from_config(cfg)
+    collector.resume()  # the start of a run is over: what it allocated is never scanned again
     t0 = time.perf_counter()
     try:
         result = pipe.run(log, params, progress)

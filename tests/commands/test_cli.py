@@ -106,6 +106,42 @@ def test_a_pairs_run_imports_and_loads_only_what_it_uses(cli_run, tmp_path, monk
     assert not _under(modules, NOT_FOR_A_PAIRS_RUN + NOT_FOR_AN_H5_LOG)
 
 
+_RUN_COLLECTIONS = """
+import gc, os, sys
+import ivslam_cli.cli as cli
+from ivslam_cli import collector
+
+paused = []  # per collection: did it run while the start of the run paused the collector?
+gc.callbacks.append(lambda phase, info: phase == "start" and paused.append(gc.get_threshold()[0] == collector.START_THRESHOLD))
+
+
+def report(code):
+    assert code == 0, code
+    print(sum(paused), gc.get_freeze_count(), gc.get_threshold()[0])
+    sys.stdout.flush()
+    os._exit(0)
+
+
+cli.end = report
+cli.main(["run", *sys.argv[1:], "--quiet"])
+"""
+
+
+def test_a_run_collects_no_garbage_before_its_pipeline(cli_run, tmp_path):
+    """The start of ``ivslam run`` (imports, the log read) allocates fewer objects than the paused
+    collector waits for: no collection; the pipeline starts with them frozen and the threshold back."""
+    from ivslam_cli import collector
+
+    assert cli_run("simulate", "--scenario", "pairs", "--steps", "5", "-o", tmp_path / "p.mcap").exit_code == 0
+    for k in range(2):  # the second warm: a cold cache compiles the kernels (in the pipeline)
+        res = subprocess.run([sys.executable, "-c", _RUN_COLLECTIONS, str(tmp_path / "p.mcap"), "-o",
+                              str(tmp_path / f"r{k}.h5")], capture_output=True, text=True, check=True, cwd=REPO)
+    while_paused, frozen, threshold = map(int, res.stdout.split())
+    assert while_paused == 0
+    assert frozen > 50_000  # the modules, the reader's objects, numba's
+    assert threshold == collector.YOUNG_THRESHOLD
+
+
 def test_unknown_command_fails_cleanly(cli_run):
     res = cli_run("frobnicate")
     assert res.exit_code != 0
