@@ -25,15 +25,29 @@ def _set_numba_cache_dir() -> None:
     """
     if "NUMBA_CACHE_DIR" in os.environ:
         return
-    root = Path(__file__).resolve().parent
+    root = os.path.dirname(os.path.realpath(__file__))
     digest = hashlib.sha1(__version__.encode())
-    for path in sorted(root.rglob("*.py")):
-        text = path.read_bytes()
+    for parts in sorted(_sources(root)):
+        with open(os.path.join(root, *parts), "rb") as f:
+            text = f.read()
         if b"numba" in text:
-            digest.update(path.relative_to(root).as_posix().encode())
+            digest.update("/".join(parts).encode())
             digest.update(text)
     base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
     os.environ["NUMBA_CACHE_DIR"] = str(base / "ivslam" / "numba" / digest.hexdigest()[:16])
+
+
+def _sources(folder: str, parts: tuple[str, ...] = ()) -> list[tuple[str, ...]]:
+    """The ``*.py`` files under ``folder`` (symbolic links to folders not followed), each as the
+    parts of its path relative to it (sorted, the order of ``sorted(Path.rglob("*.py"))``)."""
+    found = []
+    with os.scandir(folder) as entries:
+        for entry in entries:
+            if entry.is_dir(follow_symlinks=False):
+                found += _sources(entry.path, (*parts, entry.name))
+            elif entry.name.endswith(".py"):
+                found.append((*parts, entry.name))
+    return found
 
 
 _set_numba_cache_dir()
