@@ -112,7 +112,14 @@ import ivslam_cli.cli as cli
 from ivslam_cli import collector
 
 paused = []  # per collection: did it run while the start of the run paused the collector?
-gc.callbacks.append(lambda phase, info: phase == "start" and paused.append(gc.get_threshold()[0] == collector.START_THRESHOLD))
+
+
+def seen(phase, info):
+    if phase == "start":
+        paused.append(gc.get_threshold()[0] == collector.START_THRESHOLD)
+
+
+gc.callbacks.append(seen)
 
 
 def report(code):
