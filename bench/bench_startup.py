@@ -124,6 +124,11 @@ def main(argv: list[str] | None = None) -> int:
         where = subprocess.run([py, "-c", "import ivslam_cli; print(ivslam_cli.__file__)"], cwd=d, env=env,
                                check=True, capture_output=True, text=True).stdout.strip()
         print(f"ivslam measured: {Path(where).parent}")
+        probe = "import importlib.util as u\ntry:\n    print(u.find_spec('scipy') is not None)\nexcept ImportError:\n    print(False)"
+        scipy = subprocess.run([py, "-c", probe], cwd=d, env=env, check=True, capture_output=True,
+                               text=True).stdout.strip() == "True"
+        print("scipy " + ("installed: numba imports scipy.linalg as it sets up its CPU target (in every row that "
+                          "calls a kernel)" if scipy else "not installed"))
         subprocess.run([*ivslam, "simulate", "--scenario", "pairs", "--steps", "5", "-o", "tiny.mcap"], cwd=d,
                        env=env, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         rows = {}
