@@ -17,8 +17,9 @@ allocated since the last one, and each older one all of them again. Two settings
   so the collections of the pipeline (numba loading its kernels, the data work) scan only what
   the pipeline allocates. A cycle that became garbage before the pipeline is not freed (objects
   of imports and of the log read that refer to each other and are no longer used: few); one
-  made later is, as usual. Without :func:`resume` (a batch of logs that all fail to read) the
-  collector still runs, every :data:`START_THRESHOLD` allocations.
+  made later is, as usual. Without :func:`resume` (the parent of a batch, whose workers run
+  the pipelines; a batch of logs that all fail to read) the collector still runs, every
+  :data:`START_THRESHOLD` allocations.
 """
 
 from __future__ import annotations
