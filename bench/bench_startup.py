@@ -25,8 +25,13 @@ Targets (issue #21; exit code 1 otherwise): ``ivslam run`` on the tiny log ≤ 0
 its fixed cost ≤ 0.3 s. When the one-kernel floor is already above a target, the benchmark
 says so: a run pays the floor, less what the tuning of its process saves there.
 
+With ``--against TREE`` (another checkout, e.g. ``git worktree add /tmp/main main``) the benchmark
+also times ``ivslam run`` of both trees interleaved run by run, with the CPU time of each child:
+on a machine that other jobs keep busy, the only comparison that holds.
+
     python -m bench startup
     python -m bench.bench_startup --runs 9
+    python -m bench.bench_startup --runs 21 --against ../main
 """
 
 from __future__ import annotations
@@ -73,13 +78,13 @@ os._exit(0)
 TREE = Path(__file__).resolve().parents[1]
 
 
-def _env(tmp: Path) -> dict[str, str]:
-    """The children's environment: this one, with the bytecode cached in ``tmp`` and this tree's
+def _env(tmp: Path, tree: Path = TREE) -> dict[str, str]:
+    """The children's environment: this one, with the bytecode cached in ``tmp`` and ``tree``'s
     ``ivslam_cli`` first on the path (the children run in ``tmp``, where ``-m ivslam_cli`` would
     otherwise find whichever copy is installed, e.g. another worktree's editable install)."""
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     env["PYTHONPYCACHEPREFIX"] = str(tmp / "pycache")
-    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(TREE), env.get("PYTHONPATH")) if p)
+    env["PYTHONPATH"] = os.pathsep.join(p for p in (str(tree), env.get("PYTHONPATH")) if p)
     return env
 
 
@@ -100,6 +105,32 @@ def _time(cmd: list[str], runs: int, cwd: Path, env: dict[str, str]) -> tuple[li
     return walls, cpus
 
 
+def _against(cmd: list[str], other: Path, runs: int, cwd: Path) -> None:
+    """``cmd`` of this tree and of ``other``, interleaved run by run (the order alternating), two
+    warm-up rounds first: wall and CPU (the child's own, from ``wait4``) of each, and the load."""
+    trees = {"this tree": TREE, "against": other}
+    times: dict[str, tuple[list[float], list[float]]] = {k: ([], []) for k in trees}
+    loads = []
+    for k in range(runs + 2):
+        for name in (list(trees) if k % 2 == 0 else list(trees)[::-1]):
+            t0 = time.perf_counter()
+            child = subprocess.Popen(cmd, cwd=cwd, env=_env(cwd, trees[name]), stdout=subprocess.DEVNULL,
+                                     stderr=subprocess.DEVNULL)
+            _, status, usage = os.wait4(child.pid, 0)
+            wall = time.perf_counter() - t0
+            child.returncode = os.waitstatus_to_exitcode(status)
+            if child.returncode:
+                raise SystemExit(f"{' '.join(cmd)} failed ({child.returncode}) with {trees[name]}")
+            if k >= 2:
+                times[name][0].append(wall)
+                times[name][1].append(usage.ru_utime + usage.ru_stime)
+        loads.append(os.getloadavg()[0])
+    print(f"ivslam run interleaved with {other} ({runs} runs each, load average {min(loads):.2f}-{max(loads):.2f}):")
+    for name, (walls, cpus) in times.items():
+        print(f"  {name:<10} wall median {statistics.median(walls):.3f} s (min {min(walls):.3f}, max {max(walls):.3f})"
+              f"   cpu median {statistics.median(cpus):.3f} s (min {min(cpus):.3f})")
+
+
 def _row(name: str, walls: list[float], cpus: list[float]) -> float:
     w = statistics.median(walls)
     print(f"  {name:<34} wall {w:6.3f} s (min {min(walls):.3f}, max {max(walls):.3f})   "
@@ -110,6 +141,9 @@ def _row(name: str, walls: list[float], cpus: list[float]) -> float:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--runs", type=int, default=7, help="timed runs per row (median quoted)")
+    ap.add_argument("--against", type=Path, metavar="TREE", default=None,
+                    help="also time `ivslam run` of the checkout TREE interleaved with this one, run by run "
+                         "(an A/B that a busy machine does not bias)")
     a = ap.parse_args(argv)
     py = sys.executable
     ivslam = [py, "-m", "ivslam_cli"]
@@ -144,6 +178,8 @@ def main(argv: list[str] | None = None) -> int:
 
         with h5py.File(d / "r.h5", "r") as f:
             pipeline = float(f.attrs["runtime_s"])
+        if a.against is not None:
+            _against(run, a.against.resolve(), a.runs, d)
     fixed = rows["run"] - pipeline
     print(f"ivslam run: {rows['run']:.3f} s, of which the pipeline {pipeline:.3f} s: fixed cost {fixed:.3f} s")
     print(f"floor: one cached kernel {rows['kernel']:.3f} s (numba import {rows['numba'] - rows['pass']:.3f} s, "
