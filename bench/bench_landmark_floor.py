@@ -13,7 +13,7 @@ issue's targets, and our two runs' widths at the same nodes.
 It is also a soundness check beyond the truth: each witness must lie in our boxes (SLAM and
 map given) at its node; a witness outside one is reported as a SOUNDNESS FAILURE (exit 1).
 
-Needs SciPy (HiGHS) from the dev extra. Slow (tens of seconds a node): the defaults take a
+Needs highspy (HiGHS) from the dev extra. Slow (tens of seconds a node): the defaults take a
 few nodes a robot.
 
     python -m bench landmark_floor
@@ -101,9 +101,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="witnesses also move the landmarks (slower; the surveyed map is kept otherwise)")
     args = ap.parse_args(argv)
     try:
-        import scipy  # noqa: F401
+        import highspy  # noqa: F401
     except ImportError:
-        print("bench_landmark_floor needs SciPy (pip install -e '.[dev]')")
+        print("bench_landmark_floor needs highspy (HiGHS; pip install -e '.[dev]')")
         return 2
     windows = tuple(float(w) for w in args.windows.split(","))
     failures: list[str] = []

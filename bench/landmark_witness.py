@@ -14,7 +14,7 @@ pipeline with the true map given measures it from above).
 Witnesses are built from the truth: a modelled path is fitted to it (every true pose within the
 lag of the path: :func:`fit_base`), then the path over a window of time, the true poses (and in
 SLAM mode the landmarks seen there) are pushed towards an extreme of one pose by sequential
-linear programming (HiGHS through SciPy, a dev dependency), the path leaving the window where
+linear programming (HiGHS through highspy, a dev dependency), the path leaving the window where
 the fitted one does so that everything outside is unchanged. Every accepted step is checked
 exactly: the path integrated in closed form (arcs under held commands), every bound met with a
 margin (``S_CTRL`` of each bound, ``S_OFF`` of each lag). Observations the truth shows to break
@@ -210,15 +210,65 @@ class Base:
     worst: float
 
 
-def _linprog():
-    from scipy.optimize import linprog  # dev dependency
-    return linprog
+def _quiet_highs():
+    """A HiGHS instance (highspy, dev dependency) that prints nothing: its constructor writes
+    a banner to the process's stdout, which is muted while it runs."""
+    import os
+
+    import highspy
+
+    sys_stdout = os.dup(1)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 1)
+            h = highspy.Highs()
+    finally:
+        os.dup2(sys_stdout, 1)
+        os.close(sys_stdout)
+    h.setOptionValue("output_flag", False)
+    return h
+
+
+def linprog(cost, A_ub=None, b_ub=None, A_eq=None, b_eq=None, bounds=None):
+    """min cost·x subject to A_ub x ≤ b_ub, A_eq x = b_eq, bounds[:, 0] ≤ x ≤ bounds[:, 1] (dense
+    matrices), by HiGHS: (solved, x, objective). HiGHS through highspy rather than SciPy: with
+    SciPy installed numba imports scipy.linalg in every process that calls a kernel."""
+    import highspy
+
+    n = cost.size
+    rows, lo_r, hi_r = [], [], []
+    if A_ub is not None:
+        rows.append(np.asarray(A_ub, float))
+        lo_r.append(np.full(rows[-1].shape[0], -highspy.kHighsInf))
+        hi_r.append(np.asarray(b_ub, float))
+    if A_eq is not None:
+        rows.append(np.asarray(A_eq, float))
+        lo_r.append(np.asarray(b_eq, float))
+        hi_r.append(np.asarray(b_eq, float))
+    M = np.vstack(rows) if rows else np.zeros((0, n))
+    lp = highspy.HighsLp()
+    lp.num_col_, lp.num_row_ = n, M.shape[0]
+    lp.col_cost_ = np.asarray(cost, float)
+    lp.col_lower_ = np.where(np.isfinite(bounds[:, 0]), bounds[:, 0], -highspy.kHighsInf)
+    lp.col_upper_ = np.where(np.isfinite(bounds[:, 1]), bounds[:, 1], highspy.kHighsInf)
+    lp.row_lower_ = np.concatenate(lo_r) if rows else np.zeros(0)
+    lp.row_upper_ = np.concatenate(hi_r) if rows else np.zeros(0)
+    r, c = np.nonzero(M)
+    lp.a_matrix_.format_ = highspy.MatrixFormat.kRowwise
+    lp.a_matrix_.num_col_, lp.a_matrix_.num_row_ = n, M.shape[0]
+    lp.a_matrix_.start_ = np.searchsorted(r, np.arange(M.shape[0] + 1))
+    lp.a_matrix_.index_ = c
+    lp.a_matrix_.value_ = M[r, c]
+    h = _quiet_highs()
+    h.passModel(lp)
+    h.run()
+    ok = h.getModelStatus() == highspy.HighsModelStatus.kOptimal
+    return ok, np.array(h.getSolution().col_value), float(h.getInfo().objective_function_value)
 
 
 def fit_base(pb: Problem, chunk: float = 40.0, keep: float = 25.0, iterations: int = 20) -> Base:
     """Controls of a modelled path whose distance to the truth, at every check step, is the
     smallest share of the lag (minimax by SLP, chunk after chunk)."""
-    linprog = _linprog()
     d, a, c = np.zeros(pb.nblk), np.zeros(pb.nblk), np.zeros(pb.nblk)
     T0 = pb.truth(0.0)[0]
     p0b = pb.initial_box()
@@ -245,10 +295,9 @@ def fit_base(pb: Problem, chunk: float = 40.0, keep: float = 25.0, iterations: i
             hi = np.concatenate([phi, np.minimum(cb - cur, 0.5 * cb), [1e4]])
             cost = np.zeros(nv)
             cost[-1] = 1.0
-            res = linprog(cost, A_ub=A, b_ub=rhs, bounds=np.column_stack([lo, hi]), method="highs")
-            if res.status != 0:
-                raise RuntimeError(f"fitting a path to the truth: {res.message}")
-            dz = res.x
+            ok, dz, _ = linprog(cost, A_ub=A, b_ub=rhs, bounds=np.column_stack([lo, hi]))
+            if not ok:
+                raise RuntimeError("fitting a path to the truth: no solution of the linear program")
             if s0 == 0:
                 P = P + dz[:3]
                 P0 = P.copy()
@@ -289,7 +338,6 @@ class Witness:
         grid step ``step``) or ``("lm", id, k)`` — reached towards ``sign`` by witnesses whose path
         differs from the fitted one over ``[t_lo, t_hi]`` only (a value the witness returned holds
         every bound: see the module docstring)."""
-        linprog = _linprog()
         pb = self.pb
         b0 = max(int(np.floor(t_lo / BLOCK)), 0)
         b1 = min(int(np.ceil(t_hi / BLOCK)), pb.nblk)
@@ -355,7 +403,6 @@ class Witness:
             return np.array([lmcol.get(int(i), -1) for i in ids], np.int64)
 
         def linearise(s):
-            from scipy import sparse
             X, J = Path(pb, s["P"], s["d"], s["a"], s["c"], w0, w1).jac(pb, rows, b0, nb)
             blocks, rhs = [], []
             for k, pose, Jp in self._obs_parts(X, J, s, ow, ow_f, oo, oo_f, nfw, NV, nvp, c_fw, c_fo):
@@ -372,7 +419,7 @@ class Witness:
                 Aeq, beq = e[2:3], np.array([Xend[2] - X[-1, 2]])
                 blocks += [e[:2], -e[:2]]
                 rhs += [0.5 * endslack - (X[-1, :2] - Xend[:2]), 0.5 * endslack + (X[-1, :2] - Xend[:2])]
-            A = sparse.csr_matrix(np.vstack(blocks)) if blocks else None
+            A = np.vstack(blocks) if blocks else None
             return X, J, A, (np.concatenate(rhs) if rhs else None), Aeq, beq
 
         def bounds(s, tr, trl):
@@ -462,16 +509,16 @@ class Witness:
                 cost[col + target[2]] -= sign
             else:
                 cost[lmcol[int(target[1])] + target[2]] = -sign
-            res = linprog(cost, A_ub=A, b_ub=rhs, A_eq=Aeq, b_eq=beq, bounds=np.column_stack([lo, hi]), method="highs")
-            if res.status != 0:
+            ok, x, fun = linprog(cost, A_ub=A, b_ub=rhs, A_eq=Aeq, b_eq=beq, bounds=np.column_stack([lo, hi]))
+            if not ok:
                 tr, trl = 0.5 * tr, 0.5 * trl
                 if tr < 1e-4:
                     break
                 continue
-            if -res.fun < 1e-5:
+            if -fun < 1e-5:
                 break
             for frac in (1.0, 0.5, 0.25, 0.12):
-                cand = restore(apply(st, frac * res.x))
+                cand = restore(apply(st, frac * x))
                 if feasible(cand) and sign * (value(cand) - value(st)) > 0:
                     st = cand
                     tr, trl = min(1.5 * tr, 1.0), min(1.5 * trl, 2.0)

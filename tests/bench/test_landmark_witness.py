@@ -9,7 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-pytest.importorskip("scipy")
+pytest.importorskip("highspy")
 
 from bench.landmark_witness import Bounds, Problem, Witness, fit_base, wrap  # noqa: E402
 from ivslam_cli.config import resolve_config  # noqa: E402
