@@ -61,6 +61,7 @@ from ivslam_cli.slam.landmarks.observations import (  # noqa: F401
     OBS_REJECTED_LANDMARK, OBS_REJECTED_POSE, OBS_USED, landmark_update, pose_update)
 from ivslam_cli.slam.landmarks.pose_sets import (  # noqa: F401
     STEP_NONE, _circular_hull, all_hulls, count_boxes, flatten_sets, make_bins, set_from_box, step_sets)
+from ivslam_cli.slam.landmarks.relative import pair_sets
 from ivslam_cli.slam.motion_kernel import INCREMENT, cap_heading, init_headings, step_contract  # noqa: F401
 from ivslam_cli.slam.progress import tell
 
@@ -86,15 +87,20 @@ def total_width(H, L):
 def solve(PS, H, L, BINS, kind, U, node_stamp, chain_of, travel, turn, turn_err, node, lm, tnode, treach, rho, alpha,
           reach, obs_node_stamp, by_node, node_first_obs, chain_obs, by_target, target_first, lm_offsets, lm_order,
           q, q_pose, window, window_obs, pieces, max_iterations, tolerance, status, step_events, pose_events, lm_events,
-          width_trace):
+          width_trace, rel_k, rel_l, rel_R, rel_off, rel_in_off, rel_out, rel_out_off, rel_events):
     """Sweep forward and backward to a fixpoint (see the module docstring). In place.
 
     ``by_node``: observation indices sorted by (chain, node) (``obs_node_stamp``: their nodes'
     stamps; ``chain_obs[c]:chain_obs[c + 1]`` the part on chain ``c``); ``node_first_obs[k]``
     is −1 for nodes without observations of their own or of their robot by others.
     ``step_events[k]`` / ``pose_events[k]`` / ``lm_events[i]`` count the skipped
-    contractions. ``width_trace[it]`` is the summed width after sweep ``it``. Returns the
-    number of sweeps done.
+    contractions. ``width_trace[it]`` is the summed width after sweep ``it``.
+
+    Pair constraints (:mod:`.relative`): pair ``p`` relates nodes ``rel_k[p] < rel_l[p]`` by the
+    increments ``rel_R[rel_off[p]:rel_off[p + 1]]``; those of node ``l`` are
+    ``rel_in_off[l]:rel_in_off[l + 1]`` (contracted in the forward sweep on reaching ``l``),
+    those from node ``k`` are ``rel_out[rel_out_off[k]:rel_out_off[k + 1]]`` (in the backward
+    sweep); ``rel_events[p]`` counts the skipped contractions. Returns the number of sweeps done.
     """
     n = PS.shape[0]
     S = PS.shape[1]
@@ -124,6 +130,7 @@ def solve(PS, H, L, BINS, kind, U, node_stamp, chain_of, travel, turn, turn_err,
     accC = np.empty((S, 3, 2))
     h_lo = np.empty(S)
     h_hi = np.empty(S)
+    pairdone = np.full(max(rel_k.shape[0], 1), -1, np.int64)
     all_hulls(PS, H)
     prev = total_width(H, L)
     done = 0
@@ -132,6 +139,9 @@ def solve(PS, H, L, BINS, kind, U, node_stamp, chain_of, travel, turn, turn_err,
             if not step_sets(PS, H, k, kind, U, BINS, accA, accC, h_lo, h_hi, ver, stepdone, clock):
                 step_events[k] += 1
             k1 = k + 1
+            for p in range(rel_in_off[k1], rel_in_off[k1 + 1]):
+                if not pair_sets(PS, H, p, rel_k, rel_l, rel_R, rel_off, accA, accC, h_lo, h_hi, ver, pairdone, clock):
+                    rel_events[p] += 1
             if node_first_obs[k1] >= 0:
                 c = chain_of[k1]
                 if not pose_update(PS, H, L, U, k1, by_node, node_stamp, obs_node_stamp, chain_obs[c], chain_obs[c + 1],
@@ -144,6 +154,10 @@ def solve(PS, H, L, BINS, kind, U, node_stamp, chain_of, travel, turn, turn_err,
         for k in range(n - 2, -1, -1):  # backward
             if not step_sets(PS, H, k, kind, U, BINS, accA, accC, h_lo, h_hi, ver, stepdone, clock):
                 step_events[k] += 1
+            for t in range(rel_out_off[k], rel_out_off[k + 1]):
+                p = rel_out[t]
+                if not pair_sets(PS, H, p, rel_k, rel_l, rel_R, rel_off, accA, accC, h_lo, h_hi, ver, pairdone, clock):
+                    rel_events[p] += 1
             if node_first_obs[k] >= 0:
                 c = chain_of[k]
                 if not pose_update(PS, H, L, U, k, by_node, node_stamp, obs_node_stamp, chain_obs[c], chain_obs[c + 1],
