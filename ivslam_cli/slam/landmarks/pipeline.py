@@ -37,7 +37,7 @@ from ivslam_cli.interval.pose import box_width
 from ivslam_cli.interval.vector import bound_up, point, sym
 from ivslam_cli.slam.landmarks import kernel as K
 from ivslam_cli.slam.landmarks.params import Params
-from ivslam_cli.slam.landmarks.relative import Relative, relative_constraints
+from ivslam_cli.slam.landmarks.skips import Skips, skip_edges
 from ivslam_cli.slam.landmarks.steps import Steps, chain_steps
 from ivslam_cli.slam.motion import cumulative_up, initial_box
 from ivslam_cli.slam.pipeline import empty_events, make_result
@@ -289,8 +289,8 @@ class Solution:
     lm_events: np.ndarray
     trace: np.ndarray
     sweeps: int
-    relative: Relative
-    rel_events: np.ndarray
+    skips: Skips
+    skip_events: np.ndarray
 
 
 def solve_problem(pb: Problem, params: Params, known_landmarks: np.ndarray | None = None) -> Solution:
@@ -332,17 +332,16 @@ def solve_problem(pb: Problem, params: Params, known_landmarks: np.ndarray | Non
     lm_events = np.zeros(pb.ids.size, np.int64)
     max_it = params.max_iterations
     trace = np.full(max_it, np.nan)
-    rel = relative_constraints(pb.node, pb.lm, pb.chain_of, pb.U, pb.travel, pb.turn, pb.turn_err, pb.rho, pb.alpha,
-                               pb.reach, params.relative_pairs, params.relative_min_common, params.q_pose)
-    rel_events = np.zeros(rel.count, np.int64)
+    skips = skip_edges(np.unique(pb.node), pb.chain_of, pb.U, params.skip_levels)
+    skip_events = np.zeros(skips.count, np.int64)
     sweeps = K.solve(PS, H, L, BINS, pb.kind, pb.U, pb.node_stamp, pb.chain_of, pb.travel, pb.turn, pb.turn_err,
                      pb.node, pb.lm, pb.tnode, pb.treach, pb.rho, pb.alpha, pb.reach, obs_node_stamp, by_node,
                      node_first, chain_obs, by_target, target_first, lm_offsets, lm_order, pb.q, params.q_pose,
                      params.pose_window, params.pose_window_obs, params.pose_pieces, max_it, params.tolerance, status, step_events,
-                     pose_events, lm_events, trace, rel.k, rel.l, rel.R, rel.off, rel.in_off, rel.out, rel.out_off,
-                     rel_events)
-    return Solution(PS, H, L, status, step_events, pose_events, lm_events, trace[:sweeps], int(sweeps), rel,
-                    rel_events)
+                     pose_events, lm_events, trace, skips.a, skips.b, skips.R, skips.in_off, skips.out, skips.out_off,
+                     skip_events)
+    return Solution(PS, H, L, status, step_events, pose_events, lm_events, trace[:sweeps], int(sweeps), skips,
+                    skip_events)
 
 
 def true_pose_sets(pb: Problem, sol: Solution) -> tuple[np.ndarray, PoseSets]:
@@ -417,16 +416,12 @@ def solve(log, params: Params, known_landmarks: dict[int, tuple[float, float]] |
         rows.append((pb.node_stamp[k], k, "pose_qinter", (int(k), -1), -1,
                      f"the observations at pose {k} (t={pb.node_stamp[k]:.3f} s) contradict it beyond "
                      f"q={params.q_pose} ({pose_ev[k]} sweep(s)); skipped"))
-    rel = sol.relative
-    for k, l in rel.broken:
-        rows.append((pb.node_stamp[l], l, "relative", (int(k), int(l)), -1,
-                     f"the common landmarks of poses {k} and {l} (t={pb.node_stamp[k]:.3f}, {pb.node_stamp[l]:.3f} s) "
-                     f"allow no relative pose with q={rel.q}; the pair was left out"))
-    for p in np.flatnonzero(sol.rel_events):
-        k, l = int(rel.k[p]), int(rel.l[p])
-        rows.append((pb.node_stamp[l], l, "relative", (k, l), -1,
-                     f"the relative pose of poses {k} and {l} (t={pb.node_stamp[k]:.3f}, {pb.node_stamp[l]:.3f} s) "
-                     f"contradicts them ({sol.rel_events[p]} sweep(s)); its contraction was skipped"))
+    sk = sol.skips
+    for e in np.flatnonzero(sol.skip_events):
+        a, b = int(sk.a[e]), int(sk.b[e])
+        rows.append((pb.node_stamp[a], a, "motion", (a, b), -1,
+                     f"the motion from pose {a} to pose {b} (t={pb.node_stamp[a]:.3f} to {pb.node_stamp[b]:.3f} s, "
+                     f"composed) contradicts the poses ({sol.skip_events[e]} sweep(s)); its contraction was skipped"))
     for i in np.flatnonzero(lm_ev):
         rows.append((pb.node_stamp[-1], n - 1, "landmark_qinter", (int(pb.ids[i]), -1), -1,
                      f"landmark {pb.ids[i]}: its observations contradict each other beyond q={pb.q[i]} "
@@ -467,11 +462,6 @@ def solve(log, params: Params, known_landmarks: dict[int, tuple[float, float]] |
         f"{params.pose_window} s of each pose; observations proven to break it are rejected "
         f"({rej.size}) and listed"
     )
-    if rel.count or rel.broken.size:
-        assumption += (f"; relative pose constraints between {rel.count} pairs of poses that observed the same "
-                       f"landmarks (landmarks.relative_pairs): each the q-relaxed intersection over their common "
-                       f"landmarks with q = 2·q_pose = {rel.q}, which holds when at most q_pose of each pose's own "
-                       "observations break their bounds (implied by the above)")
     if known_landmarks is not None:
         assumption += (f"; localisation only: the landmarks given (map_known), each within ±{known_margin:g} m of "
                        "its position in the log's ground truth")
@@ -495,7 +485,7 @@ def solve(log, params: Params, known_landmarks: dict[int, tuple[float, float]] |
         "median_heading_width": _median_finite(P[:, 2, 1] - P[:, 2, 0]),
         "pose_slices": int(params.pose_slices), "pose_set_boxes": int(sets.boxes.shape[0]),
         "pose_set_max_boxes": int(np.diff(sets.offsets).max()) if n else 0,
-        "relative_pairs": int(rel.count),
+        "skip_edges": int(sol.skips.count),
         "solve_s": float(runtime),
     }
     return LandmarksOutput(
