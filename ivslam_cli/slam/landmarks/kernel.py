@@ -20,6 +20,8 @@ Constraints:
   sin(θ_k + α))``, ``θ_{k+1} = θ_k + δθ (mod 2π)``; contracted slice pair by slice pair (a slice
   of ``k`` reaches the one or two slices its heading turns into), each slice keeping the hull
   of what its pairs allow (:func:`step_sets`);
+- **skip edges** (:mod:`.skips`) between observation frames 2, 4, … frames apart on a chain:
+  the composed increment of the steps between them, contracted like a motion step;
 - **observation** ``j`` from node ``node[j]`` with range ``ρ_j`` and bearing ``α_j`` intervals
   (noise folded in) of landmark ``lm[j]``, or (``lm[j] = −1``) of the robot at node
   ``tnode[j]`` of another chain. The pose at the observation lies in ``PS[node] ⊕ reach[j]``
@@ -61,6 +63,7 @@ from ivslam_cli.slam.landmarks.observations import (  # noqa: F401
     OBS_REJECTED_LANDMARK, OBS_REJECTED_POSE, OBS_USED, landmark_update, pose_update)
 from ivslam_cli.slam.landmarks.pose_sets import (  # noqa: F401
     STEP_NONE, _circular_hull, all_hulls, count_boxes, flatten_sets, make_bins, set_from_box, step_sets)
+from ivslam_cli.slam.landmarks.skips import skip_sets
 from ivslam_cli.slam.motion_kernel import INCREMENT, cap_heading, init_headings, step_contract  # noqa: F401
 from ivslam_cli.slam.progress import tell
 
@@ -86,15 +89,20 @@ def total_width(H, L):
 def solve(PS, H, L, BINS, kind, U, node_stamp, chain_of, travel, turn, turn_err, node, lm, tnode, treach, rho, alpha,
           reach, obs_node_stamp, by_node, node_first_obs, chain_obs, by_target, target_first, lm_offsets, lm_order,
           q, q_pose, window, window_obs, pieces, max_iterations, tolerance, status, step_events, pose_events, lm_events,
-          width_trace):
+          width_trace, skip_a, skip_b, skip_R, skip_in_off, skip_out, skip_out_off, skip_events):
     """Sweep forward and backward to a fixpoint (see the module docstring). In place.
 
     ``by_node``: observation indices sorted by (chain, node) (``obs_node_stamp``: their nodes'
     stamps; ``chain_obs[c]:chain_obs[c + 1]`` the part on chain ``c``); ``node_first_obs[k]``
     is −1 for nodes without observations of their own or of their robot by others.
     ``step_events[k]`` / ``pose_events[k]`` / ``lm_events[i]`` count the skipped
-    contractions. ``width_trace[it]`` is the summed width after sweep ``it``. Returns the
-    number of sweeps done.
+    contractions. ``width_trace[it]`` is the summed width after sweep ``it``.
+
+    Skip edges (:mod:`.skips`): edge ``e`` links nodes ``skip_a[e] < skip_b[e]`` by the composed
+    increment ``skip_R[e]``; those into node ``b`` are ``skip_in_off[b]:skip_in_off[b + 1]``
+    (contracted in the forward sweep on reaching ``b``), those from node ``a`` are
+    ``skip_out[skip_out_off[a]:skip_out_off[a + 1]]`` (in the backward sweep);
+    ``skip_events[e]`` counts the skipped contractions. Returns the number of sweeps done.
     """
     n = PS.shape[0]
     S = PS.shape[1]
@@ -124,6 +132,7 @@ def solve(PS, H, L, BINS, kind, U, node_stamp, chain_of, travel, turn, turn_err,
     accC = np.empty((S, 3, 2))
     h_lo = np.empty(S)
     h_hi = np.empty(S)
+    skipdone = np.full(max(skip_a.shape[0], 1), -1, np.int64)
     all_hulls(PS, H)
     prev = total_width(H, L)
     done = 0
@@ -132,6 +141,9 @@ def solve(PS, H, L, BINS, kind, U, node_stamp, chain_of, travel, turn, turn_err,
             if not step_sets(PS, H, k, kind, U, BINS, accA, accC, h_lo, h_hi, ver, stepdone, clock):
                 step_events[k] += 1
             k1 = k + 1
+            for e in range(skip_in_off[k1], skip_in_off[k1 + 1]):
+                if not skip_sets(PS, H, e, skip_a, skip_b, skip_R, accA, accC, h_lo, h_hi, ver, skipdone, clock):
+                    skip_events[e] += 1
             if node_first_obs[k1] >= 0:
                 c = chain_of[k1]
                 if not pose_update(PS, H, L, U, k1, by_node, node_stamp, obs_node_stamp, chain_obs[c], chain_obs[c + 1],
@@ -144,6 +156,10 @@ def solve(PS, H, L, BINS, kind, U, node_stamp, chain_of, travel, turn, turn_err,
         for k in range(n - 2, -1, -1):  # backward
             if not step_sets(PS, H, k, kind, U, BINS, accA, accC, h_lo, h_hi, ver, stepdone, clock):
                 step_events[k] += 1
+            for t in range(skip_out_off[k], skip_out_off[k + 1]):
+                e = skip_out[t]
+                if not skip_sets(PS, H, e, skip_a, skip_b, skip_R, accA, accC, h_lo, h_hi, ver, skipdone, clock):
+                    skip_events[e] += 1
             if node_first_obs[k] >= 0:
                 c = chain_of[k]
                 if not pose_update(PS, H, L, U, k, by_node, node_stamp, obs_node_stamp, chain_obs[c], chain_obs[c + 1],

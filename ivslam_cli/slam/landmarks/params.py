@@ -26,6 +26,7 @@ class Params:
     pose_slices: int
     pose_pieces: int
     max_step: float
+    skip_levels: int
     map_known: bool
     map_margin: float
     max_iterations: int
@@ -41,6 +42,7 @@ class Params:
             strict=bool(cfg["robust.strict"]), pose_window=float(cfg["landmarks.pose_window"]),
             pose_window_obs=int(cfg["landmarks.pose_window_obs"]),
             pose_slices=int(cfg["landmarks.pose_slices"]), pose_pieces=int(cfg["landmarks.pose_pieces"]), max_step=float(cfg["landmarks.max_step"]),
+            skip_levels=int(cfg["landmarks.skip_levels"]),
             map_known=bool(cfg["landmarks.map_known"]), map_margin=float(cfg["landmarks.map_margin"]),
             max_iterations=int(cfg["landmarks.max_iterations"]), tolerance=float(cfg["landmarks.tolerance"]),
         )

@@ -37,6 +37,7 @@ from ivslam_cli.interval.pose import box_width
 from ivslam_cli.interval.vector import bound_up, point, sym
 from ivslam_cli.slam.landmarks import kernel as K
 from ivslam_cli.slam.landmarks.params import Params
+from ivslam_cli.slam.landmarks.skips import Skips, skip_edges
 from ivslam_cli.slam.landmarks.steps import Steps, chain_steps
 from ivslam_cli.slam.motion import cumulative_up, initial_box
 from ivslam_cli.slam.pipeline import empty_events, make_result
@@ -288,6 +289,8 @@ class Solution:
     lm_events: np.ndarray
     trace: np.ndarray
     sweeps: int
+    skips: Skips
+    skip_events: np.ndarray
 
 
 def solve_problem(pb: Problem, params: Params, known_landmarks: np.ndarray | None = None) -> Solution:
@@ -329,12 +332,16 @@ def solve_problem(pb: Problem, params: Params, known_landmarks: np.ndarray | Non
     lm_events = np.zeros(pb.ids.size, np.int64)
     max_it = params.max_iterations
     trace = np.full(max_it, np.nan)
+    skips = skip_edges(np.unique(pb.node), pb.chain_of, pb.U, params.skip_levels)
+    skip_events = np.zeros(skips.count, np.int64)
     sweeps = K.solve(PS, H, L, BINS, pb.kind, pb.U, pb.node_stamp, pb.chain_of, pb.travel, pb.turn, pb.turn_err,
                      pb.node, pb.lm, pb.tnode, pb.treach, pb.rho, pb.alpha, pb.reach, obs_node_stamp, by_node,
                      node_first, chain_obs, by_target, target_first, lm_offsets, lm_order, pb.q, params.q_pose,
                      params.pose_window, params.pose_window_obs, params.pose_pieces, max_it, params.tolerance, status, step_events,
-                     pose_events, lm_events, trace)
-    return Solution(PS, H, L, status, step_events, pose_events, lm_events, trace[:sweeps], int(sweeps))
+                     pose_events, lm_events, trace, skips.a, skips.b, skips.R, skips.in_off, skips.out, skips.out_off,
+                     skip_events)
+    return Solution(PS, H, L, status, step_events, pose_events, lm_events, trace[:sweeps], int(sweeps), skips,
+                    skip_events)
 
 
 def true_pose_sets(pb: Problem, sol: Solution) -> tuple[np.ndarray, PoseSets]:
@@ -409,6 +416,12 @@ def solve(log, params: Params, known_landmarks: dict[int, tuple[float, float]] |
         rows.append((pb.node_stamp[k], k, "pose_qinter", (int(k), -1), -1,
                      f"the observations at pose {k} (t={pb.node_stamp[k]:.3f} s) contradict it beyond "
                      f"q={params.q_pose} ({pose_ev[k]} sweep(s)); skipped"))
+    sk = sol.skips
+    for e in np.flatnonzero(sol.skip_events):
+        a, b = int(sk.a[e]), int(sk.b[e])
+        rows.append((pb.node_stamp[a], a, "motion", (a, b), -1,
+                     f"the motion from pose {a} to pose {b} (t={pb.node_stamp[a]:.3f} to {pb.node_stamp[b]:.3f} s, "
+                     f"composed) contradicts the poses ({sol.skip_events[e]} sweep(s)); its contraction was skipped"))
     for i in np.flatnonzero(lm_ev):
         rows.append((pb.node_stamp[-1], n - 1, "landmark_qinter", (int(pb.ids[i]), -1), -1,
                      f"landmark {pb.ids[i]}: its observations contradict each other beyond q={pb.q[i]} "
@@ -472,6 +485,7 @@ def solve(log, params: Params, known_landmarks: dict[int, tuple[float, float]] |
         "median_heading_width": _median_finite(P[:, 2, 1] - P[:, 2, 0]),
         "pose_slices": int(params.pose_slices), "pose_set_boxes": int(sets.boxes.shape[0]),
         "pose_set_max_boxes": int(np.diff(sets.offsets).max()) if n else 0,
+        "skip_edges": int(sol.skips.count),
         "solve_s": float(runtime),
     }
     return LandmarksOutput(

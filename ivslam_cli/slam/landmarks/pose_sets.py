@@ -163,20 +163,36 @@ def step_sets(PS, H, k, kind, U, BINS, accA, accC, h_lo, h_hi, ver, stepdone, cl
         return True
     if ver[k] <= stepdone[k] and ver[k + 1] <= stepdone[k]:
         return True
-    S = PS.shape[1]
-    w = TWO_PI_HI / S
-    for b in range(S):
+    for b in range(PS.shape[1]):
         _set_empty3(accA[b])
         _set_empty3(accC[b])
-    rl, rh = U[k, 0, 0], U[k, 0, 1]
-    al, ah = U[k, 1, 0], U[k, 1, 1]
-    dl, dh = U[k, 2, 0], U[k, 2, 1]
+    found = increment_pairs(PS, k, k + 1, U[k], accA, accC)
+    if not found:
+        stepdone[k] = clock[0]
+        return False
+    _commit(PS, H, k, accA, h_lo, h_hi, ver, clock)
+    _commit(PS, H, k + 1, accC, h_lo, h_hi, ver, clock)
+    stepdone[k] = clock[0]
+    return True
+
+
+@njit(cache=True)
+def increment_pairs(PS, k, l, inc, accA, accC):
+    """``accA`` (slices of node ``k``) and ``accC`` (of node ``l``) ∪= what the increment
+    ``inc`` (rows ``ρ, α, δθ``: node ``l`` in the frame of node ``k``) allows, slice pair by
+    slice pair (a slice of ``k`` reaches the one or two slices its heading turns into). True if
+    some pair has a solution."""
+    S = PS.shape[1]
+    w = TWO_PI_HI / S
+    rl, rh = inc[0, 0], inc[0, 1]
+    al, ah = inc[1, 0], inc[1, 1]
+    dl, dh = inc[2, 0], inc[2, 1]
     found = False
     for b in range(S):
         if _empty(PS, k, b):
             continue
         A = PS[k, b]
-        fl, fh = add(A[2, 0], A[2, 1], dl, dh)  # the heading at k + 1
+        fl, fh = add(A[2, 0], A[2, 1], dl, dh)  # the heading at l
         if fh - fl >= TWO_PI_LO - w:
             b0 = 0
             nb = S
@@ -185,9 +201,9 @@ def step_sets(PS, H, k, kind, U, BINS, accA, accC, h_lo, h_hi, ver, stepdone, cl
             nb = min(S, int((fh - fl) / w) + 3)
         for i in range(nb):
             c = (b0 + i) % S
-            if _empty(PS, k + 1, c):
+            if _empty(PS, l, c):
                 continue
-            C = PS[k + 1, c]
+            C = PS[l, c]
             ctl, cth = angle_meet(C[2, 0], C[2, 1], fl, fh)
             if not (ctl <= cth):
                 continue
@@ -205,13 +221,7 @@ def step_sets(PS, H, k, kind, U, BINS, accA, accC, h_lo, h_hi, ver, stepdone, cl
             _hull_into(accA[b], r[0], r[1], r[2], r[3], r[4], r[5])
             _hull_into(accC[c], r[6], r[7], r[8], r[9], ctl, cth)
             found = True
-    if not found:
-        stepdone[k] = clock[0]
-        return False
-    _commit(PS, H, k, accA, h_lo, h_hi, ver, clock)
-    _commit(PS, H, k + 1, accC, h_lo, h_hi, ver, clock)
-    stepdone[k] = clock[0]
-    return True
+    return found
 
 
 @njit(cache=True)
