@@ -43,7 +43,8 @@ def command(result: Path, as_json: bool, plot: Path | None, tum: Path | None, ma
 
     \b
     Containment against ground truth below 1.0 is flagged SOUNDNESS FAILURE, unless
-    outliers were injected and the run relaxed them (q > 0).
+    outliers were injected: then it says whether the run relaxed them (a q > 0 covering
+    their stream) or they break the stated bounds (odometry outliers: no q covers them).
 
     \b
     Examples:

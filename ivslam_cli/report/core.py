@@ -17,8 +17,11 @@ Containment — the check that the guarantee held — per kind of enclosure:
   Heading is compared modulo 2π.
 
 A fraction below 1.0 is a **SOUNDNESS FAILURE** — unless outliers were injected (the truth
-carries an outlier mask with some True) and the run relaxed them (some q > 0): then the
-guarantee only holds under ``Consistency.assumption`` and the report says so instead.
+carries an outlier mask with some True). Injected outliers of a stream some q > 0 of the run
+covers (:data:`Q_COVERS`: observations by the landmark, pose and pair q, scans by the beam q)
+are relaxed: the guarantee holds only under ``Consistency.assumption``. Injected outliers of a
+stream no q covers (odometry beyond its bounds) break the stated bounds themselves: the
+guarantee does not hold for that log. Either way the report says so instead.
 
 Widths: landmark and pose boxes by the largest side in x, y (pose heading reported apart);
 pair subpavings by the largest side of the hull of their outer approximation. Empty sets
@@ -53,6 +56,9 @@ TWO_PI = 2.0 * math.pi
 SOUND = "ok"
 FAILURE = "SOUNDNESS FAILURE"
 RELAXED = "below 1.0 with injected outliers under q-relaxation (holds only under the stated assumption)"
+BROKEN = "below 1.0 with injected outliers beyond the stated bounds that no q covers (no guarantee for this log)"
+#: the streams of injected outliers (``GroundTruth.outliers``) each kind of q relaxes
+Q_COVERS = {"landmark": "observations", "pose": "observations", "pair": "observations", "beams": "scans"}
 
 
 # ---------------------------------------------------------------- array primitives
@@ -457,7 +463,7 @@ class Report:
     final_width: dict[str, WidthStat]
     convergence: dict[str, Convergence]
     outliers_injected: int
-    relaxed: bool
+    relaxed: bool  # every injected outlier is in a stream some q > 0 covers
     intersections: int  # set updates recorded (width-history records)
     non_empty: int  # ... of which stayed non-empty
     rejected_by_reason: dict[str, int]
@@ -468,6 +474,8 @@ class Report:
     logodds_cells: dict[str, int] = field(default_factory=dict)  # occupied / free / unknown
     disagreement: dict[str, int] = field(default_factory=dict)  # see slam.lidar.logodds.compare
     disagreement_code: np.ndarray | None = None  # (H, W) uint8 per-cell codes (for the plot)
+    outliers_by_stream: dict[str, int] = field(default_factory=dict)  # injected, per stream
+    outliers_relaxed: dict[str, bool] = field(default_factory=dict)  # ... and whether a q > 0 covers it
     robot_containment: dict[int, Containment] = field(default_factory=dict)  # several robots: poses per robot
 
     @property
@@ -516,12 +524,14 @@ def compute_report(r: Result) -> Report:
         ):
             if c is not None and c.checked:
                 cont[c.kind] = c
-    injected = int(sum(int(np.count_nonzero(m)) for m in (truth.outliers.values() if truth else ())))
-    relaxed = any(int(q) > 0 for q in r.consistency.q.values())
-    soundness = {
-        k: SOUND if c.contained == c.checked else (RELAXED if injected and relaxed else FAILURE)
-        for k, c in cont.items()
-    }
+    by_stream = {str(k): int(np.count_nonzero(m)) for k, m in (truth.outliers.items() if truth else ())}
+    by_stream = {k: n for k, n in by_stream.items() if n}
+    covered = {Q_COVERS.get(k) for k, q in r.consistency.q.items() if int(q) > 0}
+    stream_relaxed = {k: k in covered for k in by_stream}
+    injected = sum(by_stream.values())
+    relaxed = bool(by_stream) and all(stream_relaxed.values())
+    short = FAILURE if not injected else (RELAXED if relaxed else BROKEN)
+    soundness = {k: SOUND if c.contained == c.checked else short for k, c in cont.items()}
     widths = r.consistency.widths
     updates = sum(len(h) for h in widths.values())
     non_empty = sum(int(np.count_nonzero(~np.isnan(h.width))) for h in widths.values())
@@ -556,6 +566,8 @@ def compute_report(r: Result) -> Report:
         convergence={k: convergence(h) for k, h in widths.items()},
         outliers_injected=injected,
         relaxed=relaxed,
+        outliers_by_stream=by_stream,
+        outliers_relaxed=stream_relaxed,
         intersections=updates,
         non_empty=non_empty,
         rejected_by_reason=dict(Counter(str(x) for x in r.consistency.rejected.reason)),

@@ -6,10 +6,11 @@ non_empty), ``containment`` (kind → fraction, only kinds checkable against the
 ``containment_detail`` (kind → checked, contained, not_checked, failures),
 ``robot_containment`` (a result of several robots: robot → checked, contained, fraction of its
 poses; empty otherwise), ``soundness``
-(kind → "ok" / "SOUNDNESS FAILURE" / relaxed note), ``sound`` (bool), ``centre_error``
+(kind → "ok" / "SOUNDNESS FAILURE" / relaxed or broken-bounds note), ``sound`` (bool), ``centre_error``
 (kind → median, max [m]), ``final_width`` (kind → median, max, count, empty),
 ``convergence`` (kind → initial/final median and max, increases, curve), ``rejected``,
-``q``, ``assumption``, ``stopped``, ``outliers_injected``, ``input``, ``config``, ``map`` (lidar;
+``q``, ``assumption``, ``stopped``, ``outliers_injected``, ``outliers_by_stream`` (stream →
+``injected``, ``q_relaxed``: whether a q > 0 of the run covers that stream), ``input``, ``config``, ``map`` (lidar;
 with ``map.logodds`` when the result has the log-odds baseline: ``guaranteed`` (false), ``scans``,
 ``beams``, ``model``, ``cells`` occupied/free/unknown and ``disagreement``: ``empty_occupied`` (a),
 ``unknown_occupied``, ``occupied_outside_obstacle`` (b = a + unknown_occupied), ``obstacle_free`` (c)),
@@ -67,6 +68,8 @@ def report_dict(rep: Report) -> dict[str, Any]:
         "rejected_list": [{"stream": str(st), "index": int(i), "reason": str(why)}
                           for st, i, why in zip(c.rejected.stream, c.rejected.index, c.rejected.reason)],
         "outliers_injected": rep.outliers_injected,
+        "outliers_by_stream": {k: {"injected": n, "q_relaxed": rep.outliers_relaxed[k]}
+                               for k, n in rep.outliers_by_stream.items()},
         "containment": {k: _num(v.fraction) for k, v in rep.containment.items()},
         "containment_detail": {
             k: {"checked": v.checked, "contained": v.contained, "not_checked": v.not_checked, "failures": v.failures}

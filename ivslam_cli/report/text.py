@@ -126,7 +126,9 @@ def render_text(rep: Report, source: str = "") -> str:
             add("  (poses: each box against the truth at its stamp, or the hull of the two truth samples")
             add(f"   around it; not checked: outside the truth's span or in a gap > {MAX_TRUTH_GAP:g} s)")
         if rep.outliers_injected:
-            add(f"  outliers injected: {rep.outliers_injected}; relaxed: {'yes' if rep.relaxed else 'no'}")
+            parts = [f"{k} {n}: " + ("q-relaxed" if rep.outliers_relaxed[k] else "beyond the stated bounds, no q covers them")
+                     for k, n in rep.outliers_by_stream.items()]
+            add(f"  outliers injected: {rep.outliers_injected} ({'; '.join(parts)})")
         if any(v == FAILURE for v in rep.soundness.values()):
             add("SOUNDNESS FAILURE: an enclosure lost the truth although the stated bounds should hold")
 

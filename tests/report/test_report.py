@@ -11,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli.report.core import (
+    BROKEN,
     FAILURE,
     RELAXED,
     SOUND,
@@ -61,8 +62,37 @@ def test_injected_and_relaxed_outliers_are_not_a_failure():
     rep = compute_report(r)
     assert rep.outliers_injected == 1 and rep.relaxed
     assert rep.soundness["landmark"] == RELAXED
-    # ... but not when nothing was relaxed
+    assert rep.outliers_by_stream == {"observations": 1} and rep.outliers_relaxed == {"observations": True}
+    assert "outliers injected: 1 (observations 1: q-relaxed)" in render_text(rep)
+    # ... but not when nothing was relaxed: the bounds are broken by the log, not by the method
     r.consistency.q = {"pair": 0}
+    rep = compute_report(r)
+    assert rep.soundness["landmark"] == BROKEN and not rep.relaxed
+    assert "SOUNDNESS FAILURE" not in render_text(rep)
+
+
+def test_odometry_outliers_are_not_relaxed_by_an_observation_q():
+    """No q covers odometry: injected odometry outliers break the stated bounds, and a miss is
+    reported as such, whatever q the observations had; a clean log's miss stays a failure."""
+    r = example_result()
+    r.landmarks.box[1, 0] += 1.0
+    r.truth.outliers["observations"][:] = False
+    r.truth.outliers["odometry"] = np.zeros(6, bool)
+    r.truth.outliers["odometry"][2] = True
+    rep = compute_report(r)
+    assert r.consistency.q == {"pair": 1}
+    assert rep.outliers_by_stream == {"odometry": 1} and not rep.relaxed
+    assert rep.soundness["landmark"] == BROKEN and rep.soundness["pair"] == SOUND
+    text = render_text(rep)
+    assert "outliers injected: 1 (odometry 1: beyond the stated bounds, no q covers them)" in text
+    assert "SOUNDNESS FAILURE" not in text
+    j = report_dict(rep)
+    assert j["outliers_by_stream"] == {"odometry": {"injected": 1, "q_relaxed": False}}
+    r.truth.outliers["observations"][4] = True  # one of each: not every outlier is relaxed
+    rep = compute_report(r)
+    assert rep.outliers_relaxed == {"observations": True, "odometry": False} and rep.soundness["landmark"] == BROKEN
+    r.truth.outliers["observations"][:] = False
+    r.truth.outliers["odometry"][:] = False  # no outlier injected: a real failure
     assert compute_report(r).soundness["landmark"] == FAILURE
 
 

@@ -259,7 +259,8 @@ def solve(log: LogData, params: Params, progress=None) -> LidarOutput:
         assumption += (f"; {len(tracking.relocalised)} motion step(s) broke their bounds, or more than "
                        f"q_beams beams of their scans did (empty events motion_outlier): their scans were relocalised, assuming the true pose within "
                        f"±{params.relocalise[0]:g} m, ±{params.relocalise[1]:g} rad of the predicted box there")
-    consistency = Consistency(empty_events=events, q={}, widths={"pose": pose_hist}, assumption=assumption)
+    q = {"beams": int(params.q_beams)} if tracking is not None else {}
+    consistency = Consistency(empty_events=events, q=q, widths={"pose": pose_hist}, assumption=assumption)
     duration = float(stamp[-1] - stamp[0]) if stamp.size > 1 else 0.0
     total = t2 - t0
     hw = _heading_width(pred.boxes)
