@@ -55,8 +55,9 @@ def inside(box: np.ndarray, k: int, value: float) -> bool:
     return bool(angle_in(np.array(lo), np.array(hi), np.array(value)))
 
 
-def floor_robot(robot: int, samples: int, windows: tuple[float, ...], seed: int, slam_witnesses: bool) -> dict:
-    from bench.landmark_witness import Bounds, Problem, Witness, fit_base
+def floor_robot(robot: int, samples: int, windows: tuple[float, ...], seed: int, slam_witnesses: bool,
+                with_q: bool = False) -> dict:
+    from bench.landmark_witness import Bounds, Problem, Witness, fit_base, q_drops
     from ivslam_cli.config import resolve_config
     from ivslam_cli.logs import read_log
     from ivslam_cli.slam.landmarks import Params
@@ -77,15 +78,23 @@ def floor_robot(robot: int, samples: int, windows: tuple[float, ...], seed: int,
         k = int(np.searchsorted(ours.poses.stamp, s))
         lo, hi = wit.pose_extremes(s, windows)
         row = {"t": s - pb.t0, "lb_pose": max(hi[0] - lo[0], hi[1] - lo[1]), "lb_heading": hi[2] - lo[2]}
+        found = [("", lo, hi)]
+        if with_q:  # witnesses that also break what the run's q allows, nearest the node first
+            drop = q_drops(pb, s - pb.t0, max(windows), params.q_pose, params.q_landmark, params.q_landmark_frac)
+            qlo, qhi = Witness(pb.without(drop), base, slam=slam_witnesses).pose_extremes(s, windows)
+            qlo, qhi = np.minimum(qlo, lo), np.maximum(qhi, hi)
+            row.update(q_pose=max(qhi[0] - qlo[0], qhi[1] - qlo[1]), q_heading=qhi[2] - qlo[2], q_dropped=int(drop.sum()))
+            found.append((f" (q: {int(drop.sum())} observations broken)", qlo, qhi))
         for name, out in (("slam", ours), ("given", given)):
             box = out.poses.box[k]
             row[f"{name}_pose"] = max(box[0, 1] - box[0, 0], box[1, 1] - box[1, 0])
             row[f"{name}_heading"] = box[2, 1] - box[2, 0]
-            for c in range(3):
-                for v in (lo[c], hi[c]):
-                    if not inside(box, c, v):
-                        failures.append(f"robot {robot}, node t={s - pb.t0:.3f} s: a witness's {'xyθ'[c]} = {v:.6f} "
-                                        f"lies outside the {name} box [{box[c, 0]:.6f}, {box[c, 1]:.6f}]")
+            for what, wlo, whi in found:
+                for c in range(3):
+                    for v in (wlo[c], whi[c]):
+                        if not inside(box, c, v):
+                            failures.append(f"robot {robot}, node t={s - pb.t0:.3f} s: a witness's{what} {'xyθ'[c]} = "
+                                            f"{v:.6f} lies outside the {name} box [{box[c, 0]:.6f}, {box[c, 1]:.6f}]")
         rows.append(row)
     return {"robot": robot, "rows": rows, "failures": failures, "fit_worst": base.worst, "outliers": pb.n_outliers,
             "witness_s": time.perf_counter() - t0}
@@ -97,6 +106,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--samples", type=int, default=4, help="nodes per robot")
     ap.add_argument("--windows", default="30,120", help="seconds of path freed on each side of the node")
     ap.add_argument("--seed", type=int, default=17)
+    ap.add_argument("--q", action="store_true",
+                    help="also witnesses that break what the run's q allows (q_pose per node, q_landmark per "
+                         "landmark, nearest the node first): the floor under the run's whole assumption")
     ap.add_argument("--slam", action="store_true",
                     help="witnesses also move the landmarks (slower; the surveyed map is kept otherwise)")
     args = ap.parse_args(argv)
@@ -112,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{'robot':>5} {'nodes':>5} {'floor pose m':>13} {'floor θ rad':>12} {'> targets':>10} "
           f"{'SLAM pose / θ':>15} {'map given pose / θ':>19} {'witness s':>9}")
     for r in (int(x) for x in args.robots.split(",")):
-        res = floor_robot(r, args.samples, windows, args.seed, args.slam)
+        res = floor_robot(r, args.samples, windows, args.seed, args.slam, args.q)
         rows = res["rows"]
         failures += res["failures"]
 
@@ -123,8 +135,13 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{r:>5} {len(rows):>5} {med('lb_pose'):>13.3f} {med('lb_heading'):>12.3f} "
               f"{above[0]:>4}/{above[1]:<4} {med('slam_pose'):>7.2f} / {med('slam_heading'):<5.2f} "
               f"{med('given_pose'):>9.2f} / {med('given_heading'):<7.2f} {res['witness_s']:>9.0f}")
+        if args.q and rows:
+            aq = sum(row["q_pose"] > TARGET_POSE_W for row in rows), sum(row["q_heading"] > TARGET_HEADING_W for row in rows)
+            print(f"{'':>5} {'q':>5} {med('q_pose'):>13.3f} {med('q_heading'):>12.3f} {aq[0]:>4}/{aq[1]:<4}"
+                  f"   (witnesses that also break what q allows: {med('q_dropped'):.0f} observations, median)")
         for row in rows:
-            print(f"      t={row['t']:8.2f} s  floor {row['lb_pose']:.3f} m {row['lb_heading']:.3f} rad   "
+            qs = f"   under q {row['q_pose']:.3f} m {row['q_heading']:.3f} rad" if args.q else ""
+            print(f"      t={row['t']:8.2f} s  floor {row['lb_pose']:.3f} m {row['lb_heading']:.3f} rad{qs}   "
                   f"SLAM {row['slam_pose']:.2f} m {row['slam_heading']:.2f} rad   map given {row['given_pose']:.2f} m "
                   f"{row['given_heading']:.2f} rad")
     print(f"targets (issue #17): median pose box ≤ {TARGET_POSE_W} m, heading ≤ {TARGET_HEADING_W} rad; "

@@ -25,6 +25,8 @@ Exact only up to the float arithmetic of the check (relative 1e-15): a floor, no
 
 from __future__ import annotations
 
+import copy
+from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
@@ -91,6 +93,8 @@ class Problem:
         eb = np.abs(wrap(np.arctan2(m[:, 1] - tp[:, 1], m[:, 0] - tp[:, 0]) - tp[:, 2] - brg))
         inl = (er <= self.erange) & (eb <= bounds.bearing)
         self.n_outliers = int((~inl).sum())
+        self.out_t, self.out_lid = t[~inl], lid[~inl]  # the truth's outliers (they break their bounds)
+        self.odo_t = to
         self.t, self.lid, self.rng, self.brg = t[inl], lid[inl], rng[inl], brg[inl]
         self.erange = self.erange[inl]
         # the margin the truth leaves (a witness keeps within S_CTRL of a bound, or the truth's own error)
@@ -122,6 +126,23 @@ class Problem:
         self.a_max = S_CTRL * bounds.v_rel / (1 + bounds.v_rel)
         self.c_max = S_CTRL * bounds.v_abs / (1 + bounds.v_rel)
         self.d_max = S_CTRL * bounds.w_abs
+
+    def without(self, drop: np.ndarray) -> Problem:
+        """The same problem with the inlier observations ``drop`` (a mask) left out as well: a
+        witness may break them (the q a run states allows it). Frames and grid unchanged."""
+        out = copy.copy(self)
+        keep = ~np.asarray(drop, bool)
+        for name in ("t", "lid", "rng", "brg", "erange", "er_b", "eb_b", "frame"):
+            setattr(out, name, getattr(self, name)[keep])
+        return out
+
+    def odometry_bracket(self, t):
+        """Per stamp: the indices of the odometry stamps at or before and at or after it (a
+        run attaches an observation to a node between them)."""
+        t = np.atleast_1d(np.asarray(t, float))
+        hi = np.clip(np.searchsorted(self.odo_t, t, side="left"), 0, self.odo_t.size - 1)
+        lo = np.clip(np.searchsorted(self.odo_t, t, side="right") - 1, 0, self.odo_t.size - 1)
+        return lo, hi
 
     def truth(self, t):
         t = np.atleast_1d(np.asarray(t, float))
@@ -208,6 +229,37 @@ class Base:
     a: np.ndarray
     c: np.ndarray
     worst: float
+
+
+def q_drops(pb: Problem, t_node: float, span: float, q_pose: int, q_landmark: int, q_frac: float) -> np.ndarray:
+    """A mask of inlier observations a witness may break under a run's q assumption, nearest
+    to ``t_node`` (seconds from the log's start) first, within ``span`` seconds of it: at most
+    ``q_pose`` broken observations (the truth's outliers included) at any node — counted on
+    both odometry stamps around each observation, so never two at one node whichever of them
+    the run attaches it to — and at most ``max(q_landmark, ⌊q_frac·m⌋)`` of a landmark's ``m``
+    observations (``m`` counted here, at most the run's count: a smaller q)."""
+    m = Counter(pb.lid.tolist()) + Counter(pb.out_lid.tolist())
+    per_lm = Counter(pb.out_lid.tolist())
+    per_node: Counter = Counter()
+    for a, b in zip(*pb.odometry_bracket(pb.out_t)):
+        per_node[int(a)] += 1
+        if b != a:
+            per_node[int(b)] += 1
+    lo, hi = pb.odometry_bracket(pb.t)
+    drop = np.zeros(pb.t.size, bool)
+    dt = np.abs(pb.t - t_node)
+    for j in np.argsort(dt, kind="stable"):
+        if dt[j] > span:
+            break
+        lid, a, b = int(pb.lid[j]), int(lo[j]), int(hi[j])
+        if per_node[a] >= q_pose or per_node[b] >= q_pose or per_lm[lid] >= max(q_landmark, int(q_frac * m[lid])):
+            continue
+        drop[j] = True
+        per_lm[lid] += 1
+        per_node[a] += 1
+        if b != a:
+            per_node[b] += 1
+    return drop
 
 
 def _quiet_highs():

@@ -11,7 +11,7 @@ import pytest
 
 pytest.importorskip("highspy")
 
-from bench.landmark_witness import Bounds, Problem, Witness, fit_base, wrap  # noqa: E402
+from bench.landmark_witness import Bounds, Problem, Witness, fit_base, q_drops, wrap  # noqa: E402
 from ivslam_cli.config import resolve_config  # noqa: E402
 from ivslam_cli.logs import read_log  # noqa: E402
 from ivslam_cli.report.core import angle_in  # noqa: E402
@@ -121,3 +121,34 @@ def test_witnesses_are_worlds_and_lie_in_our_enclosures(case, slam):
                 L = out.landmarks.box[i]
                 assert L[0, 0] <= x <= L[0, 1] and L[1, 0] <= y <= L[1, 1]
     assert max(spread) > 0.05  # the witnesses moved (a check that could not fail would not)
+
+
+def test_broken_observations_keep_to_the_runs_q_and_their_witnesses_lie_in_our_enclosures(case):
+    """Witnesses that also break observations (as many as the run's q allows, nearest the node
+    first): never two at one node, at most q of a landmark's, and our boxes still hold them."""
+    log, params, out, pb, base = case
+    t = 20.0
+    drop = q_drops(pb, t, 15.0, params.q_pose, params.q_landmark, params.q_landmark_frac)
+    assert drop.sum() >= 10
+    stamps = log.odometry.stamp - pb.t0
+    after = np.searchsorted(stamps, pb.t[drop], side="left")  # the odometry stamps around each
+    before = np.searchsorted(stamps, pb.t[drop], side="right") - 1
+    around = np.concatenate([before, after[after != before]])
+    assert np.unique(around).size == around.size  # no odometry stamp next to two broken ones
+    m = {int(i): int(n) for i, n in zip(*np.unique(pb.lid, return_counts=True))}
+    for lid, n in zip(*np.unique(pb.lid[drop], return_counts=True)):
+        assert n <= max(params.q_landmark, int(params.q_landmark_frac * m[int(lid)]))
+    assert abs(pb.t[drop] - t).max() <= 15.0
+    pq = pb.without(drop)
+    wit = Witness(pq, base, slam=False)
+    f = int(np.argmin(np.abs(pb.frame_t - t)))
+    k = int(pb.fstep[f])
+    for c, sign in ((2, +1), (0, -1)):
+        wit.push(pb.ts[k] - 15.0, pb.ts[k] + 15.0, ("pose", k, c), sign)
+        w = wit.world()
+        check_world(log, params, pq, w)  # every bound at every observation not broken
+        nodes = np.searchsorted(out.poses.stamp, pb.t0 + pb.frame_t - 1e-9)
+        box, P = out.poses.box[nodes], w["frames"]
+        assert (box[:, 0, 0] <= P[:, 0]).all() and (P[:, 0] <= box[:, 0, 1]).all()
+        assert (box[:, 1, 0] <= P[:, 1]).all() and (P[:, 1] <= box[:, 1, 1]).all()
+        assert angle_in(box[:, 2, 0], box[:, 2, 1], P[:, 2]).all()
