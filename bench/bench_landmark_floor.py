@@ -10,6 +10,11 @@ that node, SLAM or localisation alone (a witness keeps the true map). Printed pe
 median of those lower bounds (largest x-y side, heading), how many nodes are above the
 issue's targets, and our two runs' widths at the same nodes.
 
+With ``--q`` each node also gets witnesses that break observations the run's q allows to be
+wrong (``q_pose`` at a node, ``q_landmark`` of a landmark's, the truth's outliers counted;
+nearest the node first: :func:`bench.landmark_witness.q_drops`): the floor under the run's
+whole assumption, which is what its boxes must hold.
+
 It is also a soundness check beyond the truth: each witness must lie in our boxes (SLAM and
 map given) at its node; a witness outside one is reported as a SOUNDNESS FAILURE (exit 1).
 
@@ -18,6 +23,7 @@ few nodes a robot.
 
     python -m bench landmark_floor
     python -m bench.bench_landmark_floor --robots 1,3 --samples 20 --windows 30,150
+    python -m bench.bench_landmark_floor --samples 4 --windows 60 --q
 """
 
 from __future__ import annotations
