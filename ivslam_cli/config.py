@@ -91,6 +91,7 @@ KEYS: tuple[Key, ...] = (
     Key("robust", "q_landmark", 0, "int", "landmarks mode: inconsistent observations tolerated per landmark (q-relaxed intersection of its observations)", "", 0),
     Key("robust", "q_landmark_frac", 0.0, "float", "landmarks mode: ... or this fraction of the landmark's observations, whichever is larger", "", 0.0),
     Key("robust", "q_pose", 0, "int", "landmarks mode: inconsistent observations tolerated per pose, among those within landmarks.pose_window", "", 0),
+    Key("robust", "q_pose_scope", "window", "str", "landmarks mode: what q_pose counts — window: at most q_pose wrong among the observations within landmarks.pose_window of each pose; node: at most q_pose at each pose, so a window tolerates q_pose at each pose its observations come from, at most q of a landmark's (the assumption of pose_window = 0, kept over longer windows)"),
     Key("robust", "strict", False, "bool", "stop at the first empty intersection instead of applying the q policy"),
     # --- [pairs]
     Key("pairs", "heading", (0.0, 0.0), "interval", "known heading interval [lo, hi] at every step; with heading_source = odometry, the bound added to the odometry heading", "rad"),

@@ -143,12 +143,16 @@ def test_broken_observations_keep_to_the_runs_q_and_their_witnesses_lie_in_our_e
     wit = Witness(pq, base, slam=False)
     f = int(np.argmin(np.abs(pb.frame_t - t)))
     k = int(pb.fstep[f])
+    # the same assumption counted at each pose over 2 s windows (robust.q_pose_scope = node)
+    windowed = solve(log, Params.from_config(resolve_config(CONFIGS / "mrclam.toml", {
+        "robust.q_pose_scope": "node", "landmarks.pose_window": 2.0, "landmarks.pose_window_obs": 12})))
     for c, sign in ((2, +1), (0, -1)):
         wit.push(pb.ts[k] - 15.0, pb.ts[k] + 15.0, ("pose", k, c), sign)
         w = wit.world()
         check_world(log, params, pq, w)  # every bound at every observation not broken
-        nodes = np.searchsorted(out.poses.stamp, pb.t0 + pb.frame_t - 1e-9)
-        box, P = out.poses.box[nodes], w["frames"]
-        assert (box[:, 0, 0] <= P[:, 0]).all() and (P[:, 0] <= box[:, 0, 1]).all()
-        assert (box[:, 1, 0] <= P[:, 1]).all() and (P[:, 1] <= box[:, 1, 1]).all()
-        assert angle_in(box[:, 2, 0], box[:, 2, 1], P[:, 2]).all()
+        for run in (out, windowed):
+            nodes = np.searchsorted(run.poses.stamp, pb.t0 + pb.frame_t - 1e-9)
+            box, P = run.poses.box[nodes], w["frames"]
+            assert (box[:, 0, 0] <= P[:, 0]).all() and (P[:, 0] <= box[:, 0, 1]).all()
+            assert (box[:, 1, 0] <= P[:, 1]).all() and (P[:, 1] <= box[:, 1, 1]).all()
+            assert angle_in(box[:, 2, 0], box[:, 2, 1], P[:, 2]).all()

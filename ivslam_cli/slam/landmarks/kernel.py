@@ -89,7 +89,7 @@ def total_width(H, L):
 def solve(PS, H, L, BINS, kind, U, node_stamp, chain_of, travel, turn, turn_err, node, lm, tnode, treach, rho, alpha,
           reach, obs_node_stamp, by_node, node_first_obs, chain_obs, by_target, target_first, lm_offsets, lm_order,
           q, q_pose, window, window_obs, pieces, max_iterations, tolerance, status, step_events, pose_events, lm_events,
-          width_trace, skip_a, skip_b, skip_R, skip_in_off, skip_out, skip_out_off, skip_events):
+          width_trace, skip_a, skip_b, skip_R, skip_in_off, skip_out, skip_out_off, skip_events, per_node):
     """Sweep forward and backward to a fixpoint (see the module docstring). In place.
 
     ``by_node``: observation indices sorted by (chain, node) (``obs_node_stamp``: their nodes'
@@ -149,7 +149,7 @@ def solve(PS, H, L, BINS, kind, U, node_stamp, chain_of, travel, turn, turn_err,
                 if not pose_update(PS, H, L, U, k1, by_node, node_stamp, obs_node_stamp, chain_obs[c], chain_obs[c + 1],
                                    travel, turn, turn_err, window, window_obs, q_pose, pieces, node, lm, tnode, treach,
                                    by_target, target_first, rho, alpha, reach, status, buf, lo, hi, idx, src, agree,
-                                   timg, carry, cmode, stack, accA, h_lo, h_hi, ver, posedone, lver, clock):
+                                   timg, carry, cmode, stack, accA, h_lo, h_hi, ver, posedone, lver, clock, q, per_node):
                     pose_events[k1] += 1
         landmark_update(PS, H, L, q, lm_offsets, lm_order, node, rho, alpha, reach, status, lm_events, cand, cimg, cver,
                         lrej, lver, ver, clock, lo, hi, count, mark)
@@ -165,7 +165,7 @@ def solve(PS, H, L, BINS, kind, U, node_stamp, chain_of, travel, turn, turn_err,
                 if not pose_update(PS, H, L, U, k, by_node, node_stamp, obs_node_stamp, chain_obs[c], chain_obs[c + 1],
                                    travel, turn, turn_err, window, window_obs, q_pose, pieces, node, lm, tnode, treach,
                                    by_target, target_first, rho, alpha, reach, status, buf, lo, hi, idx, src, agree,
-                                   timg, carry, cmode, stack, accA, h_lo, h_hi, ver, posedone, lver, clock):
+                                   timg, carry, cmode, stack, accA, h_lo, h_hi, ver, posedone, lver, clock, q, per_node):
                     pose_events[k] += 1
         landmark_update(PS, H, L, q, lm_offsets, lm_order, node, rho, alpha, reach, status, lm_events, cand, cimg, cver,
                         lrej, lver, ver, clock, lo, hi, count, mark)

@@ -406,12 +406,48 @@ def _mark_agree(buf, m, piece, agree):
 
 
 @njit(cache=True)
+def _window_q(m, idx, src, node, lm, q_pose, q_lm):
+    """How many of the ``m`` chosen observations may be wrong: at most ``q_pose`` at each of
+    their nodes, and at most ``q_lm[i]`` of landmark ``i``'s (each observation of a robot by
+    another may be)."""
+    n_nodes = 0
+    by_lm = 0
+    other = 0
+    for s in range(m):
+        j = idx[s]
+        if src[s] == 1 or lm[j] < 0:
+            other += 1
+            continue
+        seen = False
+        for t in range(s):
+            if src[t] == 0 and node[idx[t]] == node[j]:
+                seen = True
+                break
+        if not seen:
+            n_nodes += 1
+        first = True
+        cnt = 0
+        for t in range(m):
+            if src[t] == 0 and lm[idx[t]] == lm[j]:
+                if t < s:
+                    first = False
+                    break
+                cnt += 1
+        if first:
+            by_lm += min(cnt, q_lm[lm[j]])
+    return min(q_pose * n_nodes, by_lm) + other
+
+
+@njit(cache=True)
 def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, chain_hi, travel, turn, turn_err,
                 window, window_obs, q_pose, pieces, node, lm, tnode, treach, by_target, target_first, rho, alpha,
                 reach, status, buf, lo, hi, idx, src, agree, timg, carry, cmode, stack, NEW, h_lo, h_hi, ver, posedone,
-                lver, clock):
+                lver, clock, q_lm, per_node):
     """Node ``k``'s set ∩= what the observations in its window allow, slice by slice (see the
     module docstring). Returns False if no slice survives (nothing written).
+
+    At most ``q_pose`` of the window's observations are taken to be wrong, or with ``per_node``
+    (``q_pose`` counted at each node) as many as :func:`_window_q` allows.
 
     ``node_obs`` are the observation indices sorted by node, ``obs_node_stamp`` their nodes'
     stamps (sorted within each chain), ``[chain_lo, chain_hi)`` the part of them on node
@@ -432,6 +468,7 @@ def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, 
             src[m] = 0
             agree[m] = False
             m += 1
+    m_own = m
     left = chain_lo + np.searchsorted(obs_node_stamp[chain_lo:chain_hi], t, side="left") - 1
     right = left + 1
     while m < window_obs and (left >= first or right < last):
@@ -468,6 +505,7 @@ def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, 
             m += 1
     if m == 0:
         return True
+    qw = _window_q(m, idx, src, node, lm, q_pose, q_lm) if per_node else q_pose
     # nothing this update reads changed since it last ran: skip it (ver, lver: clock values
     # of the last change of a set, of a landmark box; posedone: of this node's last update)
     stale = ver[k] > posedone[k]
@@ -524,8 +562,14 @@ def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, 
             for d in range(3):
                 B[d, 0], B[d, 1] = stack[top, d, 0], stack[top, d, 1]
             used += 1
+            if per_node and 0 < m_own < m:  # the pose's own observations alone first: q_pose of them
+                if not _contract_piece(H, L, B, k, m_own, idx, src, node, lm, tnode, treach, rho, alpha, reach, travel,
+                                       turn, turn_err, q_pose, timg, carry, cmode, buf, lo, hi, piece):
+                    continue
+                for d in range(3):
+                    B[d, 0], B[d, 1] = piece[d, 0], piece[d, 1]
             if not _contract_piece(H, L, B, k, m, idx, src, node, lm, tnode, treach, rho, alpha, reach, travel, turn,
-                                   turn_err, q_pose, timg, carry, cmode, buf, lo, hi, piece):
+                                   turn_err, qw, timg, carry, cmode, buf, lo, hi, piece):
                 continue
             wx = piece[0, 1] - piece[0, 0]
             wy = piece[1, 1] - piece[1, 0]

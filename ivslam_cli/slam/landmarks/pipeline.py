@@ -339,7 +339,7 @@ def solve_problem(pb: Problem, params: Params, known_landmarks: np.ndarray | Non
                      node_first, chain_obs, by_target, target_first, lm_offsets, lm_order, pb.q, params.q_pose,
                      params.pose_window, params.pose_window_obs, params.pose_pieces, max_it, params.tolerance, status, step_events,
                      pose_events, lm_events, trace, skips.a, skips.b, skips.R, skips.in_off, skips.out, skips.out_off,
-                     skip_events)
+                     skip_events, params.q_pose_scope == "node")
     return Solution(PS, H, L, status, step_events, pose_events, lm_events, trace[:sweeps], int(sweeps), skips,
                     skip_events)
 
@@ -458,8 +458,11 @@ def solve(log, params: Params, known_landmarks: dict[int, tuple[float, float]] |
         f"the initial pose in its box ({pb.initial_source}); {motion_bounds}; every range error within "
         f"±(range_abs + range_rel·range) and bearing error within ±bearing, except for at most q observations "
         f"per landmark (q = max(q_landmark, ⌊q_landmark_frac·m⌋), here {int(pb.q.min())}..{int(pb.q.max())}) "
-        f"and at most q_pose = {params.q_pose} among the observations within "
-        f"{params.pose_window} s of each pose; observations proven to break it are rejected "
+        + (f"and at most q_pose = {params.q_pose} at each pose (a pose's q-relaxed intersection over the "
+           f"observations within {params.pose_window} s of it tolerates q_pose at each pose they come from, "
+           f"at most q of a landmark's)" if params.q_pose_scope == "node" else
+           f"and at most q_pose = {params.q_pose} among the observations within {params.pose_window} s of each pose")
+        + f"; observations proven to break it are rejected "
         f"({rej.size}) and listed"
     )
     if known_landmarks is not None:

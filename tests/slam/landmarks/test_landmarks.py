@@ -387,3 +387,42 @@ def test_cli_errors_are_one_line(tmp_path: Path, cli_run):
     assert r.exit_code != 0
     assert "odometry" in r.output and "Traceback" not in r.output
     assert len([line for line in r.output.splitlines() if line.strip()]) == 1
+
+
+def _q_of(log):
+    """The stated q of a log with injected outliers: the most of a landmark's, and of a pose's."""
+    mask = log.truth.outliers["observations"]
+    if not mask.any():
+        return 0, 0
+    _, per_pose = np.unique(log.observations.stamp[mask], return_counts=True)
+    return int(np.bincount(log.observations.landmark_id[mask]).max()), int(per_pose.max())
+
+
+@settings(max_examples=examples(ci=10))
+@given(seed=st.integers(0, 10_000), window=st.sampled_from([1.0, 2.0, 5.0]), rate=st.sampled_from([0.03, 0.1]))
+def test_q_counted_at_each_pose_over_a_window_keeps_the_truth(seed, window, rate):
+    """``q_pose_scope = node``: a pose's window may hold q_pose wrong observations at each pose
+    they come from (at most q of a landmark's); outliers injected, q the stated one."""
+    clean = _sim(seed, steps=150)
+    log = replace(_sim(seed, steps=150, outlier_rate=rate, outlier_magnitude=20.0), odometry=clean.odometry)
+    q_lm, q_pose = _q_of(log)
+    out = solve(log, LandmarksParams.from_config(_cfg(log, **{
+        "robust.q_landmark": q_lm, "robust.q_pose": q_pose, "robust.q_pose_scope": "node",
+        "landmarks.pose_window": window, "landmarks.pose_window_obs": 16})))
+    _check_sound(log, out)
+    rejected = set(out.consistency.rejected.index.tolist())
+    assert rejected <= set(np.flatnonzero(log.truth.outliers["observations"]).tolist())
+
+
+def test_q_counted_at_each_pose_is_the_window_q_for_a_pose_alone():
+    """With pose_window = 0 both scopes count the same observations: the same boxes, bit for bit."""
+    clean = _sim(4, steps=150)
+    log = replace(_sim(4, steps=150, outlier_rate=0.05, outlier_magnitude=20.0), odometry=clean.odometry)
+    q_lm, q_pose = _q_of(log)
+    over = {"robust.q_landmark": q_lm, "robust.q_pose": max(q_pose, 1)}
+    a = solve(log, LandmarksParams.from_config(_cfg(log, **over)))
+    b = solve(log, LandmarksParams.from_config(_cfg(log, **over, **{"robust.q_pose_scope": "node"})))
+    assert np.array_equal(a.poses.box, b.poses.box) and np.array_equal(a.landmarks.box, b.landmarks.box)
+    assert "at each pose" in b.consistency.assumption and "among the observations" in a.consistency.assumption
+    with pytest.raises(Exception, match="q_pose_scope"):
+        LandmarksParams.from_config(_cfg(log, **{"robust.q_pose_scope": "frame"}))
