@@ -17,7 +17,7 @@ from ivslam_cli.contractors.ctc_range_bearing import range_bearing_pass
 from ivslam_cli.interval.angles import angle_meet, angle_meet_narrow, arg_box
 from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO, INF, add, cos, mul, sin, sqr, sqrt, sub
 from ivslam_cli.interval.rounding import down, up
-from ivslam_cli.slam.landmarks.pose_sets import _commit, _empty, _hull_into, _set_empty3
+from ivslam_cli.slam.landmarks.pose_sets import _commit, _empty, _hull_into, _set_empty3, live_slices
 
 OBS_USED = 0
 OBS_REJECTED_LANDMARK = 1  # its landmark candidate misses the q-relaxed landmark box
@@ -536,10 +536,7 @@ def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, 
     B = np.empty((3, 2))
     piece = np.empty((3, 2))
     n_live = 0
-    live0 = 0
-    for b in range(S):
-        if not _empty(PS, k, b):
-            live0 += 1
+    live0 = live_slices(PS, k)
     budget = pieces if live0 <= SUB_MAX_LIVE else 1  # a lost heading: each slice as one box
     lever = 0.0  # metres per radian of heading at the observations (their largest range)
     for s in range(m):

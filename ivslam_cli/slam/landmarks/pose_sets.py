@@ -54,6 +54,16 @@ def _empty(PS, k, b):
 
 
 @njit(cache=True)
+def live_slices(PS, k):
+    """How many slices of node ``k``'s set are not empty."""
+    n = 0
+    for b in range(PS.shape[1]):
+        if not _empty(PS, k, b):
+            n += 1
+    return n
+
+
+@njit(cache=True)
 def _set_empty3(a):
     for d in range(3):
         a[d, 0] = EMPTY_LO

@@ -19,7 +19,7 @@ import numpy as np
 from numba import njit
 
 from ivslam_cli.slam.landmarks.observations import compose_range
-from ivslam_cli.slam.landmarks.pose_sets import _commit, _empty, _set_empty3, increment_pairs
+from ivslam_cli.slam.landmarks.pose_sets import _commit, _set_empty3, increment_pairs, live_slices
 
 LIVE_MAX = 0.125  # an edge waits while both its sets have live slices over more than this share of the circle
 
@@ -75,15 +75,6 @@ def compose_edges(U, a, b, R):
 
 
 @njit(cache=True)
-def _live(PS, k):
-    n = 0
-    for s in range(PS.shape[1]):
-        if not _empty(PS, k, s):
-            n += 1
-    return n
-
-
-@njit(cache=True)
 def skip_sets(PS, H, e, sa, sb, R, accA, accC, h_lo, h_hi, ver, done, clock):
     """Contract the sets of nodes ``sa[e]`` and ``sb[e]`` with edge ``e`` (as :func:`step_sets`
     does with a motion step); False (nothing written) if no slice pair has a solution. Skipped
@@ -95,7 +86,7 @@ def skip_sets(PS, H, e, sa, sb, R, accA, accC, h_lo, h_hi, ver, done, clock):
     if ver[a] <= done[e] and ver[b] <= done[e]:
         return True
     most = LIVE_MAX * PS.shape[1] + 1  # + 1: a narrow heading across a slice border
-    if _live(PS, a) > most and _live(PS, b) > most:
+    if live_slices(PS, a) > most and live_slices(PS, b) > most:
         done[e] = clock[0]
         return True
     for s in range(PS.shape[1]):
