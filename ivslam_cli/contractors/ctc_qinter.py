@@ -107,3 +107,106 @@ def qinter_batch_kernel(boxes, offsets, q):
         b = offsets[g + 1]
         qinter_group(boxes[a:b], q[g], out[g], rejected[a:b])
     return out, rejected
+
+
+@njit(cache=True)
+def _over(cnt, cap, g, step):
+    """Add ``step`` (±1) to group ``g``'s count; the change in the number of groups over their cap."""
+    if g < 0:
+        return 0
+    before = cnt[g] > cap[g]
+    cnt[g] += step
+    return int(cnt[g] > cap[g]) - int(before)
+
+
+@njit(cache=True)
+def droppable(fail, ga, ca, gb, cb):
+    """Do the inputs with ``fail[i]`` keep to the caps: at most ``ca[g]`` of group ``g`` of the
+    first grouping (``ga[i]``, −1: none) and ``cb[g]`` of the second (``gb``)?"""
+    na = np.zeros(ca.shape[0], np.int64)
+    nb = np.zeros(cb.shape[0], np.int64)
+    for i in range(fail.shape[0]):
+        if fail[i]:
+            if ga[i] >= 0:
+                na[ga[i]] += 1
+                if na[ga[i]] > ca[ga[i]]:
+                    return False
+            if gb[i] >= 0:
+                nb[gb[i]] += 1
+                if nb[gb[i]] > cb[gb[i]]:
+                    return False
+    return True
+
+
+@njit(cache=True)
+def qinter_capped_interval(lo, hi, ga, ca, gb, cb):
+    """Hull of the reals ``x`` whose failing inputs ``{i : x ∉ [lo_i, hi_i]}`` keep to the caps
+    of two groupings (:func:`droppable`): the q-relaxed intersection when the wrong inputs are
+    bounded per group (per pose and per landmark) rather than in all. It holds every ``x`` that
+    all inputs but such a set contain; it is never wider than :func:`qinter_interval` with ``q``
+    the largest number of inputs the caps let fail together. Exact (no arithmetic), O(m log m)."""
+    m = lo.shape[0]
+    na = np.zeros(ca.shape[0], np.int64)
+    nb = np.zeros(cb.shape[0], np.int64)
+    bad = 0
+    for i in range(m):  # below every input, all fail
+        bad += _over(na, ca, ga[i], 1) + _over(nb, cb, gb[i], 1)
+    if bad == 0:  # all may fail together
+        return -INF, INF
+    ok = np.empty(m, np.bool_)
+    for i in range(m):
+        ok[i] = lo[i] <= hi[i]  # empty (NaN) inputs fail at every x
+    ol = np.argsort(lo)
+    oh = np.argsort(hi)
+    # lower bound: sweep x up through the lower ends; input i stops failing at lo_i, fails again past hi_i
+    rlo = EMPTY_LO
+    p = 0
+    j = 0
+    while j < m:
+        x = lo[ol[j]]
+        if not ok[ol[j]]:
+            j += 1
+            continue
+        while j < m and (lo[ol[j]] <= x or not ok[ol[j]]):
+            i = ol[j]
+            if ok[i]:
+                bad += _over(na, ca, ga[i], -1) + _over(nb, cb, gb[i], -1)
+            j += 1
+        while p < m and (not ok[oh[p]] or hi[oh[p]] < x):
+            i = oh[p]
+            if ok[i]:
+                bad += _over(na, ca, ga[i], 1) + _over(nb, cb, gb[i], 1)
+            p += 1
+        if bad == 0:
+            rlo = x
+            break
+    if rlo == EMPTY_LO:
+        return EMPTY_LO, EMPTY_HI
+    # upper bound: the same from above
+    na[:] = 0
+    nb[:] = 0
+    bad = 0
+    for i in range(m):
+        bad += _over(na, ca, ga[i], 1) + _over(nb, cb, gb[i], 1)
+    rhi = EMPTY_HI
+    p = m - 1
+    j = m - 1
+    while j >= 0:
+        x = hi[oh[j]]
+        if not ok[oh[j]]:
+            j -= 1
+            continue
+        while j >= 0 and (hi[oh[j]] >= x or not ok[oh[j]]):
+            i = oh[j]
+            if ok[i]:
+                bad += _over(na, ca, ga[i], -1) + _over(nb, cb, gb[i], -1)
+            j -= 1
+        while p >= 0 and (not ok[ol[p]] or lo[ol[p]] > x):
+            i = ol[p]
+            if ok[i]:
+                bad += _over(na, ca, ga[i], 1) + _over(nb, cb, gb[i], 1)
+            p -= 1
+        if bad == 0:
+            rhi = x
+            break
+    return rlo, rhi

@@ -184,6 +184,62 @@ def test_qinter_boxes_is_an_outer_approximation(d, m, q, data):
     assert (rejected == disjoint).all()
 
 
+def brute_capped(iv, ga, ca, gb, cb):
+    """The hull of the reals whose failing intervals keep to the caps, over every endpoint."""
+    from ivslam_cli.contractors.ctc_qinter import droppable
+
+    lo, hi = iv[:, 0], iv[:, 1]
+    if droppable(np.ones(len(iv), bool), ga, ca, gb, cb):
+        return -INF, INF
+    ends = [x for x in np.concatenate([lo, hi]) if np.isfinite(x)] + [-1e308, 1e308]  # beyond every finite end
+    with np.errstate(invalid="ignore"):
+        good = [x for x in ends if droppable(~((lo <= x) & (x <= hi)), ga, ca, gb, cb)]
+    if not good:
+        return INF, -INF
+    return (-INF if min(good) == -1e308 else min(good)), (INF if max(good) == 1e308 else max(good))
+
+
+@settings(max_examples=examples(ci=1000))
+@given(iv=interval_sets(), data=st.data())
+def test_qinter_capped_matches_brute_force_and_plain_qinter(iv, data):
+    """Wrong intervals capped per group (two groupings, as per pose and per landmark): the hull
+    is the brute force's, and never wider than the plain q-intersection with q the most that
+    the caps let fail together."""
+    from ivslam_cli.contractors.ctc_qinter import qinter_capped_interval
+
+    m = len(iv)
+    na, nb = data.draw(st.integers(1, 4)), data.draw(st.integers(1, 4))
+    ga = np.array(data.draw(st.lists(st.integers(-1, na - 1), min_size=m, max_size=m)), np.int64)
+    gb = np.array(data.draw(st.lists(st.integers(-1, nb - 1), min_size=m, max_size=m)), np.int64)
+    ca = np.array(data.draw(st.lists(st.integers(0, 3), min_size=na, max_size=na)), np.int64)
+    cb = np.array(data.draw(st.lists(st.integers(0, 3), min_size=nb, max_size=nb)), np.int64)
+    lo, hi = qinter_capped_interval(np.ascontiguousarray(iv[:, 0]), np.ascontiguousarray(iv[:, 1]), ga, ca, gb, cb)
+    assert (lo, hi) == brute_capped(iv, ga, ca, gb, cb)
+    q = min(sum(min(int(ca[g]), int((ga == g).sum())) for g in range(na)) + int((ga < 0).sum()),
+            sum(min(int(cb[g]), int((gb == g).sum())) for g in range(nb)) + int((gb < 0).sum()))
+    plain = tuple(qinter(iv, min(q, m))[0]) if m else (-INF, INF)
+    if plain[0] <= plain[1] and lo <= hi:
+        assert plain[0] <= lo and hi <= plain[1]
+    elif plain[0] > plain[1]:
+        assert not lo <= hi
+
+
+def test_qinter_capped_keeps_to_the_caps_per_group():
+    """Three poses each seeing landmark A (east: an upper bound of x) and B (loose), at most one
+    wrong observation per pose and per landmark: two of A's cannot both be wrong, while the
+    plain q-intersection with q = 2 (the most the caps let fail together) drops A's two tightest."""
+    from ivslam_cli.contractors.ctc_qinter import qinter_capped_interval
+
+    iv = np.array([[-5.0, 1.0], [-5.0, 1.1], [-5.0, 1.2], [-5.0, 5.0], [-5.0, 5.0], [-5.0, 5.0]])
+    pose = np.array([0, 1, 2, 0, 1, 2], np.int64)
+    lm = np.array([0, 0, 0, 1, 1, 1], np.int64)
+    ones = np.ones(3, np.int64)
+    assert qinter_capped_interval(iv[:, 0], iv[:, 1], pose, ones, lm, ones[:2]) == (-5.0, 1.1)
+    assert tuple(qinter(iv, 2)[0]) == (-5.0, 1.2)
+    assert qinter_capped_interval(iv[:, 0], iv[:, 1], pose, ones * 0, lm, ones[:2]) == (-5.0, 1.0)
+    assert qinter_capped_interval(iv[:, 0], iv[:, 1], pose, ones, lm, ones[:2] * 2) == (-5.0, 1.2)
+
+
 def test_qinter_rejects_the_outlier():
     iv = np.array([[1.0, 3.0], [2.0, 4.0], [2.5, 5.0], [40.0, 41.0]])
     res, rejected = qinter(iv, 1)

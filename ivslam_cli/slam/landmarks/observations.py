@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ivslam_cli.contractors.ctc_qinter import qinter_interval
+from ivslam_cli.contractors.ctc_qinter import qinter_capped_interval, qinter_interval
 from ivslam_cli.contractors.ctc_range_bearing import range_bearing_pass
 from ivslam_cli.interval.angles import angle_meet, angle_meet_narrow, arg_box
 from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO, INF, add, cos, mul, sin, sqr, sqrt, sub
@@ -357,10 +357,12 @@ def _obs_pose_candidate(H, L, B, k, j, node, lm, tnode, treach, rho, alpha, reac
 
 @njit(cache=True)
 def _contract_piece(H, L, B, k, m, idx, src, node, lm, tnode, treach, rho, alpha, reach, travel, turn, turn_err,
-                    q_pose, timg, carry, cmode, buf, lo, hi, piece):
+                    q_pose, timg, carry, cmode, buf, lo, hi, piece, capped, ga, ca, gb, cb):
     """``piece`` = ``B`` ∩ the q-relaxed intersection (``q_pose``) of the ``m`` candidates
-    (``buf``: each candidate, empty when the observation allows nothing in ``B``). Returns
-    False as soon as more than ``q_pose`` candidates are empty, or if the result is empty."""
+    (``buf``: each candidate, empty when the observation allows nothing in ``B``); with
+    ``capped``, the wrong candidates also keep to the caps per pose and per landmark
+    (:func:`qinter_capped_interval` with ``ga, ca, gb, cb``). Returns False as soon as more
+    than ``q_pose`` candidates are empty, or if the result is empty."""
     n_empty = 0
     for s in range(m):
         j = idx[s]
@@ -383,7 +385,10 @@ def _contract_piece(H, L, B, k, m, idx, src, node, lm, tnode, treach, rho, alpha
         for s in range(m):
             lo[s] = buf[s, d, 0]
             hi[s] = buf[s, d, 1]
-        rl, rh = qinter_interval(lo[:m], hi[:m], q_pose)
+        if capped:
+            rl, rh = qinter_capped_interval(lo[:m], hi[:m], ga[:m], ca, gb[:m], cb)
+        else:
+            rl, rh = qinter_interval(lo[:m], hi[:m], q_pose)
         rl = max(rl, B[d, 0])
         rh = min(rh, B[d, 1])
         if not (rl <= rh):
@@ -506,6 +511,30 @@ def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, 
     if m == 0:
         return True
     qw = _window_q(m, idx, src, node, lm, q_pose, q_lm) if per_node else q_pose
+    capped = per_node and m > m_own
+    ga = np.full(m, -1, np.int64)  # the window's wrong observations: q_pose per node, q_lm per landmark
+    gb = np.full(m, -1, np.int64)
+    ca = np.full(m, q_pose, np.int64)
+    cb = np.zeros(m, np.int64)
+    if capped:
+        na = 0
+        nb = 0
+        for s in range(m):
+            j = idx[s]
+            if src[s] == 1 or lm[j] < 0:  # each observation of a robot by another may be wrong
+                continue
+            for t in range(s):
+                if ga[t] >= 0 and node[idx[t]] == node[j]:
+                    ga[s] = ga[t]
+                if gb[t] >= 0 and lm[idx[t]] == lm[j]:
+                    gb[s] = gb[t]
+            if ga[s] < 0:
+                ga[s] = na
+                na += 1
+            if gb[s] < 0:
+                gb[s] = nb
+                cb[nb] = q_lm[lm[j]]
+                nb += 1
     # nothing this update reads changed since it last ran: skip it (ver, lver: clock values
     # of the last change of a set, of a landmark box; posedone: of this node's last update)
     stale = ver[k] > posedone[k]
@@ -561,12 +590,13 @@ def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, 
             used += 1
             if per_node and 0 < m_own < m:  # the pose's own observations alone first: q_pose of them
                 if not _contract_piece(H, L, B, k, m_own, idx, src, node, lm, tnode, treach, rho, alpha, reach, travel,
-                                       turn, turn_err, q_pose, timg, carry, cmode, buf, lo, hi, piece):
+                                       turn, turn_err, q_pose, timg, carry, cmode, buf, lo, hi, piece, False, ga, ca,
+                                       gb, cb):
                     continue
                 for d in range(3):
                     B[d, 0], B[d, 1] = piece[d, 0], piece[d, 1]
             if not _contract_piece(H, L, B, k, m, idx, src, node, lm, tnode, treach, rho, alpha, reach, travel, turn,
-                                   turn_err, qw, timg, carry, cmode, buf, lo, hi, piece):
+                                   turn_err, qw, timg, carry, cmode, buf, lo, hi, piece, capped, ga, ca, gb, cb):
                 continue
             wx = piece[0, 1] - piece[0, 0]
             wy = piece[1, 1] - piece[1, 0]
