@@ -29,6 +29,8 @@ name                          default     what it bounds
                                           lidar.eps far finer than the area mapped) and the
                                           dense grid over them (a pose far from the others)
 ``ROWS``                      2^26        rows of any other dataset read back from a result
+``POSE_SET_BYTES``            2 GiB       the landmark CSP's pose sets: nodes × observations ×
+                                          ``landmarks.pose_slices`` (fewer slices need less)
 ============================  ==========  =====================================================
 
 Limits of the pipelines' own work (subpaving boxes, sweeps, pairs) are configuration keys
@@ -56,6 +58,7 @@ DEFAULTS: dict[str, int] = {
     "CELLS": 1 << 28,
     "MAP_CELLS": 1 << 24,
     "ROWS": 1 << 26,
+    "POSE_SET_BYTES": 1 << 31,
 }
 
 

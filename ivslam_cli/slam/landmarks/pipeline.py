@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ivslam_cli import interval as iv
+from ivslam_cli import limits
 from ivslam_cli.errors import IvslamError
 from ivslam_cli.logs.model import Dropped, GroundTruth, LogData
 from ivslam_cli.results.model import (
@@ -298,6 +299,10 @@ def solve_problem(pb: Problem, params: Params, known_landmarks: np.ndarray | Non
     map given: localisation only); default unbounded."""
     n = pb.node_stamp.shape[0]
     S = params.pose_slices
+    # a (3, 2) box per node and slice, an arc (2, 2) per observation and slice
+    limits.check("POSE_SET_BYTES", S * (48 * n + 32 * pb.node.size),
+                 f"pose sets of {n:,} nodes and {pb.node.size:,} observations in {S} heading slices "
+                 "(landmarks.pose_slices: fewer need less), bytes")
     BINS = K.make_bins(S)
     PS = np.empty((n, S, 3, 2))
     PS[:, :, :2, 0] = -np.inf

@@ -419,10 +419,25 @@ def test_q_counted_at_each_pose_is_the_window_q_for_a_pose_alone():
     clean = _sim(4, steps=150)
     log = replace(_sim(4, steps=150, outlier_rate=0.05, outlier_magnitude=20.0), odometry=clean.odometry)
     q_lm, q_pose = _q_of(log)
-    over = {"robust.q_landmark": q_lm, "robust.q_pose": max(q_pose, 1)}
-    a = solve(log, LandmarksParams.from_config(_cfg(log, **over)))
+    over = {"robust.q_landmark": q_lm, "robust.q_pose": max(q_pose, 1), "landmarks.pose_window": 0.0}
+    a = solve(log, LandmarksParams.from_config(_cfg(log, **over, **{"robust.q_pose_scope": "window"})))
     b = solve(log, LandmarksParams.from_config(_cfg(log, **over, **{"robust.q_pose_scope": "node"})))
     assert np.array_equal(a.poses.box, b.poses.box) and np.array_equal(a.landmarks.box, b.landmarks.box)
     assert "at each pose" in b.consistency.assumption and "among the observations" in a.consistency.assumption
     with pytest.raises(Exception, match="q_pose_scope"):
         LandmarksParams.from_config(_cfg(log, **{"robust.q_pose_scope": "frame"}))
+
+
+def test_pose_sets_over_their_memory_limit_are_a_clear_error(monkeypatch, tmp_path):
+    """The pose sets grow with nodes × observations × heading slices: over POSE_SET_BYTES the
+    run stops before allocating them, naming the key that shrinks them."""
+    from ivslam_cli.limits import LimitExceeded
+
+    log = _sim(5, steps=40)
+    params = LandmarksParams.from_config(_cfg(log))
+    need = params.pose_slices * (48 * 40 + 32 * log.observations.stamp.size)
+    monkeypatch.setenv("IVSLAM_LIMIT_POSE_SET_BYTES", str(need // 2))
+    with pytest.raises(LimitExceeded, match=r"landmarks\.pose_slices.*POSE_SET_BYTES"):
+        solve(log, params)
+    monkeypatch.setenv("IVSLAM_LIMIT_POSE_SET_BYTES", str(4 * need))
+    solve(log, params)
