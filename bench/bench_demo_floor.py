@@ -49,7 +49,8 @@ def widths(lo, hi) -> tuple[float, float]:
 
 
 def floor_log(name: str, log, nodes: int, seed: int, run: dict) -> dict:
-    from bench.landmark_witness_steps import StepBounds, StepProblem, StepWitness
+    from bench.landmark_witness import Bounds
+    from bench.landmark_witness_steps import StepProblem, StepWitness
     from ivslam_cli.config import resolve_config
     from ivslam_cli.report.core import angle_in
     from ivslam_cli.slam.landmarks import Params
@@ -61,7 +62,7 @@ def floor_log(name: str, log, nodes: int, seed: int, run: dict) -> dict:
             "map given": solve(log, Params.from_config(resolve_config(None, {**run, "landmarks.map_known": True},
                                                                           log_bounds=log.bounds)))}
     t_ours = time.perf_counter() - t0
-    pb = StepProblem(log, StepBounds.from_params(params))
+    pb = StepProblem(log, Bounds.from_params(params))
     rng = np.random.default_rng(seed)
     picked = np.sort(rng.choice(np.arange(1, pb.N), min(nodes, pb.N - 1), replace=False))
     rows, outside = [], []

@@ -59,12 +59,14 @@ class Bounds:
     lag_time: float
     lag_memory: float
     margin: np.ndarray
+    w_rel: float = 0.0  # turn-rate bound per m/s (witnesses here keep within w_abs: a subset)
 
     @classmethod
     def from_params(cls, p) -> Bounds:
         o = p.odometry
         return cls(p.range_abs, p.range_rel, p.bearing, o.odom_v, o.odom_v_rel, o.odom_w, o.odom_lag_xy,
-                   o.odom_lag_th, o.odom_lag_time, o.odom_lag_memory, np.asarray(p.initial.margin, float))
+                   o.odom_lag_th, o.odom_lag_time, o.odom_lag_memory, np.asarray(p.initial.margin, float),
+                   o.odom_w_rel)
 
 
 class Problem:

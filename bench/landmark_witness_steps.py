@@ -25,11 +25,9 @@ Exact only up to the float arithmetic of the check (relative 1e-15): a floor, no
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import dataclass
-
 import numpy as np
 
-from bench.landmark_witness import S_CTRL, _quiet_highs, wrap
+from bench.landmark_witness import S_CTRL, Bounds, _quiet_highs, wrap
 
 
 def _sinc(u):
@@ -100,33 +98,14 @@ def integrate(P0, v, w, h):
     return np.column_stack([x, y, th])
 
 
-@dataclass
-class StepBounds:
-    """The stated bounds of a run, from :class:`ivslam_cli.slam.landmarks.params.Params`."""
-
-    range_abs: float
-    range_rel: float
-    bearing: float
-    v_abs: float
-    v_rel: float
-    w_abs: float
-    w_rel: float
-    margin: np.ndarray
-
-    @classmethod
-    def from_params(cls, p) -> StepBounds:
-        o = p.odometry
-        if o.odom_lag_xy > 0 or o.odom_lag_th > 0 or o.odom_lag_time > 0:
-            raise ValueError("landmark_witness_steps models no lag: use bench.landmark_witness for this log")
-        return cls(p.range_abs, p.range_rel, p.bearing, o.odom_v, o.odom_v_rel, o.odom_w, o.odom_w_rel,
-                   np.asarray(p.initial.margin, float))
-
-
 class StepProblem:
     """A twist log whose observations are at odometry stamps, its truth at the same stamps, and
     the share of each bound a witness may use."""
 
-    def __init__(self, log, bounds: StepBounds):
+    def __init__(self, log, bounds: Bounds):
+        """``bounds``: :meth:`bench.landmark_witness.Bounds.from_params` of the run (no lag)."""
+        if bounds.lag_xy > 0 or bounds.lag_th > 0 or bounds.lag_time > 0:
+            raise ValueError("landmark_witness_steps models no lag: use bench.landmark_witness for this log")
         self.b = bounds
         odo, obs, tr = log.odometry, log.observations, log.truth
         t = np.asarray(odo.stamp, float)

@@ -10,7 +10,8 @@ import pytest
 
 pytest.importorskip("highspy")
 
-from bench.landmark_witness_steps import StepBounds, StepProblem, StepWitness, _share  # noqa: E402
+from bench.landmark_witness import Bounds  # noqa: E402
+from bench.landmark_witness_steps import StepProblem, StepWitness, _share  # noqa: E402
 from ivslam_cli.config import resolve_config  # noqa: E402
 from ivslam_cli.report.core import angle_in  # noqa: E402
 from ivslam_cli.simulate import simulate  # noqa: E402
@@ -30,13 +31,13 @@ def case():
     log = simulate(SimConfig(scenario="landmarks", seed=3, steps=90))
     params = Params.from_config(resolve_config(None, RUN, log_bounds=log.bounds))
     given = Params.from_config(resolve_config(None, {**RUN, "landmarks.map_known": True}, log_bounds=log.bounds))
-    pb = StepProblem(log, StepBounds.from_params(params))
+    pb = StepProblem(log, Bounds.from_params(params))
     return log, params, pb, {True: solve(log, params), False: solve(log, given)}
 
 
 def check_world(log, params, pb, w):
     """Every bound of the model on the whole log, by Simpson's rule on each held twist."""
-    b = StepBounds.from_params(params)
+    b = Bounds.from_params(params)
     z = np.asarray(log.odometry.twist, float)[:-1]
     v, om = w["v"], w["w"]
     assert (v > 0).all()
