@@ -68,7 +68,7 @@ ROBOT = _Robot()
 @click.option("--initial-pose-from-truth", is_flag=True, default=None,
               help="landmarks.initial_pose_from_truth: anchor the map frame at the true first pose.")
 @click.option("--q-landmark", type=int, default=None, help="robust.q_landmark: outliers tolerated per landmark.")
-@click.option("--q-pose", type=int, default=None, help="robust.q_pose: outliers tolerated per pose window.")
+@click.option("--q-pose", type=int, default=None, help="robust.q_pose: outliers tolerated at each pose.")
 @click.option("--max-iterations", type=int, default=None, help="landmarks.max_iterations: sweep cap.")
 @click.option("--tolerance", type=float, default=None, help="landmarks.tolerance: stop when widths shrink less.")
 @click.option("--poses-known", is_flag=True, default=None,

@@ -50,7 +50,8 @@ contracted a pose wrongly) are recorded as events and that step's contraction is
 so are pose and landmark updates that would empty a set: a run never ends silently empty.
 
 Guarantee: if every motion step holds within its bounds and at most ``q_i`` observations of
-landmark ``i`` and ``q_pose`` observations in each pose window break theirs, every true pose
+landmark ``i`` and ``q_pose`` observations at each pose (in each pose window with
+``robust.q_pose_scope = "window"``) break theirs, every true pose
 lies in its node's set and every landmark in its box (every contractor rounds outward).
 """
 
