@@ -411,36 +411,42 @@ def _mark_agree(buf, m, piece, agree):
 
 
 @njit(cache=True)
-def _window_q(m, idx, src, node, lm, q_pose, q_lm):
-    """How many of the ``m`` chosen observations may be wrong: at most ``q_pose`` at each of
-    their nodes, and at most ``q_lm[i]`` of landmark ``i``'s (each observation of a robot by
-    another may be)."""
-    n_nodes = 0
-    by_lm = 0
+def _window_groups(m, idx, src, node, lm, q_pose, q_lm, ga, ca, gb, cb):
+    """Group the ``m`` chosen observations by node (``ga``, cap ``ca`` = ``q_pose``) and by
+    landmark (``gb``, cap ``cb`` = ``q_lm`` of the landmark); −1 for an observation of a robot
+    by another (each may be wrong). Returns how many may be wrong together: at most ``q_pose``
+    at each of their nodes and at most ``q_lm[i]`` of landmark ``i``'s."""
+    na = 0
+    nb = 0
     other = 0
     for s in range(m):
+        ga[s] = -1
+        gb[s] = -1
         j = idx[s]
         if src[s] == 1 or lm[j] < 0:
             other += 1
             continue
-        seen = False
         for t in range(s):
-            if src[t] == 0 and node[idx[t]] == node[j]:
-                seen = True
-                break
-        if not seen:
-            n_nodes += 1
-        first = True
+            if ga[t] >= 0 and node[idx[t]] == node[j]:
+                ga[s] = ga[t]
+            if gb[t] >= 0 and lm[idx[t]] == lm[j]:
+                gb[s] = gb[t]
+        if ga[s] < 0:
+            ga[s] = na
+            ca[na] = q_pose
+            na += 1
+        if gb[s] < 0:
+            gb[s] = nb
+            cb[nb] = q_lm[lm[j]]
+            nb += 1
+    by_lm = 0
+    for g in range(nb):
         cnt = 0
-        for t in range(m):
-            if src[t] == 0 and lm[idx[t]] == lm[j]:
-                if t < s:
-                    first = False
-                    break
+        for s in range(m):
+            if gb[s] == g:
                 cnt += 1
-        if first:
-            by_lm += min(cnt, q_lm[lm[j]])
-    return min(q_pose * n_nodes, by_lm) + other
+        by_lm += min(cnt, cb[g])
+    return min(q_pose * na, by_lm) + other
 
 
 @njit(cache=True)
@@ -452,7 +458,8 @@ def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, 
     module docstring). Returns False if no slice survives (nothing written).
 
     At most ``q_pose`` of the window's observations are taken to be wrong, or with ``per_node``
-    (``q_pose`` counted at each node) as many as :func:`_window_q` allows.
+    (``q_pose`` counted at each node) as many as :func:`_window_groups` allows, the wrong ones
+    also capped per node and per landmark in the window's q-relaxed intersection.
 
     ``node_obs`` are the observation indices sorted by node, ``obs_node_stamp`` their nodes'
     stamps (sorted within each chain), ``[chain_lo, chain_hi)`` the part of them on node
@@ -510,31 +517,12 @@ def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, 
             m += 1
     if m == 0:
         return True
-    qw = _window_q(m, idx, src, node, lm, q_pose, q_lm) if per_node else q_pose
+    ga = np.empty(m, np.int64)  # the window's wrong observations: q_pose per node, q_lm per landmark
+    gb = np.empty(m, np.int64)
+    ca = np.empty(m, np.int64)
+    cb = np.empty(m, np.int64)
+    qw = _window_groups(m, idx, src, node, lm, q_pose, q_lm, ga, ca, gb, cb) if per_node else q_pose
     capped = per_node and m > m_own
-    ga = np.full(m, -1, np.int64)  # the window's wrong observations: q_pose per node, q_lm per landmark
-    gb = np.full(m, -1, np.int64)
-    ca = np.full(m, q_pose, np.int64)
-    cb = np.zeros(m, np.int64)
-    if capped:
-        na = 0
-        nb = 0
-        for s in range(m):
-            j = idx[s]
-            if src[s] == 1 or lm[j] < 0:  # each observation of a robot by another may be wrong
-                continue
-            for t in range(s):
-                if ga[t] >= 0 and node[idx[t]] == node[j]:
-                    ga[s] = ga[t]
-                if gb[t] >= 0 and lm[idx[t]] == lm[j]:
-                    gb[s] = gb[t]
-            if ga[s] < 0:
-                ga[s] = na
-                na += 1
-            if gb[s] < 0:
-                gb[s] = nb
-                cb[nb] = q_lm[lm[j]]
-                nb += 1
     # nothing this update reads changed since it last ran: skip it (ver, lver: clock values
     # of the last change of a set, of a landmark box; posedone: of this node's last update)
     stale = ver[k] > posedone[k]
