@@ -285,34 +285,50 @@ def _quiet_highs():
 
 def linprog(cost, A_ub=None, b_ub=None, A_eq=None, b_eq=None, bounds=None):
     """min cost·x subject to A_ub x ≤ b_ub, A_eq x = b_eq, bounds[:, 0] ≤ x ≤ bounds[:, 1] (dense
-    matrices), by HiGHS: (solved, x, objective). HiGHS through highspy rather than SciPy: with
-    SciPy installed numba imports scipy.linalg in every process that calls a kernel."""
-    import highspy
-
-    n = cost.size
+    matrices), by HiGHS (:func:`sparse_linprog`): (solved, x, objective)."""
     rows, lo_r, hi_r = [], [], []
     if A_ub is not None:
         rows.append(np.asarray(A_ub, float))
-        lo_r.append(np.full(rows[-1].shape[0], -highspy.kHighsInf))
+        lo_r.append(np.full(rows[-1].shape[0], -np.inf))
         hi_r.append(np.asarray(b_ub, float))
     if A_eq is not None:
         rows.append(np.asarray(A_eq, float))
         lo_r.append(np.asarray(b_eq, float))
         hi_r.append(np.asarray(b_eq, float))
-    M = np.vstack(rows) if rows else np.zeros((0, n))
-    lp = highspy.HighsLp()
-    lp.num_col_, lp.num_row_ = n, M.shape[0]
-    lp.col_cost_ = np.asarray(cost, float)
-    lp.col_lower_ = np.where(np.isfinite(bounds[:, 0]), bounds[:, 0], -highspy.kHighsInf)
-    lp.col_upper_ = np.where(np.isfinite(bounds[:, 1]), bounds[:, 1], highspy.kHighsInf)
-    lp.row_lower_ = np.concatenate(lo_r) if rows else np.zeros(0)
-    lp.row_upper_ = np.concatenate(hi_r) if rows else np.zeros(0)
+    M = np.vstack(rows) if rows else np.zeros((0, cost.size))
     r, c = np.nonzero(M)
+    return sparse_linprog(cost, r, c, M[r, c], np.concatenate(lo_r) if rows else np.zeros(0),
+                          np.concatenate(hi_r) if rows else np.zeros(0), bounds[:, 0], bounds[:, 1])
+
+
+def sparse_linprog(cost, r, c, v, row_lo, row_hi, col_lo, col_hi):
+    """min cost·x subject to row_lo ≤ A x ≤ row_hi (A given as triplets, duplicates summed) and
+    col_lo ≤ x ≤ col_hi, by HiGHS (highspy rather than SciPy: with SciPy installed numba imports
+    scipy.linalg in every process that calls a kernel): (solved, x, objective). Infinite bounds
+    are HiGHS's infinity."""
+    import highspy
+
+    n, m = cost.size, row_lo.size
+    order = np.lexsort((c, r))
+    r, c, v = r[order], c[order], v[order]
+    if r.size:
+        key = r * n + c
+        first = np.concatenate([[True], key[1:] != key[:-1]])
+        v = np.add.reduceat(v, np.flatnonzero(first))
+        r, c = r[first], c[first]
+    inf = highspy.kHighsInf
+    lp = highspy.HighsLp()
+    lp.num_col_, lp.num_row_ = n, m
+    lp.col_cost_ = np.asarray(cost, float)
+    lp.col_lower_ = np.where(np.isfinite(col_lo), col_lo, -inf)
+    lp.col_upper_ = np.where(np.isfinite(col_hi), col_hi, inf)
+    lp.row_lower_ = np.where(np.isfinite(row_lo), row_lo, -inf)
+    lp.row_upper_ = np.where(np.isfinite(row_hi), row_hi, inf)
     lp.a_matrix_.format_ = highspy.MatrixFormat.kRowwise
-    lp.a_matrix_.num_col_, lp.a_matrix_.num_row_ = n, M.shape[0]
-    lp.a_matrix_.start_ = np.searchsorted(r, np.arange(M.shape[0] + 1))
+    lp.a_matrix_.num_col_, lp.a_matrix_.num_row_ = n, m
+    lp.a_matrix_.start_ = np.searchsorted(r, np.arange(m + 1))
     lp.a_matrix_.index_ = c
-    lp.a_matrix_.value_ = M[r, c]
+    lp.a_matrix_.value_ = v
     h = _quiet_highs()
     h.passModel(lp)
     h.run()

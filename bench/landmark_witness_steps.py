@@ -27,7 +27,7 @@ from __future__ import annotations
 from collections import Counter
 import numpy as np
 
-from bench.landmark_witness import S_CTRL, Bounds, _quiet_highs, wrap
+from bench.landmark_witness import S_CTRL, Bounds, sparse_linprog, wrap
 
 
 def _sinc(u):
@@ -47,38 +47,6 @@ def _dsinc(u):
 
 BACKOFF = 1e-2  # the linear programs keep this share inside every bound (the check uses all of it)
 TR0 = 0.5  # first trust region: share of each twist bound, metres of each landmark
-
-
-def sparse_linprog(cost, r, c, v, row_lo, row_hi, col_lo, col_hi):
-    """min cost·x subject to row_lo ≤ A x ≤ row_hi (A given as triplets, duplicates summed) and
-    col_lo ≤ x ≤ col_hi, by HiGHS: (solved, x, objective)."""
-    import highspy
-
-    n, m = cost.size, row_lo.size
-    order = np.lexsort((c, r))
-    r, c, v = r[order], c[order], v[order]
-    key = r * n + c
-    first = np.concatenate([[True], key[1:] != key[:-1]])
-    v = np.add.reduceat(v, np.flatnonzero(first))
-    r, c = r[first], c[first]
-    inf = highspy.kHighsInf
-    lp = highspy.HighsLp()
-    lp.num_col_, lp.num_row_ = n, m
-    lp.col_cost_ = np.asarray(cost, float)
-    lp.col_lower_ = np.where(np.isfinite(col_lo), col_lo, -inf)
-    lp.col_upper_ = np.where(np.isfinite(col_hi), col_hi, inf)
-    lp.row_lower_ = np.where(np.isfinite(row_lo), row_lo, -inf)
-    lp.row_upper_ = np.where(np.isfinite(row_hi), row_hi, inf)
-    lp.a_matrix_.format_ = highspy.MatrixFormat.kRowwise
-    lp.a_matrix_.num_col_, lp.a_matrix_.num_row_ = n, m
-    lp.a_matrix_.start_ = np.searchsorted(r, np.arange(m + 1))
-    lp.a_matrix_.index_ = c
-    lp.a_matrix_.value_ = v
-    h = _quiet_highs()
-    h.passModel(lp)
-    h.run()
-    ok = h.getModelStatus() == highspy.HighsModelStatus.kOptimal
-    return ok, np.array(h.getSolution().col_value), float(h.getInfo().objective_function_value)
 
 
 def _share(used, bound):
