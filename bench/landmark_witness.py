@@ -301,11 +301,11 @@ def linprog(cost, A_ub=None, b_ub=None, A_eq=None, b_eq=None, bounds=None):
                           np.concatenate(hi_r) if rows else np.zeros(0), bounds[:, 0], bounds[:, 1])
 
 
-def sparse_linprog(cost, r, c, v, row_lo, row_hi, col_lo, col_hi):
+def sparse_linprog(cost, r, c, v, row_lo, row_hi, col_lo, col_hi, duals=False):
     """min cost·x subject to row_lo ≤ A x ≤ row_hi (A given as triplets, duplicates summed) and
     col_lo ≤ x ≤ col_hi, by HiGHS (highspy rather than SciPy: with SciPy installed numba imports
-    scipy.linalg in every process that calls a kernel): (solved, x, objective). Infinite bounds
-    are HiGHS's infinity."""
+    scipy.linalg in every process that calls a kernel): (solved, x, objective), and with
+    ``duals`` the rows' dual values after them. Infinite bounds are HiGHS's infinity."""
     import highspy
 
     n, m = cost.size, row_lo.size
@@ -333,7 +333,9 @@ def sparse_linprog(cost, r, c, v, row_lo, row_hi, col_lo, col_hi):
     h.passModel(lp)
     h.run()
     ok = h.getModelStatus() == highspy.HighsModelStatus.kOptimal
-    return ok, np.array(h.getSolution().col_value), float(h.getInfo().objective_function_value)
+    sol = h.getSolution()
+    out = ok, np.array(sol.col_value), float(h.getInfo().objective_function_value)
+    return (*out, np.array(sol.row_dual)) if duals else out
 
 
 def fit_base(pb: Problem, chunk: float = 40.0, keep: float = 25.0, iterations: int = 20) -> Base:

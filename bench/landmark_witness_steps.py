@@ -160,9 +160,12 @@ class StepProblem:
 class StepWitness:
     """Witnesses of a :class:`StepProblem`: :meth:`push` one coordinate of one pose."""
 
-    def __init__(self, pb: StepProblem, slam: bool):
-        self.pb, self.slam = pb, slam
+    def __init__(self, pb: StepProblem, slam: bool, q: tuple[int, int, float] | None = None):
+        """``q`` = (q_pose, q_landmark, q_landmark_frac) of a run: each push may also break
+        observations as the run's q allows (:meth:`push`)."""
+        self.pb, self.slam, self.q = pb, slam, q
         self.last = None
+        self.active = np.ones(pb.step.size, bool)  # the observations the witness meets
 
     def state0(self) -> dict:
         pb = self.pb
@@ -187,7 +190,8 @@ class StepWitness:
             return False
         X = self.poses(s)
         vr, vb = self.residuals(X, s["m"])[3:]
-        return bool((np.abs(vr) <= pb.er_b).all() and (np.abs(vb) <= pb.eb_b).all())
+        off = ~self.active
+        return bool(((np.abs(vr) <= pb.er_b) | off).all() and ((np.abs(vb) <= pb.eb_b) | off).all())
 
     def residuals(self, X, m):
         pb = self.pb
@@ -203,7 +207,12 @@ class StepWitness:
         (a value returned is that of a witness: :meth:`feasible` holds for it).
 
         Each linear program has the poses as variables beside the twists, the first pose and
-        the landmarks, and the linearised arcs as equalities: every row is sparse."""
+        the landmarks, and the linearised arcs as equalities: every row is sparse.
+
+        With ``q``, after each linear program the witness stops meeting the observation whose
+        rows hold its objective most (the largest dual values), while the caps allow: at most
+        ``q_pose`` broken at a step and ``max(q_landmark, ⌊q_frac·m⌋)`` of a landmark's ``m``,
+        the truth's outliers counted in both (:attr:`active`: the ones it still meets)."""
         pb, b = self.pb, self.pb.b
         N, n1, nl = pb.N, pb.N - 1, len(pb.ids) if self.slam else 0
         cP, cv, cw, cm = 0, 3 * N, 3 * N + n1, 3 * N + 2 * n1
@@ -216,12 +225,20 @@ class StepWitness:
         col = np.searchsorted(pb.ids, pb.lid)
         I = np.arange(n1)
         no = pb.step.size
+        self.active = active = np.ones(no, bool)
+        if self.q is not None:
+            q_pose, q_lm, q_frac = self.q
+            per_step = Counter(pb.out_step.tolist())
+            per_lm = Counter(pb.out_lid.tolist())
+            cap = {i: max(q_lm, int(q_frac * pb.n_all[i])) for i in pb.ids}
 
         def value(s):
             return float(self.poses(s)[node, k])
 
         tr, trl = TR0, TR0
-        for _ in range(iterations):
+        left = iterations
+        while left > 0:
+            left -= 1
             X = self.poses(st)
             v, w, h = st["v"], st["w"], pb.h
             half = 0.5 * w * h
@@ -266,7 +283,9 @@ class StepWitness:
             if nl:
                 cr += [(cm + 2 * col, dx / rr), (cm + 2 * col + 1, dy / rr)]
                 cb += [(cm + 2 * col, -dy / rr ** 2), (cm + 2 * col + 1, dx / rr ** 2)]
-            er, eb = pb.er_b * (1 - BACKOFF), pb.eb_b * (1 - BACKOFF)
+            er = np.where(active, pb.er_b * (1 - BACKOFF), np.inf)
+            eb = np.where(active, pb.eb_b * (1 - BACKOFF), np.inf)
+            r_obs = r0
             rows(no, cr, -er - vr, er - vr)
             rows(no, cb, -eb - vb, eb - vb)
             lo, hi = np.full(NV, -np.inf), np.full(NV, np.inf)
@@ -278,14 +297,29 @@ class StepWitness:
             lo, hi = np.minimum(lo, 0.0), np.maximum(hi, 0.0)
             cost = np.zeros(NV)
             cost[cP + 3 * node + k] = -sign
-            ok, x, fun = sparse_linprog(cost, np.concatenate(R), np.concatenate(C), np.concatenate(V),
-                                        np.concatenate(lo_r), np.concatenate(hi_r), lo, hi)
+            ok, x, fun, y = sparse_linprog(cost, np.concatenate(R), np.concatenate(C), np.concatenate(V),
+                                           np.concatenate(lo_r), np.concatenate(hi_r), lo, hi, duals=True)
             if not ok:
                 tr, trl = 0.5 * tr, 0.5 * trl
                 if tr < 1e-4:
                     break
                 continue
+            dropped = False
+            if self.q is not None:
+                score = np.abs(y[r_obs:r_obs + no]) + np.abs(y[r_obs + no:r_obs + 2 * no])
+                ok_step = np.array([per_step[int(s_)] < q_pose for s_ in pb.step])
+                ok_lm = np.array([per_lm[int(i)] < cap[int(i)] for i in pb.lid])
+                score = np.where(active & ok_step & ok_lm, score, 0.0)
+                j = int(np.argmax(score)) if no else 0
+                if no and score[j] > 1e-9:
+                    active[j] = False
+                    per_step[int(pb.step[j])] += 1
+                    per_lm[int(pb.lid[j])] += 1
+                    left = min(left + 1, 4 * iterations)
+                    dropped = True
             if -fun < 1e-6:
+                if dropped:
+                    continue
                 break
             for frac in (1.0, 0.5, 0.25, 0.12, 0.06, 0.03):
                 dz = frac * x

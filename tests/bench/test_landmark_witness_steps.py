@@ -119,3 +119,25 @@ def test_broken_observations_keep_to_the_runs_q(case):
     assert ok.size == drop.size and ok[~drop].all()  # only the broken observations may miss their bounds
     box = outs[True].poses.box[int(np.searchsorted(outs[True].poses.stamp, log.odometry.stamp[node]))]
     assert box[0, 0] <= value <= box[0, 1]
+
+
+def test_witnesses_that_break_what_the_duals_pick_keep_to_q_and_lie_in_our_enclosures(case):
+    log, params, pb, outs = case
+    node = 60
+    q = (params.q_pose, params.q_landmark, params.q_landmark_frac)
+    box = outs[True].poses.box[int(np.searchsorted(outs[True].poses.stamp, log.odometry.stamp[node]))]
+    gained = []
+    for c, sign in ((0, +1), (1, -1)):
+        plain = StepWitness(pb, slam=True).push(node, c, sign)
+        wit = StepWitness(pb, slam=True, q=q)
+        value = wit.push(node, c, sign)
+        drop = ~wit.active
+        assert drop.any()
+        assert np.unique(pb.step[drop], return_counts=True)[1].max() <= params.q_pose
+        for lid, n in zip(*np.unique(pb.lid[drop], return_counts=True)):
+            assert n <= max(params.q_landmark, int(params.q_landmark_frac * pb.n_all[int(lid)]))
+        X, ok = check_world(log, params, pb, wit.world())
+        assert ok[~drop].all() and X[node, c] == pytest.approx(value, abs=1e-9)
+        assert box[c, 0] <= value <= box[c, 1]
+        gained.append(sign * (value - plain))
+    assert max(gained) > 0.001  # breaking observations took the witness further than meeting them all
