@@ -12,7 +12,8 @@ issue's targets, and our two runs' widths at the same nodes.
 
 With ``--q`` each node also gets witnesses that break observations the run's q allows to be
 wrong (``q_pose`` at a node, ``q_landmark`` of a landmark's, the truth's outliers counted;
-nearest the node first: :func:`bench.landmark_witness.q_drops`): the floor under the run's
+nearest the node first, :func:`bench.landmark_witness.q_drops`, and one after each linear
+program as its duals pick, :class:`bench.witness_lp.Breaks`): the floor under the run's
 whole assumption, which is what its boxes must hold.
 
 It is also a soundness check beyond the truth: each witness must lie in our boxes (SLAM and
@@ -85,10 +86,12 @@ def floor_robot(robot: int, samples: int, windows: tuple[float, ...], seed: int,
         lo, hi = wit.pose_extremes(s, windows)
         row = {"t": s - pb.t0, "lb_pose": max(hi[0] - lo[0], hi[1] - lo[1]), "lb_heading": hi[2] - lo[2]}
         found = [("", lo, hi)]
-        if with_q:  # witnesses that also break what the run's q allows, nearest the node first
+        if with_q:  # witnesses that also break what the run's q allows: nearest the node first, and as the duals pick
             drop = q_drops(pb, s - pb.t0, max(windows), params.q_pose, params.q_landmark, params.q_landmark_frac)
             qlo, qhi = Witness(pb.without(drop), base, slam=slam_witnesses).pose_extremes(s, windows)
-            qlo, qhi = np.minimum(qlo, lo), np.maximum(qhi, hi)
+            q = (params.q_pose, params.q_landmark, params.q_landmark_frac)
+            dlo, dhi = Witness(pb, base, slam=slam_witnesses, q=q).pose_extremes(s, windows)
+            qlo, qhi = np.minimum(np.minimum(qlo, lo), dlo), np.maximum(np.maximum(qhi, hi), dhi)
             row.update(q_pose=max(qhi[0] - qlo[0], qhi[1] - qlo[1]), q_heading=qhi[2] - qlo[2], q_dropped=int(drop.sum()))
             found.append((f" (q: {int(drop.sum())} observations broken)", qlo, qhi))
         for name, out in (("slam", ours), ("given", given)):
@@ -114,7 +117,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=17)
     ap.add_argument("--q", action="store_true",
                     help="also witnesses that break what the run's q allows (q_pose per node, q_landmark per "
-                         "landmark, nearest the node first): the floor under the run's whole assumption")
+                         "landmark; nearest the node first, and as the LP duals pick): the floor under the run's "
+                         "whole assumption")
     ap.add_argument("--slam", action="store_true",
                     help="witnesses also move the landmarks (slower; the surveyed map is kept otherwise)")
     args = ap.parse_args(argv)

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bench.witness_lp import Breaks, linprog
 from ivslam_cli.slam.motion import node_lags
 
 S_CTRL = 0.97  # a witness uses this share of each control and observation bound
@@ -264,80 +265,6 @@ def q_drops(pb: Problem, t_node: float, span: float, q_pose: int, q_landmark: in
     return drop
 
 
-def _quiet_highs():
-    """A HiGHS instance (highspy, dev dependency) that prints nothing: its constructor writes
-    a banner to the process's stdout, which is muted while it runs."""
-    import os
-
-    import highspy
-
-    sys_stdout = os.dup(1)
-    try:
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 1)
-            h = highspy.Highs()
-    finally:
-        os.dup2(sys_stdout, 1)
-        os.close(sys_stdout)
-    h.setOptionValue("output_flag", False)
-    return h
-
-
-def linprog(cost, A_ub=None, b_ub=None, A_eq=None, b_eq=None, bounds=None):
-    """min cost·x subject to A_ub x ≤ b_ub, A_eq x = b_eq, bounds[:, 0] ≤ x ≤ bounds[:, 1] (dense
-    matrices), by HiGHS (:func:`sparse_linprog`): (solved, x, objective)."""
-    rows, lo_r, hi_r = [], [], []
-    if A_ub is not None:
-        rows.append(np.asarray(A_ub, float))
-        lo_r.append(np.full(rows[-1].shape[0], -np.inf))
-        hi_r.append(np.asarray(b_ub, float))
-    if A_eq is not None:
-        rows.append(np.asarray(A_eq, float))
-        lo_r.append(np.asarray(b_eq, float))
-        hi_r.append(np.asarray(b_eq, float))
-    M = np.vstack(rows) if rows else np.zeros((0, cost.size))
-    r, c = np.nonzero(M)
-    return sparse_linprog(cost, r, c, M[r, c], np.concatenate(lo_r) if rows else np.zeros(0),
-                          np.concatenate(hi_r) if rows else np.zeros(0), bounds[:, 0], bounds[:, 1])
-
-
-def sparse_linprog(cost, r, c, v, row_lo, row_hi, col_lo, col_hi, duals=False):
-    """min cost·x subject to row_lo ≤ A x ≤ row_hi (A given as triplets, duplicates summed) and
-    col_lo ≤ x ≤ col_hi, by HiGHS (highspy rather than SciPy: with SciPy installed numba imports
-    scipy.linalg in every process that calls a kernel): (solved, x, objective), and with
-    ``duals`` the rows' dual values after them. Infinite bounds are HiGHS's infinity."""
-    import highspy
-
-    n, m = cost.size, row_lo.size
-    order = np.lexsort((c, r))
-    r, c, v = r[order], c[order], v[order]
-    if r.size:
-        key = r * n + c
-        first = np.concatenate([[True], key[1:] != key[:-1]])
-        v = np.add.reduceat(v, np.flatnonzero(first))
-        r, c = r[first], c[first]
-    inf = highspy.kHighsInf
-    lp = highspy.HighsLp()
-    lp.num_col_, lp.num_row_ = n, m
-    lp.col_cost_ = np.asarray(cost, float)
-    lp.col_lower_ = np.where(np.isfinite(col_lo), col_lo, -inf)
-    lp.col_upper_ = np.where(np.isfinite(col_hi), col_hi, inf)
-    lp.row_lower_ = np.where(np.isfinite(row_lo), row_lo, -inf)
-    lp.row_upper_ = np.where(np.isfinite(row_hi), row_hi, inf)
-    lp.a_matrix_.format_ = highspy.MatrixFormat.kRowwise
-    lp.a_matrix_.num_col_, lp.a_matrix_.num_row_ = n, m
-    lp.a_matrix_.start_ = np.searchsorted(r, np.arange(m + 1))
-    lp.a_matrix_.index_ = c
-    lp.a_matrix_.value_ = v
-    h = _quiet_highs()
-    h.passModel(lp)
-    h.run()
-    ok = h.getModelStatus() == highspy.HighsModelStatus.kOptimal
-    sol = h.getSolution()
-    out = ok, np.array(sol.col_value), float(h.getInfo().objective_function_value)
-    return (*out, np.array(sol.row_dual)) if duals else out
-
-
 def fit_base(pb: Problem, chunk: float = 40.0, keep: float = 25.0, iterations: int = 20) -> Base:
     """Controls of a modelled path whose distance to the truth, at every check step, is the
     smallest share of the lag (minimax by SLP, chunk after chunk)."""
@@ -394,8 +321,12 @@ class Witness:
     """Witnesses around a fitted path: :meth:`push` one coordinate of a pose or a landmark,
     :meth:`pose_extremes` every coordinate of a pose."""
 
-    def __init__(self, pb: Problem, base: Base, slam: bool):
-        self.pb, self.base, self.slam = pb, base, slam
+    def __init__(self, pb: Problem, base: Base, slam: bool, q: tuple[int, int, float] | None = None):
+        """``q`` = (q_pose, q_landmark, q_landmark_frac) of a run: each push may also break
+        observations as the run's q allows, the one whose rows hold the push most (largest dual
+        values) after each linear program (:class:`Breaks`)."""
+        self.pb, self.base, self.slam, self.q = pb, base, slam, q
+        self.breaks = None
         self.X = Path(pb, base.P0, base.d, base.a, base.c, 0, pb.N - 1).X
         self.off0 = pb.truth(pb.frame_t) - self.X[pb.fstep]  # each frame's true pose, from the path
         self.offb = S_OFF * pb.lag3[pb.fstep]
@@ -474,12 +405,24 @@ class Witness:
         def lmcols(ids):
             return np.array([lmcol.get(int(i), -1) for i in ids], np.int64)
 
+        if self.q is not None:
+            m = Counter(pb.lid.tolist()) + Counter(pb.out_lid.tolist())
+            self.breaks = Breaks(self.q, *pb.odometry_bracket(pb.t), pb.lid, *pb.odometry_bracket(pb.out_t), pb.out_lid, m)
+        active = self.breaks.active if self.q is not None else np.ones(pb.t.size, bool)
+        layout = []  # (observations, first row) of each block of four
+
         def linearise(s):
             X, J = Path(pb, s["P"], s["d"], s["a"], s["c"], w0, w1).jac(pb, rows, b0, nb)
             blocks, rhs = [], []
+            layout.clear()
+            r0 = 0
             for k, pose, Jp in self._obs_parts(X, J, s, ow, ow_f, oo, oo_f, nfw, NV, nvp, c_fw, c_fo):
+                on = active[k]
+                k, pose, Jp = k[on], pose[on], Jp[on]
                 if not k.size:
                     continue
+                layout.append((k, r0))
+                r0 += 4 * k.size
                 dx, dy, rr, vr, vb = residuals(pose, lm_xy(s, pb.lid[k]), k)
                 Jr, Jb = obs_block(dx, dy, rr, Jp, k, lmcols(pb.lid[k]))
                 blocks += [Jr, -Jr, Jb, -Jb]
@@ -554,6 +497,7 @@ class Witness:
                     or (np.abs(s["star"]) > sb * tol + 1e-300).any():
                 return False
             for k, pose in ((ow, X[pb.fstep[fw][ow_f] - w0] + s["fw"][ow_f]), (oo, self.X[pb.fstep[fo][oo_f]] + s["fo"][oo_f])):
+                k, pose = k[active[k]], pose[active[k]]
                 if k.size:
                     _, _, _, vr, vb = residuals(pose, lm_xy(s, pb.lid[k]), k)
                     if (np.abs(vr) > pb.er_b[k]).any() or (np.abs(vb) > pb.eb_b[k]).any():
@@ -581,13 +525,23 @@ class Witness:
                 cost[col + target[2]] -= sign
             else:
                 cost[lmcol[int(target[1])] + target[2]] = -sign
-            ok, x, fun = linprog(cost, A_ub=A, b_ub=rhs, A_eq=Aeq, b_eq=beq, bounds=np.column_stack([lo, hi]))
+            ok, x, fun, y = linprog(cost, A_ub=A, b_ub=rhs, A_eq=Aeq, b_eq=beq, bounds=np.column_stack([lo, hi]),
+                                    duals=True)
             if not ok:
                 tr, trl = 0.5 * tr, 0.5 * trl
                 if tr < 1e-4:
                     break
                 continue
+            broke = False
+            if self.q is not None and layout:
+                score = np.zeros(pb.t.size)
+                for k, r0 in layout:
+                    n = k.size
+                    score[k] += np.abs(y[r0:r0 + 4 * n]).reshape(4, n).sum(axis=0)
+                broke = self.breaks.pick(score)
             if -fun < 1e-5:
+                if broke:
+                    continue
                 break
             for frac in (1.0, 0.5, 0.25, 0.12):
                 cand = restore(apply(st, frac * x))

@@ -27,7 +27,8 @@ from __future__ import annotations
 from collections import Counter
 import numpy as np
 
-from bench.landmark_witness import S_CTRL, Bounds, sparse_linprog, wrap
+from bench.landmark_witness import S_CTRL, Bounds, wrap
+from bench.witness_lp import Breaks, sparse_linprog
 
 
 def _sinc(u):
@@ -225,12 +226,8 @@ class StepWitness:
         col = np.searchsorted(pb.ids, pb.lid)
         I = np.arange(n1)
         no = pb.step.size
-        self.active = active = np.ones(no, bool)
-        if self.q is not None:
-            q_pose, q_lm, q_frac = self.q
-            per_step = Counter(pb.out_step.tolist())
-            per_lm = Counter(pb.out_lid.tolist())
-            cap = {i: max(q_lm, int(q_frac * pb.n_all[i])) for i in pb.ids}
+        breaks = Breaks(self.q or (0, 0, 0.0), pb.step, pb.step, pb.lid, pb.out_step, pb.out_step, pb.out_lid, pb.n_all)
+        self.active = active = breaks.active
 
         def value(s):
             return float(self.poses(s)[node, k])
@@ -304,19 +301,10 @@ class StepWitness:
                 if tr < 1e-4:
                     break
                 continue
-            dropped = False
-            if self.q is not None:
-                score = np.abs(y[r_obs:r_obs + no]) + np.abs(y[r_obs + no:r_obs + 2 * no])
-                ok_step = np.array([per_step[int(s_)] < q_pose for s_ in pb.step])
-                ok_lm = np.array([per_lm[int(i)] < cap[int(i)] for i in pb.lid])
-                score = np.where(active & ok_step & ok_lm, score, 0.0)
-                j = int(np.argmax(score)) if no else 0
-                if no and score[j] > 1e-9:
-                    active[j] = False
-                    per_step[int(pb.step[j])] += 1
-                    per_lm[int(pb.lid[j])] += 1
-                    left = min(left + 1, 4 * iterations)
-                    dropped = True
+            held = np.abs(y[r_obs:r_obs + no]) + np.abs(y[r_obs + no:r_obs + 2 * no])  # each observation's rows
+            dropped = self.q is not None and breaks.pick(held)
+            if dropped:
+                left = min(left + 1, 4 * iterations)
             if -fun < 1e-6:
                 if dropped:
                     continue

@@ -156,3 +156,37 @@ def test_broken_observations_keep_to_the_runs_q_and_their_witnesses_lie_in_our_e
             assert (box[:, 0, 0] <= P[:, 0]).all() and (P[:, 0] <= box[:, 0, 1]).all()
             assert (box[:, 1, 0] <= P[:, 1]).all() and (P[:, 1] <= box[:, 1, 1]).all()
             assert angle_in(box[:, 2, 0], box[:, 2, 1], P[:, 2]).all()
+
+
+def test_witnesses_that_break_what_the_duals_pick_keep_to_the_runs_q(case):
+    """Witnesses that break, one after each linear program, the observation whose rows hold the
+    push most: the same caps, every other bound met, inside our boxes."""
+    log, params, out, pb, base = case
+    f = int(np.argmin(np.abs(pb.frame_t - 20.0)))
+    k = int(pb.fstep[f])
+    q = (params.q_pose, params.q_landmark, params.q_landmark_frac)
+    gained = []
+    for c, sign in ((2, +1), (0, -1)):
+        plain = Witness(pb, base, slam=False).push(pb.ts[k] - 15.0, pb.ts[k] + 15.0, ("pose", k, c), sign)
+        wit = Witness(pb, base, slam=False, q=q)
+        value = wit.push(pb.ts[k] - 15.0, pb.ts[k] + 15.0, ("pose", k, c), sign)
+        drop = ~wit.breaks.active
+        assert drop.any()
+        stamps = log.odometry.stamp - pb.t0
+        after = np.searchsorted(stamps, pb.t[drop], side="left")
+        before = np.searchsorted(stamps, pb.t[drop], side="right") - 1
+        around = np.concatenate([before, after[after != before]])
+        assert np.unique(around).size == around.size  # no odometry stamp next to two broken ones
+        m = {int(i): int(n) for i, n in zip(*np.unique(pb.lid, return_counts=True))}
+        for lid, n in zip(*np.unique(pb.lid[drop], return_counts=True)):
+            assert n <= max(params.q_landmark, int(params.q_landmark_frac * m[int(lid)]))
+        w = wit.world()
+        check_world(log, params, pb.without(drop), w)  # every bound at every observation not broken
+        assert w["frames"][f, c] == pytest.approx(value, abs=1e-12)
+        nodes = np.searchsorted(out.poses.stamp, pb.t0 + pb.frame_t - 1e-9)
+        box, P = out.poses.box[nodes], w["frames"]
+        assert (box[:, 0, 0] <= P[:, 0]).all() and (P[:, 0] <= box[:, 0, 1]).all()
+        assert (box[:, 1, 0] <= P[:, 1]).all() and (P[:, 1] <= box[:, 1, 1]).all()
+        assert angle_in(box[:, 2, 0], box[:, 2, 1], P[:, 2]).all()
+        gained.append(sign * (value - plain))
+    assert max(gained) > 0.001  # breaking observations took the witness further than meeting them all
