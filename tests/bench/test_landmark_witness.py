@@ -84,6 +84,19 @@ def check_world(log, params, pb, w):
     return X
 
 
+def check_caps(log, params, pb, drop):
+    """The broken observations keep to the run's q: never two next to one odometry stamp, at most
+    q of a landmark's."""
+    stamps = log.odometry.stamp - pb.t0
+    after = np.searchsorted(stamps, pb.t[drop], side="left")  # the odometry stamps around each
+    before = np.searchsorted(stamps, pb.t[drop], side="right") - 1
+    around = np.concatenate([before, after[after != before]])
+    assert np.unique(around).size == around.size
+    m = {int(i): int(n) for i, n in zip(*np.unique(pb.lid, return_counts=True))}
+    for lid, n in zip(*np.unique(pb.lid[drop], return_counts=True)):
+        assert n <= max(params.q_landmark, int(params.q_landmark_frac * m[int(lid)]))
+
+
 def test_the_fitted_path_explains_the_truth(case):
     log, params, out, pb, base = case
     assert pb.n_outliers == 0 and pb.frame_t.size > 20
@@ -130,14 +143,7 @@ def test_broken_observations_keep_to_the_runs_q_and_their_witnesses_lie_in_our_e
     t = 20.0
     drop = q_drops(pb, t, 15.0, params.q_pose, params.q_landmark, params.q_landmark_frac)
     assert drop.sum() >= 10
-    stamps = log.odometry.stamp - pb.t0
-    after = np.searchsorted(stamps, pb.t[drop], side="left")  # the odometry stamps around each
-    before = np.searchsorted(stamps, pb.t[drop], side="right") - 1
-    around = np.concatenate([before, after[after != before]])
-    assert np.unique(around).size == around.size  # no odometry stamp next to two broken ones
-    m = {int(i): int(n) for i, n in zip(*np.unique(pb.lid, return_counts=True))}
-    for lid, n in zip(*np.unique(pb.lid[drop], return_counts=True)):
-        assert n <= max(params.q_landmark, int(params.q_landmark_frac * m[int(lid)]))
+    check_caps(log, params, pb, drop)
     assert abs(pb.t[drop] - t).max() <= 15.0
     pq = pb.without(drop)
     wit = Witness(pq, base, slam=False)
@@ -172,14 +178,7 @@ def test_witnesses_that_break_what_the_duals_pick_keep_to_the_runs_q(case):
         value = wit.push(pb.ts[k] - 15.0, pb.ts[k] + 15.0, ("pose", k, c), sign)
         drop = ~wit.breaks.active
         assert drop.any()
-        stamps = log.odometry.stamp - pb.t0
-        after = np.searchsorted(stamps, pb.t[drop], side="left")
-        before = np.searchsorted(stamps, pb.t[drop], side="right") - 1
-        around = np.concatenate([before, after[after != before]])
-        assert np.unique(around).size == around.size  # no odometry stamp next to two broken ones
-        m = {int(i): int(n) for i, n in zip(*np.unique(pb.lid, return_counts=True))}
-        for lid, n in zip(*np.unique(pb.lid[drop], return_counts=True)):
-            assert n <= max(params.q_landmark, int(params.q_landmark_frac * m[int(lid)]))
+        check_caps(log, params, pb, drop)
         w = wit.world()
         check_world(log, params, pb.without(drop), w)  # every bound at every observation not broken
         assert w["frames"][f, c] == pytest.approx(value, abs=1e-12)
