@@ -139,6 +139,12 @@ class Problem:
             setattr(out, name, getattr(self, name)[keep])
         return out
 
+    def breaks(self, q) -> Breaks:
+        """What a witness may break under ``q`` = (q_pose, q_landmark, q_frac): an observation
+        counts at both odometry stamps around it; ``m`` counts a landmark's observations here."""
+        m = Counter(self.lid.tolist()) + Counter(self.out_lid.tolist())
+        return Breaks(q, *self.odometry_bracket(self.t), self.lid, *self.odometry_bracket(self.out_t), self.out_lid, m)
+
     def odometry_bracket(self, t):
         """Per stamp: the indices of the odometry stamps at or before and at or after it (a
         run attaches an observation to a node between them)."""
@@ -241,28 +247,13 @@ def q_drops(pb: Problem, t_node: float, span: float, q_pose: int, q_landmark: in
     both odometry stamps around each observation, so never two at one node whichever of them
     the run attaches it to — and at most ``max(q_landmark, ⌊q_frac·m⌋)`` of a landmark's ``m``
     observations (``m`` counted here, at most the run's count: a smaller q)."""
-    m = Counter(pb.lid.tolist()) + Counter(pb.out_lid.tolist())
-    per_lm = Counter(pb.out_lid.tolist())
-    per_node: Counter = Counter()
-    for a, b in zip(*pb.odometry_bracket(pb.out_t)):
-        per_node[int(a)] += 1
-        if b != a:
-            per_node[int(b)] += 1
-    lo, hi = pb.odometry_bracket(pb.t)
-    drop = np.zeros(pb.t.size, bool)
+    br = pb.breaks((q_pose, q_landmark, q_frac))
     dt = np.abs(pb.t - t_node)
     for j in np.argsort(dt, kind="stable"):
         if dt[j] > span:
             break
-        lid, a, b = int(pb.lid[j]), int(lo[j]), int(hi[j])
-        if per_node[a] >= q_pose or per_node[b] >= q_pose or per_lm[lid] >= max(q_landmark, int(q_frac * m[lid])):
-            continue
-        drop[j] = True
-        per_lm[lid] += 1
-        per_node[a] += 1
-        if b != a:
-            per_node[b] += 1
-    return drop
+        br.take(j)
+    return ~br.active
 
 
 def fit_base(pb: Problem, chunk: float = 40.0, keep: float = 25.0, iterations: int = 20) -> Base:
@@ -406,8 +397,7 @@ class Witness:
             return np.array([lmcol.get(int(i), -1) for i in ids], np.int64)
 
         if self.q is not None:
-            m = Counter(pb.lid.tolist()) + Counter(pb.out_lid.tolist())
-            self.breaks = Breaks(self.q, *pb.odometry_bracket(pb.t), pb.lid, *pb.odometry_bracket(pb.out_t), pb.out_lid, m)
+            self.breaks = pb.breaks(self.q)
         active = self.breaks.active if self.q is not None else np.ones(pb.t.size, bool)
         layout = []  # (observations, first row) of each block of four
 

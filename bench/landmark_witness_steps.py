@@ -141,21 +141,18 @@ class StepProblem:
         out.ids = sorted(set(out.lid.tolist()))
         return out
 
+    def breaks(self, q) -> Breaks:
+        """What a witness may break under ``q`` = (q_pose, q_landmark, q_frac), by step."""
+        return Breaks(q, self.step, self.step, self.lid, self.out_step, self.out_step, self.out_lid, self.n_all)
+
     def q_drops(self, node: int, q_pose: int, q_landmark: int, q_frac: float) -> np.ndarray:
         """A mask of inlier observations a witness may break under a run's q, nearest to step
         ``node`` first: at most ``q_pose`` broken at any step and ``max(q_landmark, ⌊q_frac·m⌋)``
         of a landmark's ``m``, the truth's outliers counted in both."""
-        per_lm = Counter(self.out_lid.tolist())
-        per_node = Counter(self.out_step.tolist())
-        drop = np.zeros(self.step.size, bool)
+        br = self.breaks((q_pose, q_landmark, q_frac))
         for j in np.argsort(np.abs(self.step - node), kind="stable"):
-            lid, k = int(self.lid[j]), int(self.step[j])
-            if per_node[k] >= q_pose or per_lm[lid] >= max(q_landmark, int(q_frac * self.n_all[lid])):
-                continue
-            drop[j] = True
-            per_lm[lid] += 1
-            per_node[k] += 1
-        return drop
+            br.take(j)
+        return ~br.active
 
 
 class StepWitness:
@@ -226,7 +223,7 @@ class StepWitness:
         col = np.searchsorted(pb.ids, pb.lid)
         I = np.arange(n1)
         no = pb.step.size
-        breaks = Breaks(self.q or (0, 0, 0.0), pb.step, pb.step, pb.lid, pb.out_step, pb.out_step, pb.out_lid, pb.n_all)
+        breaks = pb.breaks(self.q or (0, 0, 0.0))
         self.active = active = breaks.active
 
         def value(s):

@@ -23,18 +23,24 @@ class Breaks:
         self.cap = {i: max(q_lm, int(q_frac * m[i])) for i in set(self.lid.tolist())}
         self.active = np.ones(self.lid.size, bool)
 
+    def take(self, j: int) -> bool:
+        """Break observation ``j`` if the caps allow it (and it is not broken yet)."""
+        a, b, i = int(self.a[j]), int(self.b[j]), int(self.lid[j])
+        if not (self.active[j] and self.node[a] < self.q_pose and self.node[b] < self.q_pose and self.lm[i] < self.cap[i]):
+            return False
+        self.active[j] = False
+        self.node[a] += 1
+        self.node[b] += b != a
+        self.lm[i] += 1
+        return True
+
     def pick(self, score) -> bool:
         """Break the observation of largest ``score`` (> 0) that the caps allow; False if none."""
         score = np.where(self.active, score, 0.0)
         for j in np.argsort(-score, kind="stable"):
             if not score[j] > 1e-9:
                 return False
-            a, b, i = int(self.a[j]), int(self.b[j]), int(self.lid[j])
-            if self.node[a] < self.q_pose and self.node[b] < self.q_pose and self.lm[i] < self.cap[i]:
-                self.active[j] = False
-                self.node[a] += 1
-                self.node[b] += b != a
-                self.lm[i] += 1
+            if self.take(j):
                 return True
         return False
 
