@@ -26,6 +26,19 @@ from numba import njit
 from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO, INF
 
 
+SMALL_M = 32  # up to this many inputs, qinter_interval counts per candidate instead of sorting
+
+
+@njit(cache=True)
+def qinter_prefix(lo, hi, m, q):
+    """:func:`qinter_interval` of the first ``m`` entries (no view made for few of them)."""
+    if m - q <= 0:
+        return -INF, INF
+    if m <= SMALL_M:
+        return _qinter_counted(lo, hi, m, m - q)
+    return qinter_interval(lo[:m], hi[:m], q)
+
+
 @njit(cache=True)
 def qinter_interval(lo, hi, q):
     """Hull of ``{x : x in [lo_i, hi_i] for at least m - q indices i}`` for 1-D arrays."""
@@ -33,6 +46,8 @@ def qinter_interval(lo, hi, q):
     k = m - q
     if k <= 0:
         return -INF, INF
+    if m <= SMALL_M:
+        return _qinter_counted(lo, hi, m, k)
     keep = lo <= hi  # NaN-safe: empty and NaN rows are dropped
     ls = np.sort(lo[keep])
     hs = np.sort(hi[keep])
@@ -62,6 +77,48 @@ def qinter_interval(lo, hi, q):
         if (n - j) - (n - 1 - p) >= k:
             rhi = x
             break
+    return rlo, rhi
+
+
+@njit(cache=True)
+def _qinter_counted(lo, hi, m, k):
+    """:func:`qinter_interval` of the first ``m`` inputs when few, ``k = m − q ≥ 1`` of them to agree: the least
+    lower end ``x`` with ``#{lo_j ≤ x} − #{hi_j < x} ≥ k`` over the non-empty inputs, and
+    symmetrically the greatest upper end (the sorted sweep's answer, O(m²) comparisons and no
+    allocation)."""
+    n = 0
+    for i in range(m):
+        n += lo[i] <= hi[i]
+    if n < k:
+        return EMPTY_LO, EMPTY_HI
+    rlo = EMPTY_LO
+    found = False
+    for i in range(m):
+        x = lo[i]
+        if not (x <= hi[i]) or (found and x >= rlo):
+            continue
+        c = 0
+        for j in range(m):
+            if lo[j] <= hi[j]:
+                c += (lo[j] <= x) - (hi[j] < x)
+        if c >= k:
+            rlo = x
+            found = True
+    if not found:
+        return EMPTY_LO, EMPTY_HI
+    rhi = EMPTY_HI
+    found = False
+    for i in range(m):
+        x = hi[i]
+        if not (lo[i] <= x) or (found and x <= rhi):
+            continue
+        c = 0
+        for j in range(m):
+            if lo[j] <= hi[j]:
+                c += (hi[j] >= x) - (lo[j] > x)
+        if c >= k:
+            rhi = x
+            found = True
     return rlo, rhi
 
 
@@ -136,6 +193,62 @@ def droppable(fail, ga, ca, gb, cb):
                 if nb[gb[i]] > cb[gb[i]]:
                     return False
     return True
+
+
+@njit(cache=True)
+def _caps_hold(x, everything, lo, hi, m, ga, ca, gb, cb, na, nb):
+    """Do the first ``m`` inputs failing at ``x`` (all of them with ``everything``) keep to the
+    caps (:func:`droppable`)? ``na``, ``nb``: work arrays as long as ``ca``, ``cb``."""
+    for g in range(ca.shape[0]):
+        na[g] = 0
+    for g in range(cb.shape[0]):
+        nb[g] = 0
+    for i in range(m):
+        if everything or not (lo[i] <= x and x <= hi[i]):  # empty (NaN) inputs fail at every x
+            g = ga[i]
+            if g >= 0:
+                na[g] += 1
+                if na[g] > ca[g]:
+                    return False
+            g = gb[i]
+            if g >= 0:
+                nb[g] += 1
+                if nb[g] > cb[g]:
+                    return False
+    return True
+
+
+@njit(cache=True)
+def qinter_capped_prefix(lo, hi, m, ga, ca, gb, cb, na, nb):
+    """:func:`qinter_capped_interval` of the first ``m`` inputs (``ga``, ``gb`` as long), with
+    work arrays ``na``, ``nb`` as long as ``ca``, ``cb``. Up to ``SMALL_M`` inputs, each lower
+    end is tried as the least real whose failing inputs keep to the caps (the sweep's answer;
+    symmetrically the upper ends), O(m²) and no allocation; beyond, the sweep."""
+    if m > SMALL_M:
+        return qinter_capped_interval(lo[:m], hi[:m], ga[:m], ca, gb[:m], cb)
+    if _caps_hold(0.0, True, lo, hi, m, ga, ca, gb, cb, na, nb):  # all may fail together
+        return -INF, INF
+    rlo = EMPTY_LO
+    found = False
+    for i in range(m):
+        x = lo[i]
+        if not (x <= hi[i]) or (found and x >= rlo):
+            continue
+        if _caps_hold(x, False, lo, hi, m, ga, ca, gb, cb, na, nb):
+            rlo = x
+            found = True
+    if not found:
+        return EMPTY_LO, EMPTY_HI
+    rhi = EMPTY_HI
+    found = False
+    for i in range(m):
+        x = hi[i]
+        if not (lo[i] <= x) or (found and x <= rhi):
+            continue
+        if _caps_hold(x, False, lo, hi, m, ga, ca, gb, cb, na, nb):
+            rhi = x
+            found = True
+    return rlo, rhi
 
 
 @njit(cache=True)

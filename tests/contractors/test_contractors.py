@@ -162,6 +162,22 @@ def test_qinter_intervals_matches_brute_force(iv, q):
         assert rejected[i] == disjoint
 
 
+@settings(max_examples=examples(ci=300))
+@given(iv=interval_sets(max_m=80), q=st.integers(0, 40))
+def test_qinter_interval_counted_and_sorted_agree_with_brute_force(iv, q):
+    """Up to ``SMALL_M`` inputs the kernel counts per candidate, beyond it sorts: both exact."""
+    from ivslam_cli.contractors.ctc_qinter import _qinter_counted, qinter_interval, qinter_prefix
+
+    lo, hi = np.ascontiguousarray(iv[:, 0]), np.ascontiguousarray(iv[:, 1])
+    expected = brute_interval(iv, q)
+    assert qinter_interval(lo, hi, q) == expected
+    if 0 < len(iv) - q:
+        assert _qinter_counted(lo, hi, len(iv), len(iv) - q) == expected
+    # the first m entries of longer buffers, the rest ignored (as the pose update passes them)
+    pad = np.array([-INF, 0.0, 5.0, math.nan])
+    assert qinter_prefix(np.concatenate([lo, pad]), np.concatenate([hi, pad[::-1]]), len(iv), q) == expected
+
+
 @settings(max_examples=examples(ci=400))
 @given(d=st.integers(1, 3), m=st.integers(1, 7), q=st.integers(0, 4), data=st.data())
 def test_qinter_boxes_is_an_outer_approximation(d, m, q, data):
@@ -205,7 +221,7 @@ def test_qinter_capped_matches_brute_force_and_plain_qinter(iv, data):
     """Wrong intervals capped per group (two groupings, as per pose and per landmark): the hull
     is the brute force's, and never wider than the plain q-intersection with q the most that
     the caps let fail together."""
-    from ivslam_cli.contractors.ctc_qinter import qinter_capped_interval
+    from ivslam_cli.contractors.ctc_qinter import qinter_capped_interval, qinter_capped_prefix
 
     m = len(iv)
     na, nb = data.draw(st.integers(1, 4)), data.draw(st.integers(1, 4))
@@ -215,6 +231,12 @@ def test_qinter_capped_matches_brute_force_and_plain_qinter(iv, data):
     cb = np.array(data.draw(st.lists(st.integers(0, 3), min_size=nb, max_size=nb)), np.int64)
     lo, hi = qinter_capped_interval(np.ascontiguousarray(iv[:, 0]), np.ascontiguousarray(iv[:, 1]), ga, ca, gb, cb)
     assert (lo, hi) == brute_capped(iv, ga, ca, gb, cb)
+    # the counted form on the first m entries of longer buffers (as the pose update calls it)
+    pad = np.array([0.0, -INF, math.nan])
+    work = np.full(4, 7, np.int64), np.full(4, 7, np.int64)
+    assert qinter_capped_prefix(np.concatenate([iv[:, 0], pad]), np.concatenate([iv[:, 1], pad]), m,
+                                np.concatenate([ga, [0, 0, 0]]), ca, np.concatenate([gb, [0, 0, 0]]), cb,
+                                *work) == (lo, hi)
     q = min(sum(min(int(ca[g]), int((ga == g).sum())) for g in range(na)) + int((ga < 0).sum()),
             sum(min(int(cb[g]), int((gb == g).sum())) for g in range(nb)) + int((gb < 0).sum()))
     plain = tuple(qinter(iv, min(q, m))[0]) if m else (-INF, INF)
