@@ -12,7 +12,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ivslam_cli.contractors.ctc_qinter import qinter_capped_interval, qinter_interval
+from ivslam_cli.contractors.ctc_qinter import qinter_capped_prefix, qinter_interval, qinter_prefix
 from ivslam_cli.contractors.ctc_range_bearing import range_bearing_pass
 from ivslam_cli.interval.angles import angle_meet, angle_meet_narrow, arg_box
 from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO, INF, add, cos, mul, sin, sqr, sqrt, sub
@@ -31,20 +31,6 @@ SUB_MAX_LIVE = 8  # slices are paved by several pieces only in sets of at most t
 @njit(cache=True)
 def _widen(lo, hi, r):
     return down(lo - r), up(hi + r)
-
-
-@njit(cache=True)
-def _target_box(H, L, j, lm, tnode, treach):
-    """(x lo, x hi, y lo, y hi) of what observation ``j`` sees: its landmark's box, or the
-    observed robot's position hull widened by its reach."""
-    i = lm[j]
-    if i >= 0:
-        return L[i, 0, 0], L[i, 0, 1], L[i, 1, 0], L[i, 1, 1]
-    t = tnode[j]
-    r = treach[j, 0]
-    a, b = _widen(H[t, 0, 0], H[t, 0, 1], r)
-    c, d = _widen(H[t, 1, 0], H[t, 1, 1], r)
-    return a, b, c, d
 
 
 @njit(cache=True)
@@ -266,109 +252,120 @@ def compose_range(U, a, b, out):
 
 
 @njit(cache=True)
-def _move(xl, xh, yl, yh, tl, th, cr, back):
-    """``p + ρ e^{i(θ + α)}`` (``back``: ``p − ρ e^{i(θ + α)}``) for the increment ``cr``
-    (``ρ, α`` rows), ``θ`` the heading at the increment's start. Outward rounding."""
-    pl, ph = add(tl, th, cr[1, 0], cr[1, 1])
+def _move(xl, xh, yl, yh, tl, th, rl, rh, al, ah, back):
+    """``p + ρ e^{i(θ + α)}`` (``back``: ``p − ρ e^{i(θ + α)}``) for an increment ``ρ ∈ [rl, rh]``,
+    ``α ∈ [al, ah]``, ``θ`` the heading at the increment's start. Outward rounding."""
+    pl, ph = add(tl, th, al, ah)
     cl, ch = cos(pl, ph)
     sl, sh = sin(pl, ph)
-    dxl, dxh = mul(cr[0, 0], cr[0, 1], cl, ch)
-    dyl, dyh = mul(cr[0, 0], cr[0, 1], sl, sh)
+    dxl, dxh = mul(rl, rh, cl, ch)
+    dyl, dyh = mul(rl, rh, sl, sh)
     if back:
         return (*sub(xl, xh, dxl, dxh), *sub(yl, yh, dyl, dyh))
     return (*add(xl, xh, dxl, dxh), *add(yl, yh, dyl, dyh))
 
 
 @njit(cache=True)
-def _obs_pose_candidate(H, L, B, k, j, node, lm, tnode, treach, rho, alpha, reach, travel, turn, turn_err, cr, mode,
-                        out):
-    """The part of pose box ``B`` (of node ``k``) that observation ``j`` allows, in ``out``;
-    False if none.
+def _obs_pose_candidate(B, mode, cr, hk, tgt, ob, dp, dl, dh):
+    """The part of pose box ``B`` (of node ``k``) that one observation allows: ``(ok, xl, xh,
+    yl, yh, tl, th)``, ``ok`` False if none. Scalars and tuples only (no array argument, so
+    no reference counting a call): ``B`` and ``hk`` (the hull of the observation's node
+    ``kj``) as ``(xl, xh, yl, yh, tl, th)``; ``cr`` the composed increment between the two
+    nodes ``(ρ, α, δθ)`` as lo/hi pairs; ``tgt`` what the observation sees (x lo, x hi, y lo,
+    y hi: its landmark's box, or the observed robot's position widened by its reach); ``ob``
+    its range and bearing intervals and its reach (position, heading); ``dp, dl, dh`` the
+    distance and turn possible between the nodes (``mode`` CARRY_TRAVEL).
 
-    ``B`` is carried to the observation's node (through ``cr``, the composed increment between
-    the two nodes, as ``mode`` says; or widened by the distance and turn possible in between),
-    met with that node's hull, widened to the observation's stamp (``reach[j]``), contracted
-    there with the observation and what it sees, and carried back; headings are matched
-    modulo 2π in each box's branch.
+    ``B`` is carried to the observation's node (through ``cr``, or widened by the distance
+    and turn possible in between, as ``mode`` says), met with that node's hull, widened to the
+    observation's stamp (its reach), contracted there with the observation and what it sees,
+    and carried back; headings are matched modulo 2π in each box's branch.
     """
-    kj = node[j]
-    rp = reach[j, 0]
-    rt = reach[j, 1]
-    dp = 0.0
-    dl = 0.0
-    dh = 0.0
-    if mode == CARRY_TRAVEL:
-        dp = up(up(abs(travel[k] - travel[kj])) * (1.0 + 1e-15))
-        a = min(k, kj)
-        b = max(k, kj)
-        el = down(down(turn[b, 0] - turn[a, 0]) - turn_err)
-        eh = up(up(turn[b, 1] - turn[a, 1]) + turn_err)
-        if kj > k:
-            dl, dh = el, eh
-        else:
-            dl, dh = -eh, -el
+    bxl, bxh, byl, byh, btl, bth = B
+    crl, crh, cal, cah, ctl, cth = cr
+    rhl, rhh, all_, alh, rp, rt = ob
     # B at node kj (the modelled pose there)
     if mode == CARRY_FORWARD:  # k -> kj is the increment
-        xl, xh, yl, yh = _move(B[0, 0], B[0, 1], B[1, 0], B[1, 1], B[2, 0], B[2, 1], cr, False)
-        tl, th = add(B[2, 0], B[2, 1], cr[2, 0], cr[2, 1])
+        xl, xh, yl, yh = _move(bxl, bxh, byl, byh, btl, bth, crl, crh, cal, cah, False)
+        tl, th = add(btl, bth, ctl, cth)
     elif mode == CARRY_BACKWARD:  # kj -> k is the increment
-        tl, th = sub(B[2, 0], B[2, 1], cr[2, 0], cr[2, 1])
-        xl, xh, yl, yh = _move(B[0, 0], B[0, 1], B[1, 0], B[1, 1], tl, th, cr, True)
+        tl, th = sub(btl, bth, ctl, cth)
+        xl, xh, yl, yh = _move(bxl, bxh, byl, byh, tl, th, crl, crh, cal, cah, True)
     else:
-        xl, xh = _widen(B[0, 0], B[0, 1], dp)
-        yl, yh = _widen(B[1, 0], B[1, 1], dp)
-        tl, th = down(B[2, 0] + dl), up(B[2, 1] + dh)
+        xl, xh = _widen(bxl, bxh, dp)
+        yl, yh = _widen(byl, byh, dp)
+        tl, th = down(btl + dl), up(bth + dh)
     if mode != CARRY_OWN:
-        xl, xh = max(xl, H[kj, 0, 0]), min(xh, H[kj, 0, 1])
-        yl, yh = max(yl, H[kj, 1, 0]), min(yh, H[kj, 1, 1])
-        tl, th = angle_meet_narrow(H[kj, 2, 0], H[kj, 2, 1], tl, th)
+        xl, xh = max(xl, hk[0]), min(xh, hk[1])
+        yl, yh = max(yl, hk[2]), min(yh, hk[3])
+        tl, th = angle_meet_narrow(hk[4], hk[5], tl, th)
         if not (xl <= xh) or not (yl <= yh) or not (tl <= th):
-            return False
+            return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     # the true pose at the observation's stamp
     xl, xh = _widen(xl, xh, rp)
     yl, yh = _widen(yl, yh, rp)
     tl, th = _widen(tl, th, rt)
-    mxl, mxh, myl, myh = _target_box(H, L, j, lm, tnode, treach)
-    r = range_bearing_pass(xl, xh, yl, yh, tl, th, mxl, mxh, myl, myh,
-                           rho[j, 0], rho[j, 1], alpha[j, 0], alpha[j, 1], 2)
+    r = range_bearing_pass(xl, xh, yl, yh, tl, th, tgt[0], tgt[1], tgt[2], tgt[3], rhl, rhh, all_, alh, 2)
     if not (r[0] <= r[1]):
-        return False
+        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     # back to the modelled pose at node kj, then to node k, within B
     xl, xh = _widen(r[0], r[1], rp)
     yl, yh = _widen(r[2], r[3], rp)
     tl, th = _widen(r[4], r[5], rt)
     if mode == CARRY_FORWARD:
-        tl, th = angle_meet(B[2, 0], B[2, 1], *sub(tl, th, cr[2, 0], cr[2, 1]))
+        tl, th = angle_meet(btl, bth, *sub(tl, th, ctl, cth))
         if not (tl <= th):
-            return False
-        xl, xh, yl, yh = _move(xl, xh, yl, yh, tl, th, cr, True)
+            return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        xl, xh, yl, yh = _move(xl, xh, yl, yh, tl, th, crl, crh, cal, cah, True)
     elif mode == CARRY_BACKWARD:
-        xl, xh, yl, yh = _move(xl, xh, yl, yh, tl, th, cr, False)
-        tl, th = add(tl, th, cr[2, 0], cr[2, 1])
+        xl, xh, yl, yh = _move(xl, xh, yl, yh, tl, th, crl, crh, cal, cah, False)
+        tl, th = add(tl, th, ctl, cth)
     elif mode == CARRY_TRAVEL:
         xl, xh = _widen(xl, xh, dp)
         yl, yh = _widen(yl, yh, dp)
         tl, th = down(tl - dh), up(th - dl)
-    out[0, 0], out[0, 1] = max(xl, B[0, 0]), min(xh, B[0, 1])
-    out[1, 0], out[1, 1] = max(yl, B[1, 0]), min(yh, B[1, 1])
-    out[2, 0], out[2, 1] = angle_meet(B[2, 0], B[2, 1], tl, th)
-    return out[0, 0] <= out[0, 1] and out[1, 0] <= out[1, 1] and out[2, 0] <= out[2, 1]
+    xl, xh = max(xl, bxl), min(xh, bxh)
+    yl, yh = max(yl, byl), min(yh, byh)
+    tl, th = angle_meet(btl, bth, tl, th)
+    return xl <= xh and yl <= yh and tl <= th, xl, xh, yl, yh, tl, th
 
 
 @njit(cache=True)
 def _contract_piece(H, L, B, k, m, idx, src, node, lm, tnode, treach, rho, alpha, reach, travel, turn, turn_err,
-                    q_pose, timg, carry, cmode, buf, lo, hi, piece, capped, ga, ca, gb, cb):
+                    q_pose, timg, carry, cmode, buf, lo, hi, piece, capped, ga, ca, gb, cb, na, nb):
     """``piece`` = ``B`` ∩ the q-relaxed intersection (``q_pose``) of the ``m`` candidates
     (``buf``: each candidate, empty when the observation allows nothing in ``B``); with
     ``capped``, the wrong candidates also keep to the caps per pose and per landmark
-    (:func:`qinter_capped_interval` with ``ga, ca, gb, cb``). Returns False as soon as more
+    (:func:`qinter_capped_prefix` with ``ga, ca, gb, cb``; ``na, nb`` its work arrays). Returns False as soon as more
     than ``q_pose`` candidates are empty, or if the result is empty."""
     n_empty = 0
     for s in range(m):
         j = idx[s]
         if src[s] == 0:
-            ok = _obs_pose_candidate(H, L, B, k, j, node, lm, tnode, treach, rho, alpha, reach, travel,
-                                     turn, turn_err, carry[s], cmode[s], buf[s])
+            # the arrays are read here, the candidate computed on scalars
+            kj = node[j]
+            mode = cmode[s]
+            dp, dl, dh = 0.0, 0.0, 0.0
+            if mode == CARRY_TRAVEL:
+                dp = up(up(abs(travel[k] - travel[kj])) * (1.0 + 1e-15))
+                ta, tb = min(k, kj), max(k, kj)
+                el = down(down(turn[tb, 0] - turn[ta, 0]) - turn_err)
+                eh = up(up(turn[tb, 1] - turn[ta, 1]) + turn_err)
+                dl, dh = (el, eh) if kj > k else (-eh, -el)
+            i = lm[j]
+            if i >= 0:
+                tgt = (L[i, 0, 0], L[i, 0, 1], L[i, 1, 0], L[i, 1, 1])
+            else:  # the observed robot's position hull widened by its reach
+                t = tnode[j]
+                r = treach[j, 0]
+                tgt = (down(H[t, 0, 0] - r), up(H[t, 0, 1] + r), down(H[t, 1, 0] - r), up(H[t, 1, 1] + r))
+            res = _obs_pose_candidate(
+                (B[0, 0], B[0, 1], B[1, 0], B[1, 1], B[2, 0], B[2, 1]), mode,
+                (carry[s, 0, 0], carry[s, 0, 1], carry[s, 1, 0], carry[s, 1, 1], carry[s, 2, 0], carry[s, 2, 1]),
+                (H[kj, 0, 0], H[kj, 0, 1], H[kj, 1, 0], H[kj, 1, 1], H[kj, 2, 0], H[kj, 2, 1]), tgt,
+                (rho[j, 0], rho[j, 1], alpha[j, 0], alpha[j, 1], reach[j, 0], reach[j, 1]), dp, dl, dh)
+            ok = res[0]
+            buf[s, 0, 0], buf[s, 0, 1], buf[s, 1, 0], buf[s, 1, 1], buf[s, 2, 0], buf[s, 2, 1] = res[1:]
         else:
             ok = timg[s, 0, 0] <= timg[s, 0, 1]
             if ok:
@@ -386,9 +383,9 @@ def _contract_piece(H, L, B, k, m, idx, src, node, lm, tnode, treach, rho, alpha
             lo[s] = buf[s, d, 0]
             hi[s] = buf[s, d, 1]
         if capped:
-            rl, rh = qinter_capped_interval(lo[:m], hi[:m], ga[:m], ca, gb[:m], cb)
+            rl, rh = qinter_capped_prefix(lo, hi, m, ga, ca, gb, cb, na, nb)
         else:
-            rl, rh = qinter_interval(lo[:m], hi[:m], q_pose)
+            rl, rh = qinter_prefix(lo, hi, m, q_pose)
         rl = max(rl, B[d, 0])
         rh = min(rh, B[d, 1])
         if not (rl <= rh):
@@ -521,6 +518,8 @@ def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, 
     gb = np.empty(m, np.int64)
     ca = np.empty(m, np.int64)
     cb = np.empty(m, np.int64)
+    na = np.empty(m, np.int64)  # work arrays of the capped intersection
+    nb = np.empty(m, np.int64)
     qw = _window_groups(m, idx, src, node, lm, q_pose, q_lm, ga, ca, gb, cb) if per_node else q_pose
     capped = per_node and m > m_own
     # nothing this update reads changed since it last ran: skip it (ver, lver: clock values
@@ -579,12 +578,12 @@ def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, 
             if per_node and 0 < m_own < m:  # the pose's own observations alone first: q_pose of them
                 if not _contract_piece(H, L, B, k, m_own, idx, src, node, lm, tnode, treach, rho, alpha, reach, travel,
                                        turn, turn_err, q_pose, timg, carry, cmode, buf, lo, hi, piece, False, ga, ca,
-                                       gb, cb):
+                                       gb, cb, na, nb):
                     continue
                 for d in range(3):
                     B[d, 0], B[d, 1] = piece[d, 0], piece[d, 1]
             if not _contract_piece(H, L, B, k, m, idx, src, node, lm, tnode, treach, rho, alpha, reach, travel, turn,
-                                   turn_err, qw, timg, carry, cmode, buf, lo, hi, piece, capped, ga, ca, gb, cb):
+                                   turn_err, qw, timg, carry, cmode, buf, lo, hi, piece, capped, ga, ca, gb, cb, na, nb):
                 continue
             wx = piece[0, 1] - piece[0, 0]
             wy = piece[1, 1] - piece[1, 0]
