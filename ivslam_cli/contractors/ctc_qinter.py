@@ -82,10 +82,12 @@ def qinter_interval(lo, hi, q):
 
 @njit(cache=True)
 def _qinter_counted(lo, hi, m, k):
-    """:func:`qinter_interval` of the first ``m`` inputs when few, ``k = m − q ≥ 1`` of them to agree: the least
-    lower end ``x`` with ``#{lo_j ≤ x} − #{hi_j < x} ≥ k`` over the non-empty inputs, and
-    symmetrically the greatest upper end (the sorted sweep's answer, O(m²) comparisons and no
-    allocation)."""
+    """:func:`qinter_interval` of the first ``m`` inputs when few, ``k = m − q ≥ 1`` of them
+    to agree: the least lower end ``x`` with ``#{lo_j ≤ x} − #{hi_j < x} ≥ k`` over the
+    non-empty inputs, and symmetrically the greatest upper end (the sorted sweep's answer,
+    O(m²) comparisons, no allocation). :func:`qinter_capped_prefix` scans the ends the same
+    way; the count is written out in each, since a shared test function would take the arrays
+    a call per end, and each array argument costs numba a reference count a call."""
     n = 0
     for i in range(m):
         n += lo[i] <= hi[i]
