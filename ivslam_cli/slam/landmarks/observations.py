@@ -336,8 +336,9 @@ def _contract_piece(H, L, B, k, m, idx, src, node, lm, tnode, treach, rho, alpha
     """``piece`` = ``B`` ∩ the q-relaxed intersection (``q_pose``) of the ``m`` candidates
     (``buf``: each candidate, empty when the observation allows nothing in ``B``); with
     ``capped``, the wrong candidates also keep to the caps per pose and per landmark
-    (:func:`qinter_capped_prefix` with ``ga, ca, gb, cb``; ``na, nb`` its work arrays). Returns False as soon as more
-    than ``q_pose`` candidates are empty, or if the result is empty."""
+    (:func:`qinter_capped_prefix` with ``ga, ca, gb, cb``; ``na, nb`` its work arrays).
+    Returns False as soon as more than ``q_pose`` candidates are empty, or if the result is
+    empty."""
     n_empty = 0
     for s in range(m):
         j = idx[s]
@@ -358,7 +359,9 @@ def _contract_piece(H, L, B, k, m, idx, src, node, lm, tnode, treach, rho, alpha
             else:  # the observed robot's position hull widened by its reach
                 t = tnode[j]
                 r = treach[j, 0]
-                tgt = (down(H[t, 0, 0] - r), up(H[t, 0, 1] + r), down(H[t, 1, 0] - r), up(H[t, 1, 1] + r))
+                txl, txh = _widen(H[t, 0, 0], H[t, 0, 1], r)
+                tyl, tyh = _widen(H[t, 1, 0], H[t, 1, 1], r)
+                tgt = (txl, txh, tyl, tyh)
             res = _obs_pose_candidate(
                 (B[0, 0], B[0, 1], B[1, 0], B[1, 1], B[2, 0], B[2, 1]), mode,
                 (carry[s, 0, 0], carry[s, 0, 1], carry[s, 1, 0], carry[s, 1, 1], carry[s, 2, 0], carry[s, 2, 1]),
@@ -583,7 +586,8 @@ def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, 
                 for d in range(3):
                     B[d, 0], B[d, 1] = piece[d, 0], piece[d, 1]
             if not _contract_piece(H, L, B, k, m, idx, src, node, lm, tnode, treach, rho, alpha, reach, travel, turn,
-                                   turn_err, qw, timg, carry, cmode, buf, lo, hi, piece, capped, ga, ca, gb, cb, na, nb):
+                                   turn_err, qw, timg, carry, cmode, buf, lo, hi, piece, capped, ga, ca, gb, cb,
+                                   na, nb):
                 continue
             wx = piece[0, 1] - piece[0, 0]
             wy = piece[1, 1] - piece[1, 0]
