@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import example, given, settings
+from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 from ivslam_cli.config import resolve_config
@@ -49,10 +49,20 @@ def _check_sound(log, out):
 @example(seed=324, noise="uniform")  # the true heading leaves the hull of two node boxes between them
 def test_simulated_logs_keep_the_truth(seed, noise):
     log = _sim(seed, noise=noise)
+    assume(len(log.observations.stamp) > 0)  # e.g. seed 118 sees no landmark: a clear error, tested apart
     out = solve(log, LandmarksParams.from_config(_cfg(log)))
     _check_sound(log, out)
     assert len(out.consistency.empty_events) == 0
     assert len(out.consistency.rejected) == 0  # honest bounds: nothing proven inconsistent
+
+
+def test_a_log_without_landmark_observations_gets_a_clear_error():
+    from ivslam_cli.errors import IvslamError
+
+    log = _sim(118)  # 120 steps that see no landmark
+    assert len(log.observations.stamp) == 0
+    with pytest.raises(IvslamError, match="no landmark observations"):
+        solve(log, LandmarksParams.from_config(_cfg(log)))
 
 
 @pytest.mark.slow  # ~16 s warm (105 simulated logs)
