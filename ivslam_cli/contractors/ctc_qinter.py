@@ -198,37 +198,40 @@ def droppable(fail, ga, ca, gb, cb):
 
 
 @njit(cache=True)
-def _caps_hold(x, everything, lo, hi, m, ga, ca, gb, cb, na, nb):
+def _caps_hold(x, everything, lo, hi, m, groups, ka, kb):
     """Do the first ``m`` inputs failing at ``x`` (all of them with ``everything``) keep to the
-    caps (:func:`droppable`)? ``na``, ``nb``: work arrays as long as ``ca``, ``cb``."""
-    for g in range(ca.shape[0]):
-        na[g] = 0
-    for g in range(cb.shape[0]):
-        nb[g] = 0
+    caps (:func:`droppable`)? ``groups`` as :func:`qinter_capped_prefix` takes it."""
+    for g in range(ka):
+        groups[4, g] = 0
+    for g in range(kb):
+        groups[5, g] = 0
     for i in range(m):
         if everything or not (lo[i] <= x and x <= hi[i]):  # empty (NaN) inputs fail at every x
-            g = ga[i]
+            g = groups[0, i]
             if g >= 0:
-                na[g] += 1
-                if na[g] > ca[g]:
+                groups[4, g] += 1
+                if groups[4, g] > groups[2, g]:
                     return False
-            g = gb[i]
+            g = groups[1, i]
             if g >= 0:
-                nb[g] += 1
-                if nb[g] > cb[g]:
+                groups[5, g] += 1
+                if groups[5, g] > groups[3, g]:
                     return False
     return True
 
 
 @njit(cache=True)
-def qinter_capped_prefix(lo, hi, m, ga, ca, gb, cb, na, nb):
-    """:func:`qinter_capped_interval` of the first ``m`` inputs (``ga``, ``gb`` as long), with
-    work arrays ``na``, ``nb`` as long as ``ca``, ``cb``. Up to ``SMALL_M`` inputs, each lower
-    end is tried as the least real whose failing inputs keep to the caps (the sweep's answer;
-    symmetrically the upper ends), O(m²) and no allocation; beyond, the sweep."""
+def qinter_capped_prefix(lo, hi, m, groups, ka, kb):
+    """:func:`qinter_capped_interval` of the first ``m`` inputs, the groupings in the rows of
+    one int64 array (one array argument, not six: numba counts references per array per call):
+    ``groups[0, :m]``, ``groups[1, :m]`` the groups of the inputs (``ga``, ``gb``),
+    ``groups[2, :ka]``, ``groups[3, :kb]`` their caps (``ca``, ``cb``), rows 4 and 5 work space.
+    Up to ``SMALL_M`` inputs, each lower end is tried as the least real whose failing inputs
+    keep to the caps (the sweep's answer; symmetrically the upper ends), O(m²) and no
+    allocation; beyond, the sweep."""
     if m > SMALL_M:
-        return qinter_capped_interval(lo[:m], hi[:m], ga[:m], ca, gb[:m], cb)
-    if _caps_hold(0.0, True, lo, hi, m, ga, ca, gb, cb, na, nb):  # all may fail together
+        return qinter_capped_interval(lo[:m], hi[:m], groups[0, :m], groups[2, :ka], groups[1, :m], groups[3, :kb])
+    if _caps_hold(0.0, True, lo, hi, m, groups, ka, kb):  # all may fail together
         return -INF, INF
     rlo = EMPTY_LO
     found = False
@@ -236,7 +239,7 @@ def qinter_capped_prefix(lo, hi, m, ga, ca, gb, cb, na, nb):
         x = lo[i]
         if not (x <= hi[i]) or (found and x >= rlo):
             continue
-        if _caps_hold(x, False, lo, hi, m, ga, ca, gb, cb, na, nb):
+        if _caps_hold(x, False, lo, hi, m, groups, ka, kb):
             rlo = x
             found = True
     if not found:
@@ -247,7 +250,7 @@ def qinter_capped_prefix(lo, hi, m, ga, ca, gb, cb, na, nb):
         x = hi[i]
         if not (lo[i] <= x) or (found and x <= rhi):
             continue
-        if _caps_hold(x, False, lo, hi, m, ga, ca, gb, cb, na, nb):
+        if _caps_hold(x, False, lo, hi, m, groups, ka, kb):
             rhi = x
             found = True
     return rlo, rhi

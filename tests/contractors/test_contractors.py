@@ -216,11 +216,12 @@ def brute_capped(iv, ga, ca, gb, cb):
 
 
 @settings(max_examples=examples(ci=1000))
-@given(iv=interval_sets(), data=st.data())
+@given(iv=interval_sets(max_m=40), data=st.data())
 def test_qinter_capped_matches_brute_force_and_plain_qinter(iv, data):
     """Wrong intervals capped per group (two groupings, as per pose and per landmark): the hull
     is the brute force's, and never wider than the plain q-intersection with q the most that
-    the caps let fail together."""
+    the caps let fail together. Up to 40 inputs: the prefix form counts up to ``SMALL_M`` and
+    sweeps beyond."""
     from ivslam_cli.contractors.ctc_qinter import qinter_capped_interval, qinter_capped_prefix
 
     m = len(iv)
@@ -233,10 +234,10 @@ def test_qinter_capped_matches_brute_force_and_plain_qinter(iv, data):
     assert (lo, hi) == brute_capped(iv, ga, ca, gb, cb)
     # the counted form on the first m entries of longer buffers (as the pose update calls it)
     pad = np.array([0.0, -INF, math.nan])
-    work = np.full(4, 7, np.int64), np.full(4, 7, np.int64)
+    groups = np.full((6, m + 7), 7, np.int64)
+    groups[0, :m], groups[1, :m], groups[2, :na], groups[3, :nb] = ga, gb, ca, cb
     assert qinter_capped_prefix(np.concatenate([iv[:, 0], pad]), np.concatenate([iv[:, 1], pad]), m,
-                                np.concatenate([ga, [0, 0, 0]]), ca, np.concatenate([gb, [0, 0, 0]]), cb,
-                                *work) == (lo, hi)
+                                groups, na, nb) == (lo, hi)
     q = min(sum(min(int(ca[g]), int((ga == g).sum())) for g in range(na)) + int((ga < 0).sum()),
             sum(min(int(cb[g]), int((gb == g).sum())) for g in range(nb)) + int((gb < 0).sum()))
     plain = tuple(qinter(iv, min(q, m))[0]) if m else (-INF, INF)

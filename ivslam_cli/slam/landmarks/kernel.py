@@ -61,7 +61,7 @@ import numpy as np
 from numba import njit, objmode
 
 from ivslam_cli.slam.landmarks.observations import (  # noqa: F401
-    OBS_REJECTED_LANDMARK, OBS_REJECTED_POSE, OBS_USED, landmark_update, pose_update)
+    NW, OBS_REJECTED_LANDMARK, OBS_REJECTED_POSE, OBS_USED, landmark_update, pose_update)
 from ivslam_cli.slam.landmarks.pose_sets import (  # noqa: F401
     STEP_NONE, _circular_hull, all_hulls, count_boxes, flatten_sets, make_bins, set_from_box, step_sets)
 from ivslam_cli.slam.landmarks.skips import skip_sets
@@ -114,10 +114,9 @@ def solve(PS, H, L, BINS, kind, U, node_stamp, chain_of, travel, turn, turn_err,
     idx = np.empty(m_max, dtype=np.int64)
     src = np.empty(m_max, dtype=np.int8)
     agree = np.empty(m_max, dtype=np.bool_)
-    timg = np.empty((m_max, 2, 2))
-    carry = np.empty((m_max, 3, 2))
+    W = np.empty((m_max, NW))  # the pose update's window table
+    groups = np.empty((6, m_max), np.int64)  # its groupings of the window's wrong observations
     stack = np.empty((pieces + 2, 3, 2))
-    cmode = np.empty(m_max, dtype=np.int8)
     cand = np.empty((node.shape[0], 2, 2))
     cimg = np.empty((node.shape[0], S, 2, 2))
     count = np.zeros((LANDMARK_GRID, LANDMARK_GRID), np.int64)
@@ -150,7 +149,7 @@ def solve(PS, H, L, BINS, kind, U, node_stamp, chain_of, travel, turn, turn_err,
                 if not pose_update(PS, H, L, U, k1, by_node, node_stamp, obs_node_stamp, chain_obs[c], chain_obs[c + 1],
                                    travel, turn, turn_err, window, window_obs, q_pose, pieces, node, lm, tnode, treach,
                                    by_target, target_first, rho, alpha, reach, status, buf, lo, hi, idx, src, agree,
-                                   timg, carry, cmode, stack, accA, h_lo, h_hi, ver, posedone, lver, clock, q, per_node):
+                                   W, groups, stack, accA, h_lo, h_hi, ver, posedone, lver, clock, q, per_node):
                     pose_events[k1] += 1
         landmark_update(PS, H, L, q, lm_offsets, lm_order, node, rho, alpha, reach, status, lm_events, cand, cimg, cver,
                         lrej, lver, ver, clock, lo, hi, count, mark)
@@ -166,7 +165,7 @@ def solve(PS, H, L, BINS, kind, U, node_stamp, chain_of, travel, turn, turn_err,
                 if not pose_update(PS, H, L, U, k, by_node, node_stamp, obs_node_stamp, chain_obs[c], chain_obs[c + 1],
                                    travel, turn, turn_err, window, window_obs, q_pose, pieces, node, lm, tnode, treach,
                                    by_target, target_first, rho, alpha, reach, status, buf, lo, hi, idx, src, agree,
-                                   timg, carry, cmode, stack, accA, h_lo, h_hi, ver, posedone, lver, clock, q, per_node):
+                                   W, groups, stack, accA, h_lo, h_hi, ver, posedone, lver, clock, q, per_node):
                     pose_events[k] += 1
         landmark_update(PS, H, L, q, lm_offsets, lm_order, node, rho, alpha, reach, status, lm_events, cand, cimg, cver,
                         lrej, lver, ver, clock, lo, hi, count, mark)

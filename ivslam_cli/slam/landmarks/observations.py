@@ -330,54 +330,95 @@ def _obs_pose_candidate(B, mode, cr, hk, tgt, ob, dp, dl, dh):
     return xl <= xh and yl <= yh and tl <= th, xl, xh, yl, yh, tl, th
 
 
+# rows of the window's table (``W``, one per observation, filled once per pose update: what a
+# candidate needs apart from the piece)
+W_MODE = 0  # the CARRY_* mode, or W_IMAGE for an observation of this robot by another
+W_CARRY = 1  # the composed increment between the two nodes (ρ, α, δθ), lo/hi pairs
+W_HULL = 7  # the hull of the observation's node (x, y, θ)
+W_TARGET = 13  # what it sees (x lo, x hi, y lo, y hi); W_IMAGE: the positions it allows this node
+W_OBS = 17  # range, bearing and reach (position, heading), lo/hi pairs
+W_TRAVEL = 23  # the distance and the turn's bounds possible between the nodes (CARRY_TRAVEL)
+NW = 26
+W_IMAGE = -1.0
+
+
 @njit(cache=True)
-def _contract_piece(H, L, B, k, m, idx, src, node, lm, tnode, treach, rho, alpha, reach, travel, turn, turn_err,
-                    q_pose, timg, carry, cmode, buf, lo, hi, piece, capped, ga, ca, gb, cb, na, nb):
-    """``piece`` = ``B`` ∩ the q-relaxed intersection (``q_pose``) of the ``m`` candidates
-    (``buf``: each candidate, empty when the observation allows nothing in ``B``); with
-    ``capped``, the wrong candidates also keep to the caps per pose and per landmark
-    (:func:`qinter_capped_prefix` with ``ga, ca, gb, cb``; ``na, nb`` its work arrays).
-    Returns False as soon as more than ``q_pose`` candidates are empty, or if the result is
-    empty."""
+def _window_row(H, L, U, k, j, node, lm, tnode, treach, rho, alpha, reach, travel, turn, turn_err, W, s, cr):
+    """Row ``s`` of the window's table for observation ``j`` seen from node ``k``'s pose
+    update: how it is carried to node ``k`` (``cr``: work (3, 2)), its node's hull, what it
+    sees, its measurement and reach."""
+    kj = node[j]
+    mode = CARRY_OWN
+    for c in range(W_CARRY, W_CARRY + 6):
+        W[s, c] = 0.0
+    W[s, W_TRAVEL], W[s, W_TRAVEL + 1], W[s, W_TRAVEL + 2] = 0.0, 0.0, 0.0
+    if kj != k:
+        if abs(kj - k) > MAX_CARRY_STEPS:
+            mode = CARRY_TRAVEL
+            W[s, W_TRAVEL] = up(up(abs(travel[k] - travel[kj])) * (1.0 + 1e-15))
+            ta, tb = min(k, kj), max(k, kj)
+            el = down(down(turn[tb, 0] - turn[ta, 0]) - turn_err)
+            eh = up(up(turn[tb, 1] - turn[ta, 1]) + turn_err)
+            W[s, W_TRAVEL + 1], W[s, W_TRAVEL + 2] = (el, eh) if kj > k else (-eh, -el)
+        else:
+            if kj > k:
+                mode = CARRY_FORWARD
+                compose_range(U, k, kj, cr)
+            else:
+                mode = CARRY_BACKWARD
+                compose_range(U, kj, k, cr)
+            for d in range(3):
+                W[s, W_CARRY + 2 * d], W[s, W_CARRY + 2 * d + 1] = cr[d, 0], cr[d, 1]
+    W[s, W_MODE] = mode
+    for d in range(3):
+        W[s, W_HULL + 2 * d], W[s, W_HULL + 2 * d + 1] = H[kj, d, 0], H[kj, d, 1]
+    i = lm[j]
+    if i >= 0:
+        W[s, W_TARGET], W[s, W_TARGET + 1], W[s, W_TARGET + 2], W[s, W_TARGET + 3] = (
+            L[i, 0, 0], L[i, 0, 1], L[i, 1, 0], L[i, 1, 1])
+    else:  # the observed robot's position hull widened by its reach
+        t = tnode[j]
+        r = treach[j, 0]
+        W[s, W_TARGET], W[s, W_TARGET + 1] = _widen(H[t, 0, 0], H[t, 0, 1], r)
+        W[s, W_TARGET + 2], W[s, W_TARGET + 3] = _widen(H[t, 1, 0], H[t, 1, 1], r)
+    W[s, W_OBS], W[s, W_OBS + 1] = rho[j, 0], rho[j, 1]
+    W[s, W_OBS + 2], W[s, W_OBS + 3] = alpha[j, 0], alpha[j, 1]
+    W[s, W_OBS + 4], W[s, W_OBS + 5] = reach[j, 0], reach[j, 1]
+
+
+@njit(cache=True)
+def _contract_piece(B, m, W, buf, lo, hi, piece, q_pose, capped, groups, ka, kb):
+    """``piece`` = ``B`` ∩ the q-relaxed intersection (``q_pose``) of the ``m`` candidates of
+    the window's table ``W`` (``buf``: each candidate, empty when the observation allows nothing
+    in ``B``); with ``capped``, the wrong candidates also keep to the caps per pose and per
+    landmark (:func:`qinter_capped_prefix` with ``groups``, ``ka``, ``kb``). Returns False as
+    soon as more than ``q_pose`` candidates are empty, or if the result is empty. Few array
+    arguments: numba counts references to each on every call."""
     n_empty = 0
+    bt = (B[0, 0], B[0, 1], B[1, 0], B[1, 1], B[2, 0], B[2, 1])
     for s in range(m):
-        j = idx[s]
-        if src[s] == 0:
-            # the arrays are read here, the candidate computed on scalars
-            kj = node[j]
-            mode = cmode[s]
-            dp, dl, dh = 0.0, 0.0, 0.0
-            if mode == CARRY_TRAVEL:
-                dp = up(up(abs(travel[k] - travel[kj])) * (1.0 + 1e-15))
-                ta, tb = min(k, kj), max(k, kj)
-                el = down(down(turn[tb, 0] - turn[ta, 0]) - turn_err)
-                eh = up(up(turn[tb, 1] - turn[ta, 1]) + turn_err)
-                dl, dh = (el, eh) if kj > k else (-eh, -el)
-            i = lm[j]
-            if i >= 0:
-                tgt = (L[i, 0, 0], L[i, 0, 1], L[i, 1, 0], L[i, 1, 1])
-            else:  # the observed robot's position hull widened by its reach
-                t = tnode[j]
-                r = treach[j, 0]
-                txl, txh = _widen(H[t, 0, 0], H[t, 0, 1], r)
-                tyl, tyh = _widen(H[t, 1, 0], H[t, 1, 1], r)
-                tgt = (txl, txh, tyl, tyh)
+        if W[s, W_MODE] != W_IMAGE:
             res = _obs_pose_candidate(
-                (B[0, 0], B[0, 1], B[1, 0], B[1, 1], B[2, 0], B[2, 1]), mode,
-                (carry[s, 0, 0], carry[s, 0, 1], carry[s, 1, 0], carry[s, 1, 1], carry[s, 2, 0], carry[s, 2, 1]),
-                (H[kj, 0, 0], H[kj, 0, 1], H[kj, 1, 0], H[kj, 1, 1], H[kj, 2, 0], H[kj, 2, 1]), tgt,
-                (rho[j, 0], rho[j, 1], alpha[j, 0], alpha[j, 1], reach[j, 0], reach[j, 1]), dp, dl, dh)
+                bt, int(W[s, W_MODE]),
+                (W[s, W_CARRY], W[s, W_CARRY + 1], W[s, W_CARRY + 2], W[s, W_CARRY + 3], W[s, W_CARRY + 4],
+                 W[s, W_CARRY + 5]),
+                (W[s, W_HULL], W[s, W_HULL + 1], W[s, W_HULL + 2], W[s, W_HULL + 3], W[s, W_HULL + 4],
+                 W[s, W_HULL + 5]),
+                (W[s, W_TARGET], W[s, W_TARGET + 1], W[s, W_TARGET + 2], W[s, W_TARGET + 3]),
+                (W[s, W_OBS], W[s, W_OBS + 1], W[s, W_OBS + 2], W[s, W_OBS + 3], W[s, W_OBS + 4], W[s, W_OBS + 5]),
+                W[s, W_TRAVEL], W[s, W_TRAVEL + 1], W[s, W_TRAVEL + 2])
             ok = res[0]
             buf[s, 0, 0], buf[s, 0, 1], buf[s, 1, 0], buf[s, 1, 1], buf[s, 2, 0], buf[s, 2, 1] = res[1:]
         else:
-            ok = timg[s, 0, 0] <= timg[s, 0, 1]
+            ok = W[s, W_TARGET] <= W[s, W_TARGET + 1]
             if ok:
-                buf[s, 0, 0], buf[s, 0, 1] = max(B[0, 0], timg[s, 0, 0]), min(B[0, 1], timg[s, 0, 1])
-                buf[s, 1, 0], buf[s, 1, 1] = max(B[1, 0], timg[s, 1, 0]), min(B[1, 1], timg[s, 1, 1])
+                buf[s, 0, 0], buf[s, 0, 1] = max(B[0, 0], W[s, W_TARGET]), min(B[0, 1], W[s, W_TARGET + 1])
+                buf[s, 1, 0], buf[s, 1, 1] = max(B[1, 0], W[s, W_TARGET + 2]), min(B[1, 1], W[s, W_TARGET + 3])
                 buf[s, 2, 0], buf[s, 2, 1] = B[2, 0], B[2, 1]
                 ok = buf[s, 0, 0] <= buf[s, 0, 1] and buf[s, 1, 0] <= buf[s, 1, 1]
         if not ok:
-            _set_empty3(buf[s])
+            for d in range(3):
+                buf[s, d, 0], buf[s, d, 1] = EMPTY_LO, EMPTY_HI
             n_empty += 1
             if n_empty > q_pose:
                 return False
@@ -386,7 +427,7 @@ def _contract_piece(H, L, B, k, m, idx, src, node, lm, tnode, treach, rho, alpha
             lo[s] = buf[s, d, 0]
             hi[s] = buf[s, d, 1]
         if capped:
-            rl, rh = qinter_capped_prefix(lo, hi, m, ga, ca, gb, cb, na, nb)
+            rl, rh = qinter_capped_prefix(lo, hi, m, groups, ka, kb)
         else:
             rl, rh = qinter_prefix(lo, hi, m, q_pose)
         rl = max(rl, B[d, 0])
@@ -411,48 +452,49 @@ def _mark_agree(buf, m, piece, agree):
 
 
 @njit(cache=True)
-def _window_groups(m, idx, src, node, lm, q_pose, q_lm, ga, ca, gb, cb):
-    """Group the ``m`` chosen observations by node (``ga``, cap ``ca`` = ``q_pose``) and by
-    landmark (``gb``, cap ``cb`` = ``q_lm`` of the landmark); −1 for an observation of a robot
-    by another (each may be wrong). Returns how many may be wrong together: at most ``q_pose``
-    at each of their nodes and at most ``q_lm[i]`` of landmark ``i``'s."""
+def _window_groups(m, idx, src, node, lm, q_pose, q_lm, groups):
+    """Group the ``m`` chosen observations by node (``groups[0]``, caps ``groups[2]`` =
+    ``q_pose``) and by landmark (``groups[1]``, caps ``groups[3]`` = ``q_lm`` of the landmark);
+    −1 for an observation of a robot by another (each may be wrong). Returns how many may be
+    wrong together — at most ``q_pose`` at each of their nodes and at most ``q_lm[i]`` of
+    landmark ``i``'s — and the numbers of groups of each kind."""
     na = 0
     nb = 0
     other = 0
     for s in range(m):
-        ga[s] = -1
-        gb[s] = -1
+        groups[0, s] = -1
+        groups[1, s] = -1
         j = idx[s]
         if src[s] == 1 or lm[j] < 0:
             other += 1
             continue
         for t in range(s):
-            if ga[t] >= 0 and node[idx[t]] == node[j]:
-                ga[s] = ga[t]
-            if gb[t] >= 0 and lm[idx[t]] == lm[j]:
-                gb[s] = gb[t]
-        if ga[s] < 0:
-            ga[s] = na
-            ca[na] = q_pose
+            if groups[0, t] >= 0 and node[idx[t]] == node[j]:
+                groups[0, s] = groups[0, t]
+            if groups[1, t] >= 0 and lm[idx[t]] == lm[j]:
+                groups[1, s] = groups[1, t]
+        if groups[0, s] < 0:
+            groups[0, s] = na
+            groups[2, na] = q_pose
             na += 1
-        if gb[s] < 0:
-            gb[s] = nb
-            cb[nb] = q_lm[lm[j]]
+        if groups[1, s] < 0:
+            groups[1, s] = nb
+            groups[3, nb] = q_lm[lm[j]]
             nb += 1
     by_lm = 0
     for g in range(nb):
         cnt = 0
         for s in range(m):
-            if gb[s] == g:
+            if groups[1, s] == g:
                 cnt += 1
-        by_lm += min(cnt, cb[g])
-    return min(q_pose * na, by_lm) + other
+        by_lm += min(cnt, groups[3, g])
+    return min(q_pose * na, by_lm) + other, na, nb
 
 
 @njit(cache=True)
 def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, chain_hi, travel, turn, turn_err,
                 window, window_obs, q_pose, pieces, node, lm, tnode, treach, by_target, target_first, rho, alpha,
-                reach, status, buf, lo, hi, idx, src, agree, timg, carry, cmode, stack, NEW, h_lo, h_hi, ver, posedone,
+                reach, status, buf, lo, hi, idx, src, agree, W, groups, stack, NEW, h_lo, h_hi, ver, posedone,
                 lver, clock, q_lm, per_node):
     """Node ``k``'s set ∩= what the observations in its window allow, slice by slice (see the
     module docstring). Returns False if no slice survives (nothing written).
@@ -498,32 +540,28 @@ def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, 
             m += 1
     f = target_first[k]
     if f >= 0:
+        img = np.empty((2, 2))
         s = f
         while s < by_target.shape[0] and tnode[by_target[s]] == k:
             j = by_target[s]
             s += 1
             if status[j] != OBS_USED:
                 continue
-            if not image_candidate(PS, H, j, node, rho, alpha, reach, timg[m]):
-                timg[m, 0, 0] = EMPTY_LO
-                timg[m, 0, 1] = EMPTY_HI
+            W[m, W_MODE] = W_IMAGE
+            if not image_candidate(PS, H, j, node, rho, alpha, reach, img):
+                W[m, W_TARGET], W[m, W_TARGET + 1] = EMPTY_LO, EMPTY_HI
             else:  # the observed robot's modelled pose: within its reach of the true one
                 r = treach[j, 0]
-                timg[m, 0, 0], timg[m, 0, 1] = _widen(timg[m, 0, 0], timg[m, 0, 1], r)
-                timg[m, 1, 0], timg[m, 1, 1] = _widen(timg[m, 1, 0], timg[m, 1, 1], r)
+                W[m, W_TARGET], W[m, W_TARGET + 1] = _widen(img[0, 0], img[0, 1], r)
+                W[m, W_TARGET + 2], W[m, W_TARGET + 3] = _widen(img[1, 0], img[1, 1], r)
             idx[m] = j
             src[m] = 1
             agree[m] = False
             m += 1
     if m == 0:
         return True
-    ga = np.empty(m, np.int64)  # the window's wrong observations: q_pose per node, q_lm per landmark
-    gb = np.empty(m, np.int64)
-    ca = np.empty(m, np.int64)
-    cb = np.empty(m, np.int64)
-    na = np.empty(m, np.int64)  # work arrays of the capped intersection
-    nb = np.empty(m, np.int64)
-    qw = _window_groups(m, idx, src, node, lm, q_pose, q_lm, ga, ca, gb, cb) if per_node else q_pose
+    # the window's wrong observations: q_pose per node, q_lm per landmark
+    qw, ka, kb = _window_groups(m, idx, src, node, lm, q_pose, q_lm, groups) if per_node else (q_pose, 0, 0)
     capped = per_node and m > m_own
     # nothing this update reads changed since it last ran: skip it (ver, lver: clock values
     # of the last change of a set, of a landmark box; posedone: of this node's last update)
@@ -538,22 +576,13 @@ def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, 
             stale = stale or ver[tnode[j]] > posedone[k]
     if not stale:
         return True
-    for s in range(m):
-        j = idx[s]
-        cmode[s] = CARRY_OWN
-        if src[s] == 0 and node[j] != k:
-            kj = node[j]
-            if abs(kj - k) > MAX_CARRY_STEPS:
-                cmode[s] = CARRY_TRAVEL
-            elif kj > k:
-                cmode[s] = CARRY_FORWARD
-                compose_range(U, k, kj, carry[s])
-            else:
-                cmode[s] = CARRY_BACKWARD
-                compose_range(U, kj, k, carry[s])
-    S = PS.shape[1]
     B = np.empty((3, 2))
     piece = np.empty((3, 2))
+    for s in range(m):
+        if src[s] == 0:
+            _window_row(H, L, U, k, idx[s], node, lm, tnode, treach, rho, alpha, reach, travel, turn, turn_err, W, s,
+                        piece)
+    S = PS.shape[1]
     n_live = 0
     live0 = live_slices(PS, k)
     budget = pieces if live0 <= SUB_MAX_LIVE else 1  # a lost heading: each slice as one box
@@ -579,15 +608,11 @@ def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, 
                 B[d, 0], B[d, 1] = stack[top, d, 0], stack[top, d, 1]
             used += 1
             if per_node and 0 < m_own < m:  # the pose's own observations alone first: q_pose of them
-                if not _contract_piece(H, L, B, k, m_own, idx, src, node, lm, tnode, treach, rho, alpha, reach, travel,
-                                       turn, turn_err, q_pose, timg, carry, cmode, buf, lo, hi, piece, False, ga, ca,
-                                       gb, cb, na, nb):
+                if not _contract_piece(B, m_own, W, buf, lo, hi, piece, q_pose, False, groups, ka, kb):
                     continue
                 for d in range(3):
                     B[d, 0], B[d, 1] = piece[d, 0], piece[d, 1]
-            if not _contract_piece(H, L, B, k, m, idx, src, node, lm, tnode, treach, rho, alpha, reach, travel, turn,
-                                   turn_err, qw, timg, carry, cmode, buf, lo, hi, piece, capped, ga, ca, gb, cb,
-                                   na, nb):
+            if not _contract_piece(B, m, W, buf, lo, hi, piece, qw, capped, groups, ka, kb):
                 continue
             wx = piece[0, 1] - piece[0, 0]
             wy = piece[1, 1] - piece[1, 0]
