@@ -24,9 +24,17 @@ The process CPU time is printed beside the wall time (the machine may be shared)
 (issue #6): warm ≤ 2 s on each MRCLAM robot and on Victoria Park, pose containment ≥ 0.99 and
 all 15 landmark boxes holding the truth on each robot, no empty event on Victoria Park.
 
+**Whole processes** (issue #17), as a user runs them: ``ivslam run … --mode landmarks --config
+configs/mrclam.toml --initial-pose-from-truth`` on each robot and on ``--robot all`` (the five
+robots together), after one run that fills the numba cache, median wall time of
+``--processes`` runs, the child's CPU time and peak resident memory, and beside them what
+``ivslam report --json`` says of the result (median widths, containment). Targets: ≤ 2 s per
+robot, ≤ 10 s for ``--robot all``, ≤ 1 GB, every truth pose and landmark inside.
+
     python -m bench.bench_landmarks                       # all 5 robots, GTSAM, Victoria Park
     python -m bench.bench_landmarks --robots 1 --no-gtsam --no-victoria
     python -m bench.bench_landmarks --markdown table.md   # also the tables as Markdown
+    python -m bench.bench_landmarks --processes 0         # without the whole processes
     python -m bench landmarks                             # as part of `make bench` (found by name)
 """
 
@@ -57,6 +65,7 @@ TARGET_POSE_FRACTION = 0.99
 #: issue #17: median pose box (m), landmark box (m), heading (rad) on every MRCLAM robot
 TARGET_POSE_W, TARGET_LM_W, TARGET_HEADING_W = 1.5, 1.0, 0.5
 TARGET_PEAK_MB = 1024.0  # issue #17: peak memory on MRCLAM ≤ 1 GB
+TARGET_ALL_S = 10.0  # issue #17: a warm `ivslam run --robot all` process
 
 #: The bound keys the GTSAM baseline models (σ = bound / 3); every other ``[bounds]`` key of
 #: our config is reported as not modelled by it.
@@ -244,6 +253,21 @@ VICTORIA_COLUMNS: list[tuple[str, Any]] = [
 ]
 
 
+PROCESS_COLUMNS: list[tuple[str, Any]] = [
+    ("robot", lambda r: str(r["robot"])),
+    ("process s (median)", lambda r: _f(r["wall_s"], "{:.2f}")),
+    ("runs s", lambda r: " ".join(f"{t:.2f}" for t in r["walls"])),
+    ("CPU s", lambda r: _f(r["cpu_s"], "{:.2f}")),
+    ("peak MB", lambda r: _f(r["peak_mb"], "{:.0f}")),
+    ("pose in box", lambda r: _frac(r["pose_contained"], r["pose_checked"])),
+    ("lm in box", lambda r: _frac(r["lm_contained"], r["lm_checked"])),
+    ("pose w m", lambda r: _f(r["pose_width_median"], "{:.2f}")),
+    ("lm w m", lambda r: _f(r["landmark_width_median"], "{:.2f}")),
+    ("head w rad", lambda r: _f(r["heading_width_median"], "{:.2f}")),
+    ("empty ev", lambda r: str(r["empty_events"])),
+]
+
+
 def format_table(rows: list[dict[str, Any]], columns: list[tuple[str, Any]], markdown: bool = False) -> str:
     """Rows as a fixed-width text table, or a Markdown (GitHub) table."""
     heads = [h for h, _ in columns]
@@ -256,6 +280,23 @@ def format_table(rows: list[dict[str, Any]], columns: list[tuple[str, Any]], mar
     lines = ["  ".join(h.rjust(w) for h, w in zip(heads, widths))]
     lines += ["  ".join(c.rjust(w) for c, w in zip(row, widths)) for row in cells]
     return "\n".join(lines)
+
+
+def process_verdicts(rows: list[dict[str, Any]]) -> list[tuple[bool, str]]:
+    """(passed, line) per whole-process target of issue #17."""
+    out: list[tuple[bool, str]] = []
+    for r in rows:
+        name = "MRCLAM --robot all" if r["robot"] == "all" else f"MRCLAM robot {r['robot']}"
+        limit = TARGET_ALL_S if r["robot"] == "all" else TARGET_WARM_S
+        out.append((r["wall_s"] <= limit, f"{name}: warm `ivslam run` process {r['wall_s']:.2f} s <= {limit:g} s "
+                                          f"(median of {len(r['walls'])})"))
+        out.append((r["peak_mb"] <= TARGET_PEAK_MB, f"{name}: process peak memory {r['peak_mb']:.0f} MB "
+                                                    f"<= {TARGET_PEAK_MB:g} MB"))
+        out.append((r["pose_checked"] > 0 and r["pose_contained"] == r["pose_checked"]
+                    and r["lm_checked"] > 0 and r["lm_contained"] == r["lm_checked"],
+                    f"{name}: ivslam report: poses {r['pose_contained']}/{r['pose_checked']}, "
+                    f"landmarks {r['lm_contained']}/{r['lm_checked']} inside"))
+    return out
 
 
 def verdicts(mrclam: list[dict[str, Any]], victoria: dict[str, Any] | None) -> list[tuple[bool, str]]:
@@ -335,6 +376,66 @@ def _spawn(spec: str, cache: Path | None, *, gtsam: bool, repeat: int = 1) -> di
     raise WorkerError(f"the {spec} run failed (exit {p.returncode}):\n{p.stderr[-2000:]}")
 
 
+def report_figures(report: dict[str, Any]) -> dict[str, Any]:
+    """The widths and containment of an ``ivslam report --json`` document."""
+    fw = report.get("final_width") or {}
+    cd = report.get("containment_detail") or {}
+
+    def med(kind: str) -> float:
+        v = (fw.get(kind) or {}).get("median")
+        return math.nan if v is None else float(v)
+
+    pose, lm = cd.get("pose") or {}, cd.get("landmark") or {}
+    return {"pose_width_median": med("pose"), "landmark_width_median": med("landmark"),
+            "heading_width_median": med("pose_heading"), "empty_events": int(report.get("empty_events") or 0),
+            "pose_checked": int(pose.get("checked", 0)), "pose_contained": int(pose.get("contained", 0)),
+            "lm_checked": int(lm.get("checked", 0)), "lm_contained": int(lm.get("contained", 0))}
+
+
+def _ivslam() -> list[str]:
+    """The console script beside this interpreter (as a user calls it), else ``-m ivslam_cli``."""
+    script = Path(sys.executable).parent / "ivslam"
+    return [str(script)] if script.exists() else [sys.executable, "-m", "ivslam_cli"]
+
+
+def _child(cmd: list[str]) -> tuple[float, float, float]:
+    """Run ``cmd``; (wall s, its CPU s, its peak resident MiB). Raises WorkerError if it fails."""
+    t0 = time.perf_counter()
+    p = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, ru = os.wait4(p.pid, 0)
+    wall = time.perf_counter() - t0
+    err = p.stderr.read().decode(errors="replace") if p.stderr else ""
+    p.returncode = os.waitstatus_to_exitcode(status)
+    if p.returncode != 0:
+        raise WorkerError(f"{' '.join(cmd)} failed (exit {p.returncode}): {err[-2000:]}")
+    return wall, ru.ru_utime + ru.ru_stime, ru.ru_maxrss / 1024.0
+
+
+def run_processes(robots: list[int | str], n: int) -> list[dict[str, Any]]:
+    """Whole warm ``ivslam run`` processes per robot (``"all"``: ``--robot all``): see the module
+    docstring."""
+    rows = []
+    with tempfile.TemporaryDirectory(prefix="bench-landmarks-cli-") as tmp:
+        for robot in robots:
+            out = Path(tmp) / f"robot_{robot}.h5"
+            cmd = [*_ivslam(), "run", str(MRCLAM), "--robot", str(robot), "--mode", "landmarks", "--config",
+                   str(MRCLAM_CONFIG), "--initial-pose-from-truth", "-o", str(out), "--force"]
+            _child(cmd)  # fills the numba cache if it is empty or stale
+            runs = [_child(cmd) for _ in range(n)]
+            walls = [w for w, _, _ in runs]
+            mid = sorted(range(n), key=lambda i: walls[i])[n // 2]
+            rep = subprocess.run([*_ivslam(), "report", str(out), "--json"], cwd=REPO, capture_output=True, text=True)
+            if rep.returncode != 0:
+                raise WorkerError(f"ivslam report {out} failed: {rep.stderr[-2000:]}")
+            row = {"robot": robot, "wall_s": walls[mid], "walls": walls, "cpu_s": runs[mid][1],
+                   "peak_mb": max(r[2] for r in runs), **report_figures(json.loads(rep.stdout))}
+            rows.append(row)
+            print(f"  {'--robot all' if robot == 'all' else f'robot {robot}'}: process {row['wall_s']:.2f} s "
+                  f"(runs {' '.join(f'{w:.2f}' for w in walls)}; CPU {row['cpu_s']:.2f} s), "
+                  f"peak {row['peak_mb']:.0f} MB", flush=True)
+    return rows
+
+
 class WorkerError(RuntimeError):
     """A case's process ended without its figures."""
 
@@ -364,6 +465,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-cold", action="store_true",
                     help="skip the cold (empty numba cache) runs; warm runs then use the usual numba cache")
     ap.add_argument("--repeat", type=int, default=1, help="warm: calls per process, the smallest time kept")
+    ap.add_argument("--processes", type=int, default=3,
+                    help="whole warm `ivslam run` processes per robot and for --robot all, median kept (0: none)")
     ap.add_argument("--markdown", metavar="PATH", help="also write the tables as Markdown to PATH")
     ap.add_argument("--json", metavar="PATH", help="also write every figure as JSON to PATH")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
@@ -393,12 +496,17 @@ def main(argv: list[str] | None = None) -> int:
 
     mrclam: list[dict[str, Any]] = []
     victoria: dict[str, Any] | None = None
+    processes: list[dict[str, Any]] = []
     try:
         victoria = _run_all(args, robots, use_gtsam, mrclam)
+        if robots and args.processes > 0:
+            print(f"\nWhole warm `ivslam run` processes (MRCLAM, {MRCLAM_CONFIG.relative_to(REPO)}, "
+                  f"--initial-pose-from-truth; median of {args.processes})", flush=True)
+            processes = run_processes([*robots, "all"] if len(robots) > 1 else robots, args.processes)
     except WorkerError as exc:
         print(f"FAIL {exc}")
         return 1
-    return _summarise(args, mrclam, victoria, use_gtsam)
+    return _summarise(args, mrclam, victoria, use_gtsam, processes)
 
 
 def _run_all(args: argparse.Namespace, robots: list[int], use_gtsam: bool,
@@ -440,13 +548,17 @@ def _run_all(args: argparse.Namespace, robots: list[int], use_gtsam: bool,
 
 
 def _summarise(args: argparse.Namespace, mrclam: list[dict[str, Any]], victoria: dict[str, Any] | None,
-               use_gtsam: bool) -> int:
+               use_gtsam: bool, processes: list[dict[str, Any]]) -> int:
     """Tables, PASS/FAIL lines and the optional files; the exit code."""
     md: list[str] = []
     if mrclam:
         cols = mrclam_columns(use_gtsam)
         print("\n" + format_table(mrclam, cols))
         md += ["MRCLAM Dataset 6 (`configs/mrclam.toml`), per robot:", "", format_table(mrclam, cols, True), ""]
+    if processes:
+        print("\n" + format_table(processes, PROCESS_COLUMNS))
+        md += ["Whole warm `ivslam run` processes (MRCLAM, `configs/mrclam.toml`, `--initial-pose-from-truth`):",
+               "", format_table(processes, PROCESS_COLUMNS, True), ""]
     if victoria is not None:
         print("\n" + format_table([victoria], VICTORIA_COLUMNS))
         md += ["Victoria Park (`configs/victoria_park.toml`, no ground truth):", "",
@@ -456,7 +568,7 @@ def _summarise(args: argparse.Namespace, mrclam: list[dict[str, Any]], victoria:
           "(landmarks.map_known: localisation only: the floor as our solver reaches it, from above; "
           "bench_landmark_floor measures it from below); peak MB = the case process's peak resident memory; centre err = median distance of box centres to the truth; GTSAM in 3σ = truth inside "
           "the 3σ (χ²₂ = 9) ellipse of its marginal; GTSAM err = its estimate's position error")
-    checks = verdicts(mrclam, victoria)
+    checks = verdicts(mrclam, victoria) + process_verdicts(processes)
     print()
     for ok, line in checks:
         print(f"{'PASS' if ok else 'FAIL'} {line}")
@@ -464,7 +576,8 @@ def _summarise(args: argparse.Namespace, mrclam: list[dict[str, Any]], victoria:
         Path(args.markdown).write_text("\n".join(md))
         print(f"\nMarkdown tables written to {args.markdown}")
     if args.json:
-        Path(args.json).write_text(json.dumps(_finite_or_none({"mrclam": mrclam, "victoria": victoria}), indent=1, allow_nan=False))
+        Path(args.json).write_text(json.dumps(_finite_or_none({"mrclam": mrclam, "victoria": victoria,
+                                                               "processes": processes}), indent=1, allow_nan=False))
     return 0 if all(ok for ok, _ in checks) else 1
 
 

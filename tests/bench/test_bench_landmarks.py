@@ -155,3 +155,35 @@ def test_a_failing_case_process_is_reported(tmp_path):
 
     with pytest.raises(B.WorkerError, match="no-such-case"):
         B._spawn("no-such-case", tmp_path / "cache", gtsam=False)
+
+
+def test_whole_process_figures_come_from_the_report_and_are_judged(sim, tmp_path):
+    """The whole-process rows read widths and containment from `ivslam report --json`; a row
+    is judged against 2 s per robot, 10 s for --robot all, 1 GB and full containment."""
+    import json
+
+    from click.testing import CliRunner
+
+    from bench.bench_landmarks import PROCESS_COLUMNS, process_verdicts, report_figures
+    from ivslam_cli.cli import cli
+    from ivslam_cli.logs.writers import write_log
+
+    log = tmp_path / "sim.h5"
+    write_log(log, sim)
+    res = tmp_path / "res.h5"
+    runner = CliRunner()
+    assert runner.invoke(cli, ["run", str(log), "--mode", "landmarks", "--initial-pose-from-truth",
+                                "-o", str(res)]).exit_code == 0
+    rep = runner.invoke(cli, ["report", str(res), "--json"])
+    fig = report_figures(json.loads(rep.output))
+    assert fig["pose_checked"] > 0 and fig["pose_contained"] == fig["pose_checked"]
+    assert fig["lm_checked"] > 0 and fig["lm_contained"] == fig["lm_checked"]
+    assert fig["pose_width_median"] > 0 and fig["heading_width_median"] > 0 and fig["empty_events"] == 0
+    row = {"robot": 3, "wall_s": 1.9, "walls": [1.9, 2.1, 1.8], "cpu_s": 1.8, "peak_mb": 300.0, **fig}
+    assert all(ok for ok, _ in process_verdicts([row]))
+    assert not process_verdicts([{**row, "wall_s": 2.1}])[0][0]
+    assert process_verdicts([{**row, "robot": "all", "wall_s": 9.5}])[0][0]
+    assert not process_verdicts([{**row, "robot": "all", "wall_s": 10.5}])[0][0]
+    assert not process_verdicts([{**row, "peak_mb": 2000.0}])[1][0]
+    assert not process_verdicts([{**row, "pose_contained": fig["pose_checked"] - 1}])[2][0]
+    assert "1.90" in format_table([row], PROCESS_COLUMNS)
