@@ -17,7 +17,7 @@ from ivslam_cli.contractors.ctc_range_bearing import range_bearing_pass
 from ivslam_cli.interval.angles import angle_meet, angle_meet_narrow, arg_box
 from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO, INF, add, cos, mul, sin, sqr, sqrt, sub
 from ivslam_cli.interval.rounding import down, up
-from ivslam_cli.slam.landmarks.pose_sets import _commit, _empty, _hull_into, _set_empty3, live_slices
+from ivslam_cli.slam.landmarks.pose_sets import _commit, _empty, _hull_into, live_slices
 
 OBS_USED = 0
 OBS_REJECTED_LANDMARK = 1  # its landmark candidate misses the q-relaxed landmark box
@@ -590,7 +590,8 @@ def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, 
     for s in range(m):
         lever = max(lever, rho[idx[s], 1])
     for b in range(S):
-        _set_empty3(NEW[b])
+        for d in range(3):
+            NEW[b, d, 0], NEW[b, d, 1] = EMPTY_LO, EMPTY_HI
         if _empty(PS, k, b):
             continue
         # a paving of the slice (SIVIA with contraction, depth first, at most `budget`
@@ -630,7 +631,7 @@ def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, 
                         stack[top, d, 0] = mid
                     top += 1
             else:
-                _hull_into(NEW[b], piece[0, 0], piece[0, 1], piece[1, 0], piece[1, 1], piece[2, 0], piece[2, 1])
+                _hull_into(NEW, b, piece[0, 0], piece[0, 1], piece[1, 0], piece[1, 1], piece[2, 0], piece[2, 1])
                 _mark_agree(buf, m, piece, agree)
         if NEW[b, 0, 0] <= NEW[b, 0, 1]:
             n_live += 1

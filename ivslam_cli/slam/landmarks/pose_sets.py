@@ -71,17 +71,27 @@ def _set_empty3(a):
 
 
 @njit(cache=True)
-def _hull_into(acc, xl, xh, yl, yh, tl, th):
-    """``acc`` (3, 2) ∪= the box (the empty ``acc`` is neutral)."""
-    if acc[0, 0] <= acc[0, 1]:
-        acc[0, 0] = min(acc[0, 0], xl)
-        acc[0, 1] = max(acc[0, 1], xh)
-        acc[1, 0] = min(acc[1, 0], yl)
-        acc[1, 1] = max(acc[1, 1], yh)
-        acc[2, 0] = min(acc[2, 0], tl)
-        acc[2, 1] = max(acc[2, 1], th)
+def _set_empty_slices(acc):
+    """Every box of ``acc`` (S, 3, 2) empty."""
+    for b in range(acc.shape[0]):
+        for d in range(3):
+            acc[b, d, 0] = EMPTY_LO
+            acc[b, d, 1] = EMPTY_HI
+
+
+@njit(cache=True)
+def _hull_into(acc, b, xl, xh, yl, yh, tl, th):
+    """``acc[b]`` (a (3, 2) box of ``acc``) ∪= the box (the empty one is neutral). Indexed,
+    not a view: numba counts references to a view on every call."""
+    if acc[b, 0, 0] <= acc[b, 0, 1]:
+        acc[b, 0, 0] = min(acc[b, 0, 0], xl)
+        acc[b, 0, 1] = max(acc[b, 0, 1], xh)
+        acc[b, 1, 0] = min(acc[b, 1, 0], yl)
+        acc[b, 1, 1] = max(acc[b, 1, 1], yh)
+        acc[b, 2, 0] = min(acc[b, 2, 0], tl)
+        acc[b, 2, 1] = max(acc[b, 2, 1], th)
     else:
-        acc[0, 0], acc[0, 1], acc[1, 0], acc[1, 1], acc[2, 0], acc[2, 1] = xl, xh, yl, yh, tl, th
+        acc[b, 0, 0], acc[b, 0, 1], acc[b, 1, 0], acc[b, 1, 1], acc[b, 2, 0], acc[b, 2, 1] = xl, xh, yl, yh, tl, th
 
 
 @njit(cache=True)
@@ -129,9 +139,9 @@ def _circular_hull(h_lo, h_hi, n, thl, thh):
 
 
 @njit(cache=True)
-def node_hull(PS, k, out, h_lo, h_hi):
-    """``out`` (3, 2) = the hull of node ``k``'s set: x, y hulls, θ the shortest arc holding
-    every slice's interval. Returns False (``out`` empty) when the set is empty."""
+def node_hull(PS, k, H, h_lo, h_hi):
+    """``H[k]`` (3, 2) = the hull of node ``k``'s set: x, y hulls, θ the shortest arc holding
+    every slice's interval. Returns False (``H[k]`` empty) when the set is empty."""
     S = PS.shape[1]
     n = 0
     xl, xh, yl, yh = INF, -INF, INF, -INF
@@ -146,10 +156,11 @@ def node_hull(PS, k, out, h_lo, h_hi):
         h_hi[n] = PS[k, b, 2, 1]
         n += 1
     if n == 0:
-        _set_empty3(out)
+        for d in range(3):
+            H[k, d, 0], H[k, d, 1] = EMPTY_LO, EMPTY_HI
         return False
     tl, th = _circular_hull(h_lo, h_hi, n, -PI_HI, PI_HI)
-    out[0, 0], out[0, 1], out[1, 0], out[1, 1], out[2, 0], out[2, 1] = xl, xh, yl, yh, tl, th
+    H[k, 0, 0], H[k, 0, 1], H[k, 1, 0], H[k, 1, 1], H[k, 2, 0], H[k, 2, 1] = xl, xh, yl, yh, tl, th
     return True
 
 
@@ -159,7 +170,7 @@ def all_hulls(PS, H):
     h_lo = np.empty(S)
     h_hi = np.empty(S)
     for k in range(PS.shape[0]):
-        node_hull(PS, k, H[k], h_lo, h_hi)
+        node_hull(PS, k, H, h_lo, h_hi)
 
 
 # ------------------------------------------------------------------ motion
@@ -173,10 +184,10 @@ def step_sets(PS, H, k, kind, U, BINS, accA, accC, h_lo, h_hi, ver, stepdone, cl
         return True
     if ver[k] <= stepdone[k] and ver[k + 1] <= stepdone[k]:
         return True
-    for b in range(PS.shape[1]):
-        _set_empty3(accA[b])
-        _set_empty3(accC[b])
-    found = increment_pairs(PS, k, k + 1, U[k], accA, accC)
+    _set_empty_slices(accA)
+    _set_empty_slices(accC)
+    found = increment_pairs(PS, k, k + 1, (U[k, 0, 0], U[k, 0, 1], U[k, 1, 0], U[k, 1, 1], U[k, 2, 0], U[k, 2, 1]),
+                            accA, accC)
     if not found:
         stepdone[k] = clock[0]
         return False
@@ -189,20 +200,19 @@ def step_sets(PS, H, k, kind, U, BINS, accA, accC, h_lo, h_hi, ver, stepdone, cl
 @njit(cache=True)
 def increment_pairs(PS, k, l, inc, accA, accC):
     """``accA`` (slices of node ``k``) and ``accC`` (of node ``l``) ∪= what the increment
-    ``inc`` (rows ``ρ, α, δθ``: node ``l`` in the frame of node ``k``) allows, slice pair by
-    slice pair (a slice of ``k`` reaches the one or two slices its heading turns into). True if
-    some pair has a solution."""
+    ``inc`` (``ρ``, ``α``, ``δθ`` as lo/hi pairs: node ``l`` in the frame of node ``k``) allows,
+    slice pair by slice pair (a slice of ``k`` reaches the one or two slices its heading turns
+    into). True if some pair has a solution."""
     S = PS.shape[1]
     w = TWO_PI_HI / S
-    rl, rh = inc[0, 0], inc[0, 1]
-    al, ah = inc[1, 0], inc[1, 1]
-    dl, dh = inc[2, 0], inc[2, 1]
+    rl, rh, al, ah, dl, dh = inc
     found = False
     for b in range(S):
         if _empty(PS, k, b):
             continue
-        A = PS[k, b]
-        fl, fh = add(A[2, 0], A[2, 1], dl, dh)  # the heading at l
+        axl, axh, ayl, ayh = PS[k, b, 0, 0], PS[k, b, 0, 1], PS[k, b, 1, 0], PS[k, b, 1, 1]
+        atl, ath = PS[k, b, 2, 0], PS[k, b, 2, 1]
+        fl, fh = add(atl, ath, dl, dh)  # the heading at l
         if fh - fl >= TWO_PI_LO - w:
             b0 = 0
             nb = S
@@ -213,23 +223,22 @@ def increment_pairs(PS, k, l, inc, accA, accC):
             c = (b0 + i) % S
             if _empty(PS, l, c):
                 continue
-            C = PS[l, c]
-            ctl, cth = angle_meet(C[2, 0], C[2, 1], fl, fh)
+            ctl, cth = angle_meet(PS[l, c, 2, 0], PS[l, c, 2, 1], fl, fh)
             if not (ctl <= cth):
                 continue
-            btl, bth = angle_meet(A[2, 0], A[2, 1], *sub(ctl, cth, dl, dh))
+            btl, bth = angle_meet(atl, ath, *sub(ctl, cth, dl, dh))
             if not (btl <= bth):
                 continue
-            r = range_bearing_pass(A[0, 0], A[0, 1], A[1, 0], A[1, 1], btl, bth,
-                                   C[0, 0], C[0, 1], C[1, 0], C[1, 1], rl, rh, al, ah, 1)
+            r = range_bearing_pass(axl, axh, ayl, ayh, btl, bth,
+                                   PS[l, c, 0, 0], PS[l, c, 0, 1], PS[l, c, 1, 0], PS[l, c, 1, 1], rl, rh, al, ah, 1)
             if not (r[0] <= r[1]):
                 continue
             if r[5] - r[4] < bth - btl:  # the step's direction narrowed the heading at k
                 ctl, cth = angle_meet(ctl, cth, *add(r[4], r[5], dl, dh))
                 if not (ctl <= cth):
                     continue
-            _hull_into(accA[b], r[0], r[1], r[2], r[3], r[4], r[5])
-            _hull_into(accC[c], r[6], r[7], r[8], r[9], ctl, cth)
+            _hull_into(accA, b, r[0], r[1], r[2], r[3], r[4], r[5])
+            _hull_into(accC, c, r[6], r[7], r[8], r[9], ctl, cth)
             found = True
     return found
 
@@ -245,8 +254,9 @@ def _commit(PS, H, k, NEW, h_lo, h_hi, ver, clock):
     if same:
         return
     for b in range(PS.shape[1]):
-        PS[k, b] = NEW[b]
-    node_hull(PS, k, H[k], h_lo, h_hi)
+        for d in range(3):
+            PS[k, b, d, 0], PS[k, b, d, 1] = NEW[b, d, 0], NEW[b, d, 1]
+    node_hull(PS, k, H, h_lo, h_hi)
     clock[0] += 1
     ver[k] = clock[0]
 

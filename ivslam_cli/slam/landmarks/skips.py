@@ -19,7 +19,7 @@ import numpy as np
 from numba import njit
 
 from ivslam_cli.slam.landmarks.observations import compose_range
-from ivslam_cli.slam.landmarks.pose_sets import _commit, _set_empty3, increment_pairs, live_slices
+from ivslam_cli.slam.landmarks.pose_sets import _commit, _set_empty_slices, increment_pairs, live_slices
 
 LIVE_MAX = 0.125  # an edge waits while both its sets have live slices over more than this share of the circle
 
@@ -89,10 +89,10 @@ def skip_sets(PS, H, e, sa, sb, R, accA, accC, h_lo, h_hi, ver, done, clock):
     if live_slices(PS, a) > most and live_slices(PS, b) > most:
         done[e] = clock[0]
         return True
-    for s in range(PS.shape[1]):
-        _set_empty3(accA[s])
-        _set_empty3(accC[s])
-    if not increment_pairs(PS, a, b, R[e], accA, accC):
+    _set_empty_slices(accA)
+    _set_empty_slices(accC)
+    if not increment_pairs(PS, a, b, (R[e, 0, 0], R[e, 0, 1], R[e, 1, 0], R[e, 1, 1], R[e, 2, 0], R[e, 2, 1]),
+                           accA, accC):
         done[e] = clock[0]
         return False
     _commit(PS, H, a, accA, h_lo, h_hi, ver, clock)
