@@ -136,7 +136,17 @@ def test_main_writes_markdown_and_json_and_fails_on_a_missed_target(row, tmp_pat
         mrclam.extend([good, dict(second, robot=8, ours_s=2.5)])
         return dict(good, name="Victoria Park", pose_fraction=math.nan)
 
+    proc = {"wall_s": 1.5, "walls": [1.5, 1.6, 1.4], "cpu_s": 1.4, "peak_mb": 300.0, "pose_width_median": 1.0,
+            "landmark_width_median": 0.9, "heading_width_median": 0.4, "empty_events": 0, "pose_checked": 10,
+            "pose_contained": 10, "lm_checked": 15, "lm_contained": 15}
+    asked = []
+
+    def fake_processes(robots, n):  # the whole `ivslam run` processes, replaced by known rows
+        asked.append((robots, n))
+        return [dict(proc, robot=7), dict(proc, robot=8), dict(proc, robot="all", wall_s=12.0)]
+
     monkeypatch.setattr(B, "_run_all", fake)
+    monkeypatch.setattr(B, "run_processes", fake_processes)
     monkeypatch.setattr(B, "_have_gtsam", lambda: HAVE_GTSAM)
     monkeypatch.setattr(B, "MRCLAM", tmp_path)
     monkeypatch.setattr(B, "VICTORIA", tmp_path)
@@ -144,10 +154,16 @@ def test_main_writes_markdown_and_json_and_fails_on_a_missed_target(row, tmp_pat
     assert B.main(["--robots", "7,8", "--markdown", str(md), "--json", str(js)]) == 1
     out = capsys.readouterr().out
     assert "FAIL MRCLAM robot 8: warm 2.50 s" in out and "PASS MRCLAM robot 7: warm 1.00 s" in out
+    assert asked == [([7, 8, "all"], 3)]
+    assert "PASS MRCLAM robot 7: warm `ivslam run` process 1.50 s" in out
+    assert "FAIL MRCLAM --robot all: warm `ivslam run` process 12.00 s <= 10 s" in out
     text = md.read_text()
     assert "| 7 | 30.0 | 1.00 |" in text and "| 8 | – | 2.50 |" in text and "| Victoria Park |" in text
+    assert "| all | 12.00 |" in text
     doc = json.loads(js.read_text())  # standard JSON: NaN written as null
     assert doc["victoria"]["pose_fraction"] is None and doc["mrclam"][1]["ours_s"] == 2.5
+    assert doc["processes"][2]["robot"] == "all"
+    assert B.main(["--robots", "7,8", "--processes", "0"]) == 1 and len(asked) == 1  # none asked for
 
 
 def test_a_failing_case_process_is_reported(tmp_path):
