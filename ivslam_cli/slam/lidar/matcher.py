@@ -81,11 +81,13 @@ def free_ranges(ranges, valid, r_abs, r_rel, out):
 
 
 @njit(cache=True)
-def covered_free(f, a0, inc, bl, bh, rho_h):
+def covered_free(f, a0, inc, ra, bl, bh, rho_h):
     """True if every point at bearing in ``[bl, bh]`` (sensor frame) and distance ≤ ``rho_h``
-    is proven free by a scan with free ranges ``f`` (beams at ``a0 + i·inc`` whose cones
-    touch, or whose gaps are assumed free): all beams from the one at or before ``bl`` to the
-    one at or after ``bh`` valid with free range > ``rho_h``."""
+    is proven free by a scan with free ranges ``f`` (beams at ``a0 + i·inc``, each cone of
+    half-width ``ra``). Cones that touch (``ra ≥ inc / 2``): every beam whose cone meets the
+    window is valid with free range > ``rho_h`` (a bearing lies in some cone, and that cone is
+    free to ``rho_h``); gaps assumed free (``ra < inc / 2``, ``fill_gaps``): every beam from the
+    one at or before ``bl`` to the one at or after ``bh``."""
     nb = f.shape[0]
     if not (bh - bl < TWO_PI):
         return False
@@ -94,8 +96,12 @@ def covered_free(f, a0, inc, bl, bh, rho_h):
     if n != 0:
         bl = down(bl - n * TWO_PI) - SHIFT_MARGIN
         bh = up(bh - n * TWO_PI) + SHIFT_MARGIN
-    i0 = math.floor(down(down(bl - a0) / inc))
-    i1 = math.ceil(up(up(bh - a0) / inc))
+    if ra >= 0.5 * inc:  # the beams i with a0 + i·inc ± ra meeting [bl, bh]; more, never fewer
+        i0 = math.ceil(down(down(down(bl - a0) - ra) / inc))
+        i1 = math.floor(up(up(up(bh - a0) + ra) / inc))
+    else:
+        i0 = math.floor(down(down(bl - a0) / inc))
+        i1 = math.ceil(up(up(bh - a0) / inc))
     if i0 < 0 or i1 > nb - 1:
         return False
     for i in range(i0, i1 + 1):
@@ -192,10 +198,10 @@ def witness_segments(ranges, valid, a0, inc, box, mx, my, myaw, r_abs, r_rel, r_
 
 
 @njit(cache=True, inline="always")
-def _seg_free(vx, vy, ux, uy, ah, ac, stl, sth, f, a0, inc):
+def _seg_free(vx, vy, ux, uy, ah, ac, stl, sth, f, a0, inc, ra):
     """True if every point ``v + s u + t u⊥`` (``|s| <= ah``, ``|t| <= ac``; ``v`` relative to a
     sensor whose heading is in ``[stl, sth]``) lies in the certain free space of that sensor's
-    scan (free ranges ``f``, beams at ``a0 + i·inc``)."""
+    scan (free ranges ``f``, beams at ``a0 + i·inc``, cones of half-width ``ra``)."""
     dist = math.hypot(vx, vy)
     if not dist > 0.0:
         return False
@@ -211,7 +217,7 @@ def _seg_free(vx, vy, ux, uy, ah, ac, stl, sth, f, a0, inc):
     bc = atan2_fast(vy, vx)
     far = upf(dist * (1.0 + 1e-12)) + along
     rho_h = upf(upf(math.hypot(far, lat)) * (1.0 + 1e-12))
-    return covered_free(f, a0, inc, bc - half - _BEAR_MARGIN - sth, bc + half + _BEAR_MARGIN - stl, rho_h)
+    return covered_free(f, a0, inc, ra, bc - half - _BEAR_MARGIN - sth, bc + half + _BEAR_MARGIN - stl, rho_h)
 
 
 #: angle error of :func:`_may_cover`'s bearings: atan2_fast's plus what coordinates below
@@ -222,21 +228,25 @@ _QUICK_RHO2 = 1e-6
 
 
 @njit(cache=True, inline="always")
-def _cover_setup(nb, a0, inc):
-    """:func:`_may_cover`'s per-scan constants: ``(1 / inc, centre angle, index margin, usable)``."""
+def _cover_setup(nb, a0, inc, ra):
+    """:func:`_may_cover`'s per-scan constants: ``(1 / inc, centre angle, index margin, usable,
+    cone half-width / inc)``, the last at least 1/2 when the cones touch (as
+    :func:`covered_free` decides) and 0 otherwise."""
     ok = inc >= 1e-5 and (nb - 1) * inc < TWO_PI - 1e-3
     ii = 1.0 / inc if inc > 0.0 else 0.0
-    return ii, a0 + 0.5 * (nb - 1) * inc, _QUICK_M * ii + 1e-9, ok
+    rr = max(ra * ii * (1.0 + 1e-12), 0.5) if ra >= 0.5 * inc else 0.0
+    return ii, a0 + 0.5 * (nb - 1) * inc, _QUICK_M * ii + 1e-9, ok, rr
 
 
 @njit(cache=True, inline="always")
-def _may_cover(px, py, cx, cy, c, f, a0, ii, ac, mi, ok):
+def _may_cover(px, py, cx, cy, c, f, a0, ii, ac, mi, ok, rr):
     """False only if the point ``(px, py)`` cannot be in what :func:`covered_free` certifies
-    free for a scan (free ranges ``f``, beams at ``a0 + i·inc``; ``ii, ac, mi, ok`` from
+    free for a scan (free ranges ``f``, beams at ``a0 + i·inc``; ``ii, ac, mi, ok, rr`` from
     :func:`_cover_setup`) from a sensor at ``(cx, cy)`` with heading ``c``: a certified point
-    at sensor bearing ``β`` is nearer than ``f[j]``, ``j = ⌊(β − a0) / inc⌋`` (that beam is in
-    every window holding ``β``). A cheap necessary condition, so :func:`_seg_free` runs only
-    where it may succeed."""
+    at sensor bearing ``β`` is nearer than ``f[j]`` for a beam ``j`` in every window holding
+    ``β`` — one whose cone holds ``β`` (cones that touch, ``rr ≥ 1/2``), or
+    ``j = ⌊(β − a0) / inc⌋`` (gaps assumed free). A cheap necessary condition, so
+    :func:`_seg_free` runs only where it may succeed."""
     if not ok or not (abs(px) + abs(py) + abs(cx) + abs(cy) < _QUICK_COORD):
         return True
     dx = px - cx
@@ -252,8 +262,12 @@ def _may_cover(px, py, cx, cy, c, f, a0, ii, ac, mi, ok):
     while b - ac < -math.pi:
         b += TWO_PI
     jc = (b - a0) * ii
-    j0 = max(math.floor(jc - mi), 0)
-    j1 = min(math.floor(jc + mi), f.shape[0] - 1)
+    if rr >= 0.5:
+        j0 = max(math.ceil(jc - rr - mi), 0)
+        j1 = min(math.floor(jc + rr + mi), f.shape[0] - 1)
+    else:
+        j0 = max(math.floor(jc - mi), 0)
+        j1 = min(math.floor(jc + mi), f.shape[0] - 1)
     fm = -1.0
     for j in range(j0, j1 + 1):
         fm = max(fm, f[j])
@@ -283,11 +297,12 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
         sc = math.sin(c)
         na = 0
         # per sub-box, not per call: an extra array argument to this function costs more (measured)
-        ref_q = np.empty((max(n_ref, 1), 5))
+        ref_q = np.empty((max(n_ref, 1), 6))
         for r in range(n_ref):
-            ii, acr, mi, ok = _cover_setup(ref_f.shape[1], ref_a0[r], ref_inc[r])
+            ii, acr, mi, ok, rr = _cover_setup(ref_f.shape[1], ref_a0[r], ref_inc[r], r_alpha)
             ref_q[r, 0], ref_q[r, 1], ref_q[r, 2], ref_q[r, 3] = ii, acr, mi, 1.0 if ok else 0.0
             ref_q[r, 4] = 0.5 * (ref_th[r, 0] + ref_th[r, 1])
+            ref_q[r, 5] = rr
         for i in range(n_beams):
             cx, cy, ux, uy, ah, ac, hx, hy = _rotated_region(ccx, ccy, cc, sc, beam_ca[i], beam_sa[i], beam_rl[i],
                                                              beam_rh[i], d)
@@ -298,11 +313,11 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
                 extra = rs + ref_c[r, 2]
                 if not _may_cover(cx + (ah + extra) * ux, cy + (ah + extra) * uy, ref_c[r, 0], ref_c[r, 1],
                                   ref_q[r, 4], ref_f[r], ref_a0[r], ref_q[r, 0], ref_q[r, 1], ref_q[r, 2],
-                                  ref_q[r, 3] > 0.0):
+                                  ref_q[r, 3] > 0.0, ref_q[r, 5]):
                     r += 1
                     continue
                 hit = _seg_free(cx - ref_c[r, 0], cy - ref_c[r, 1], ux, uy, ah + extra, ac + extra, ref_th[r, 0],
-                                ref_th[r, 1], ref_f[r], ref_a0[r], ref_inc[r])
+                                ref_th[r, 1], ref_f[r], ref_a0[r], ref_inc[r], r_alpha)
                 r += 1
             if hit:
                 na += 1
@@ -310,13 +325,14 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
                     return True
     if cones:
         nb = 0
-        ii, acb, mi, ok = _cover_setup(free.shape[0], a0, inc)
+        ii, acb, mi, ok, rr = _cover_setup(free.shape[0], a0, inc, r_alpha)
         for j in range(n_w):
             ahj = W[j, 4] + rs
-            if not _may_cover(W[j, 0] + ahj * W[j, 2], W[j, 1] + ahj * W[j, 3], ccx, ccy, c, free, a0, ii, acb, mi, ok):
+            if not _may_cover(W[j, 0] + ahj * W[j, 2], W[j, 1] + ahj * W[j, 3], ccx, ccy, c, free, a0, ii, acb, mi, ok,
+                              rr):
                 continue
             if _seg_free(W[j, 0] - ccx, W[j, 1] - ccy, W[j, 2], W[j, 3], W[j, 4] + rs, W[j, 5] + rs, stl, sth, free, a0,
-                         inc):
+                         inc, r_alpha):
                 nb += 1
                 if nb > q:
                     return True

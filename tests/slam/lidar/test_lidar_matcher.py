@@ -49,23 +49,24 @@ def _case(draw):
         gap = draw(st.sampled_from([1e-9, 1e-6, 1e-4, 1e-2]))
         rho = math.hypot(dist + ah, ac)
         f = np.where(f > 0.0, rho * (1.0 + gap) + 1e-9, f)
-    return f, a0, inc, cx, cy, c, hw, vx, vy, math.cos(phi), math.sin(phi), ah, ac
+    ra = inc * draw(st.sampled_from([0.5, 0.5, 0.6, 0.25]))  # cones that touch, or gaps assumed free
+    return f, a0, inc, ra, cx, cy, c, hw, vx, vy, math.cos(phi), math.sin(phi), ah, ac
 
 
 @settings(max_examples=examples(ci=3000))
 @given(_case())
 def test_the_quick_rejection_never_rejects_what_the_exact_test_certifies(case):
-    f, a0, inc, cx, cy, c, hw, vx, vy, ux, uy, ah, ac = case
+    f, a0, inc, ra, cx, cy, c, hw, vx, vy, ux, uy, ah, ac = case
     stl, sth = c - hw, c + hw
-    if not _seg_free(vx, vy, ux, uy, ah, ac, stl, sth, f, a0, inc):
+    if not _seg_free(vx, vy, ux, uy, ah, ac, stl, sth, f, a0, inc, ra):
         return
-    ii, acn, mi, ok = _cover_setup(f.shape[0], a0, inc)
+    ii, acn, mi, ok, rr = _cover_setup(f.shape[0], a0, inc, ra)
     mid = 0.5 * (stl + sth)
     for s in (-1.0, 0.0, 1.0):
         for t in (-1.0, 0.0, 1.0):
             px = cx + vx + s * ah * ux - t * ac * uy
             py = cy + vy + s * ah * uy + t * ac * ux
-            assert _may_cover(px, py, cx, cy, mid, f, a0, ii, acn, mi, ok), (s, t)
+            assert _may_cover(px, py, cx, cy, mid, f, a0, ii, acn, mi, ok, rr), (s, t)
 
 
 def test_the_quick_rejection_rejects_points_beyond_the_free_ranges():
@@ -75,14 +76,66 @@ def test_the_quick_rejection_rejects_points_beyond_the_free_ranges():
     nb, a0, inc = 181, -math.pi / 2, math.pi / 180
     f = np.full(nb, 4.0)
     f[100] = -1.0
-    ii, acn, mi, ok = _cover_setup(nb, a0, inc)
+    ii, acn, mi, ok, rr = _cover_setup(nb, a0, inc, 0.5 * inc)
     assert ok
     for c in (0.0, 2 * math.pi, -6 * math.pi):  # the same heading, unnormalised
-        assert _may_cover(3.0, 0.0, 0.0, 0.0, c, f, a0, ii, acn, mi, ok)
-        assert not _may_cover(4.1, 0.0, 0.0, 0.0, c, f, a0, ii, acn, mi, ok)
-        assert not _may_cover(-3.0, 0.1, 0.0, 0.0, c, f, a0, ii, acn, mi, ok)  # behind: outside the span
+        assert _may_cover(3.0, 0.0, 0.0, 0.0, c, f, a0, ii, acn, mi, ok, rr)
+        assert not _may_cover(4.1, 0.0, 0.0, 0.0, c, f, a0, ii, acn, mi, ok, rr)
+        assert not _may_cover(-3.0, 0.1, 0.0, 0.0, c, f, a0, ii, acn, mi, ok, rr)  # behind: outside the span
         b = a0 + 100.3 * inc
-        assert not _may_cover(2.0 * math.cos(b), 2.0 * math.sin(b), 0.0, 0.0, c, f, a0, ii, acn, mi, ok)
+        assert not _may_cover(2.0 * math.cos(b), 2.0 * math.sin(b), 0.0, 0.0, c, f, a0, ii, acn, mi, ok, rr)
     # a heading far from the principal turns, or NaN: no shortcut (the exact test decides)
     for c in (1e6, -1e6, math.nan):
-        assert _may_cover(4.1, 0.0, 0.0, 0.0, c, f, a0, ii, acn, mi, ok)
+        assert _may_cover(4.1, 0.0, 0.0, 0.0, c, f, a0, ii, acn, mi, ok, rr)
+
+
+@st.composite
+def _window(draw):
+    nb = draw(st.integers(2, 40))
+    inc = draw(st.floats(1e-3, 0.05))
+    a0 = draw(st.floats(-3.0, 1.0))
+    ra = inc * draw(st.sampled_from([0.5, 0.5, 0.5000001, 0.7, 0.25]))
+    f = np.array(draw(st.lists(st.sampled_from([-1.0, 0.5, 1.0, 2.0, 3.0]), min_size=nb, max_size=nb)))
+    bl = a0 + draw(st.floats(-1.0, nb)) * inc
+    bh = bl + draw(st.floats(0.0, 3.0)) * inc * draw(st.sampled_from([0.01, 0.3, 1.0]))
+    rho = draw(st.sampled_from([0.4, 0.9, 1.5, 2.5]))
+    return f, a0, inc, ra, bl, bh, rho
+
+
+@settings(max_examples=examples(ci=3000))
+@given(_window())
+def test_covered_free_certifies_only_bearings_some_free_cone_holds(case):
+    """Wherever a window is certified free to ``rho``, every bearing of it (sampled densely, ends
+    included) lies in the cone of a beam free beyond ``rho`` (cones that touch), or between two
+    such beams (gaps assumed free): the free space the map kernels prove."""
+    from ivslam_cli.slam.lidar.matcher import covered_free
+
+    f, a0, inc, ra, bl, bh, rho = case
+    if not covered_free(f, a0, inc, ra, bl, bh, rho):
+        return
+    centre = a0 + inc * np.arange(f.size)
+    ok = f > rho
+    for b in np.concatenate([np.linspace(bl, bh, 257), [bl, bh]]):
+        if ra >= 0.5 * inc:
+            assert ok[np.abs(b - centre) <= ra].any(), b
+        else:
+            i = math.floor((b - a0) / inc)
+            assert 0 <= i and i + (b > centre[i]) < f.size and ok[i] and ok[min(i + 1, f.size - 1)], b
+
+
+def test_covered_free_needs_only_the_cone_that_holds_a_narrow_window():
+    """A window inside one beam's cone (cones that touch) needs that beam alone, not its invalid
+    neighbour: the rule the exact two-scan test keeps (a test that cannot fail is no test: the
+    same window across the neighbour's cone is not certified)."""
+    from ivslam_cli.slam.lidar.matcher import covered_free
+
+    inc = 0.01
+    f = np.array([2.0, 2.0, -1.0, 2.0])
+    a1 = 0.0 + 1 * inc
+    assert covered_free(f, 0.0, inc, 0.5 * inc, a1 + 0.1 * inc, a1 + 0.4 * inc, 1.5)
+    assert covered_free(f, 0.0, inc, 0.5 * inc, a1 - 0.4 * inc, a1 + 0.4 * inc, 1.5)
+    assert not covered_free(f, 0.0, inc, 0.5 * inc, a1 + 0.1 * inc, a1 + 0.6 * inc, 1.5)
+    assert not covered_free(f, 0.0, inc, 0.5 * inc, a1 + 0.1 * inc, a1 + 0.4 * inc, 2.5)
+    # gaps assumed free (narrower cones): the two beams around the window
+    assert not covered_free(f, 0.0, inc, 0.25 * inc, a1 + 0.1 * inc, a1 + 0.4 * inc, 1.5)
+    assert covered_free(f, 0.0, inc, 0.25 * inc, 0.1 * inc, 0.4 * inc, 1.5)
