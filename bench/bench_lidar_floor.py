@@ -17,8 +17,22 @@ must also estimate, so its floor lies above this one. It tells whether the bound
 exclude a target: printed beside the tracker's relative heading (each scan in its submap's
 frame, the narrowest of its submaps) at the same scans.
 
+**Two scans, the world unknown** (``--pair GAP``): the same scans, each against the scan
+``GAP`` before it, that one's pose exact (its robot frame is the frame), as our matcher sees a
+pair: any world of surface points may explain them. A relative pose is a witness when all but
+at most ``q`` beams of each scan have a point of their end region (cone × true-distance
+bounds) outside the other scan's free cones (each cone free up to its lower distance bound):
+those points are a world both scans agree with (a broken beam is one of the ``q``). Points
+are sampled across each end region, so a witness found is one; one missed only lowers the
+bound. The largest heading offsets with a witness on an x-y grid (±0.12 m, 2 mm) are printed
+beside our matcher's heading width on the same pair (the earlier scan as its only
+reference, every beam, the same ``q``, the default resolution and budget), and every
+witness must lie in the matcher's union (a SOUNDNESS FAILURE otherwise). A pair's floor
+bounds what one match can reach, not the tracker, which meets many scans.
+
     python -m bench lidar_floor
     python -m bench.bench_lidar_floor --duration 60 --every 60 --q 0,5
+    python -m bench.bench_lidar_floor --duration 30 --every 30 --pair 10 --q 0,5
 """
 
 from __future__ import annotations
@@ -32,10 +46,13 @@ import time
 from pathlib import Path
 
 import numpy as np
+from numba import njit
 
 ROOT = Path(__file__).resolve().parent.parent
 #: heading offsets tried, each way [rad]
 OFFSETS = (0.0005, 0.001, 0.002, 0.003, 0.005, 0.0075, 0.01, 0.015, 0.02, 0.03, 0.05)
+#: heading offsets tried each way for a pair of scans [rad]
+PAIR_OFFSETS = tuple(0.0025 * i for i in range(1, 41))
 TARGET_HEADING = 0.03  # issue #16: median relative heading width
 
 
@@ -105,6 +122,125 @@ def heading_reach(log, k: int, q: int) -> tuple[float, float, list[np.ndarray]]:
     return reach[0], reach[1], wit
 
 
+@njit(cache=True)
+def _in_free(px, py, sx, sy, sth, f, a0, inc, ra):
+    """Is the point in the free space of a scan from sensor ``(sx, sy, sth)``: within the cone
+    (half-width ``ra``) of some beam nearer than its free range ``f`` (−1: invalid)?"""
+    dx = px - sx
+    dy = py - sy
+    b = math.atan2(dy, dx) - sth
+    b = (b + math.pi) % (2.0 * math.pi) - math.pi - a0  # the bearing in the scan's frame, from its first beam
+    d = math.hypot(dx, dy)
+    for j in range(max(math.ceil((b - ra) / inc), 0), min(math.floor((b + ra) / inc), f.shape[0] - 1) + 1):
+        if f[j] > 0.0 and d < f[j]:
+            return True
+    return False
+
+
+@njit(cache=True)
+def pair_breaks(sx, sy, sth, ang, lo, hi, ra, ox, oy, oth, f, a0, inc, ns, nr, cap):
+    """Beams of a scan from sensor ``(sx, sy, sth)`` (angles ``ang``, true-distance bounds
+    ``lo``, ``hi``, cones of half-width ``ra``) whose end region, sampled ``ns`` bearings by
+    ``nr`` distances, lies wholly in the free space of the other scan (sensor ``(ox, oy,
+    oth)``, free ranges ``f`` of beams at ``a0 + j·inc``); counting stops past ``cap``."""
+    n = 0
+    for i in range(ang.shape[0]):
+        broken = True
+        for a in range(nr):
+            r = hi[i] - (hi[i] - lo[i]) * a / (nr - 1)
+            for b in range(ns):
+                t = ang[i] + sth + ra * 0.999 * (2.0 * b / (ns - 1) - 1.0)
+                if not _in_free(sx + r * math.cos(t), sy + r * math.sin(t), ox, oy, oth, f, a0, inc, ra):
+                    broken = False
+                    break
+            if not broken:
+                break
+        if broken:
+            n += 1
+            if n > cap:
+                return n
+    return n
+
+
+@njit(cache=True)
+def pair_witness(tx, ty, th, half, step, mount, S, A, ra, q, ns, nr):
+    """A witness ``(x, y)`` of the relative robot pose at heading ``th`` (searched on a grid of
+    ``step`` within ``half`` of ``(tx, ty)``), scan ``S`` against scan ``A`` at the frame's
+    origin; ``S``, ``A``: (angles, lo, hi, free ranges, a0, inc) of the valid beams (free ranges
+    over every beam). Returns ``(found, x, y)``."""
+    mx, my, myaw = mount
+    n = int(round(half / step))
+    c = math.cos(th)
+    s = math.sin(th)
+    for ii in range(-n, n + 1):
+        for jj in range(-n, n + 1):
+            x = tx + ii * step
+            y = ty + jj * step
+            sx = x + c * mx - s * my
+            sy = y + s * mx + c * my
+            if pair_breaks(sx, sy, th + myaw, S[0], S[1], S[2], ra, mx, my, myaw, A[3], A[4], A[5], ns, nr, q) > q:
+                continue
+            if pair_breaks(mx, my, myaw, A[0], A[1], A[2], ra, sx, sy, th + myaw, S[3], S[4], S[5], ns, nr, q) > q:
+                continue
+            return True, x, y
+    return False, 0.0, 0.0
+
+
+def relative_pose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Robot pose ``b`` in the frame of robot pose ``a``."""
+    c, s = math.cos(a[2]), math.sin(a[2])
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    return np.array([c * dx + s * dy, -s * dx + c * dy, math.atan2(math.sin(b[2] - a[2]), math.cos(b[2] - a[2]))])
+
+
+def pair_scan(log, k: int, r_abs: float, r_rel: float):
+    """Scan ``k`` for :func:`pair_witness`, in the matcher's convention of the bounds."""
+    from ivslam_cli.slam.lidar.matcher import free_of
+
+    sc = log.scans
+    o0, o1 = int(sc.offsets[k]), int(sc.offsets[k + 1])
+    r, v = np.asarray(sc.ranges[o0:o1], float), np.asarray(sc.valid[o0:o1], bool)
+    a0, inc = float(sc.angle_min[k]), float(sc.angle_increment[k])
+    f = free_of(r, v, r_abs, r_rel)
+    z = r[v]
+    lo = np.maximum((z - r_abs) / (1 + r_rel), 0.0)
+    hi = (z + r_abs) / (1 - r_rel)
+    return (a0 + inc * np.flatnonzero(v), lo, hi, f, a0, inc)
+
+
+def pair_floor(log, k: int, j: int, q: int, params, samples=(9, 7)):
+    """Scan ``k`` against scan ``j`` (exact): ``(below, above, witnesses, matcher union)`` — the
+    largest heading offsets from the truth with a witness, the witnesses (robot poses in ``j``'s
+    frame) and our matcher's union on the same pair."""
+    from ivslam_cli.paving.tiles import TileMap
+    from ivslam_cli.slam.lidar.matcher import Matcher
+
+    b = params.beams
+    S, A = pair_scan(log, k, b.range_abs, b.range_rel), pair_scan(log, j, b.range_abs, b.range_rel)
+    t = relative_pose(np.asarray(log.truth.pose[j], float), np.asarray(log.truth.pose[k], float))
+    mount = tuple(float(v) for v in log.scans.mount)
+    reach, wit = [], []
+    for sign in (-1.0, 1.0):
+        best = 0.0
+        for d in PAIR_OFFSETS:
+            ok, x, y = pair_witness(t[0], t[1], t[2] + sign * d, 0.12, 0.002, mount, S, A, float(b.bearing), q,
+                                    samples[0], samples[1])
+            if not ok:
+                break
+            best = d
+            wit.append(np.array([x, y, t[2] + sign * d]))
+        reach.append(best)
+    roots = np.array([[t[0] - 0.2, t[0] + 0.2, t[1] - 0.2, t[1] + 0.2, t[2] - 0.15, t[2] + 0.15]])
+    union, _, _ = Matcher(params, log.scans).match(k, roots, TileMap(params.eps), [(j, np.zeros(6))], stride=1, q=q)
+    return reach[0], reach[1], wit, union
+
+
+def in_union(union: np.ndarray, p: np.ndarray) -> bool:
+    """Is the pose in one of the boxes (n, 6)?"""
+    return bool(np.any((union[:, 0] <= p[0]) & (p[0] <= union[:, 1]) & (union[:, 2] <= p[1]) & (p[1] <= union[:, 3])
+                       & (union[:, 4] <= p[2]) & (p[2] <= union[:, 5])))
+
+
 def relative_heading(result, rows: np.ndarray) -> np.ndarray:
     """Per pose row: the narrowest heading width of its boxes in the submaps holding it."""
     sm = result.submaps
@@ -124,6 +260,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=5)
     ap.add_argument("--every", type=int, default=60, help="every n-th scan is tested")
     ap.add_argument("--q", default="0,5", help="beams allowed to disagree (the pipeline's q_beams is 5)")
+    ap.add_argument("--pair", type=int, default=0,
+                    help="also each tested scan against the scan GAP before it, the world unknown (0: not)")
     args = ap.parse_args(argv)
     from ivslam_cli.logs import read_log
     from ivslam_cli.results.hdf5 import read_result
@@ -158,7 +296,39 @@ def main(argv: list[str] | None = None) -> int:
           f"{OFFSETS[0] * 1e3:g} mrad or more had a witness. Target (issue #16): median relative heading "
           f"<= {TARGET_HEADING} rad — not excluded by the bounds when the floor is below it; the tracker's "
           "own floor (a world known only through its scans) lies between")
+    if args.pair > 0:
+        return pairs(log, rows, qs, args.pair)
     return 0
+
+
+def pairs(log, rows: np.ndarray, qs: list[int], gap: int) -> int:
+    """The two-scan table (see the module docstring); 1 if a witness lies outside our union."""
+    from ivslam_cli.config import resolve_config
+    from ivslam_cli.slam.lidar.params import Params
+
+    params = Params.from_config(resolve_config(None, {}, log_bounds=log.bounds))
+    print(f"\ntwo scans, the world unknown: scan k against scan k - {gap} (exact), every beam; heading width "
+          "with a witness (floor) and our matcher's on the same pair")
+    print(f"{'scan':>5} " + " ".join(f"{'floor q=' + str(q):>11} {'ours q=' + str(q):>10}" for q in qs))
+    floors, ours, failures = {q: [] for q in qs}, {q: [] for q in qs}, []
+    t0 = time.perf_counter()
+    for k in (int(r) for r in rows if r >= gap):
+        cells = []
+        for q in qs:
+            lo, hi, wit, union = pair_floor(log, k, k - gap, q, params)
+            w = float(union[:, 5].max() - union[:, 4].min())
+            floors[q].append(lo + hi)
+            ours[q].append(w)
+            failures += [f"scan {k}, q = {q}: witness {np.round(p, 5).tolist()} outside our union" for p in wit
+                         if not in_union(union, p)]
+            cells.append(f"{lo + hi:>11.4f} {w:>10.4f}")
+        print(f"{k:>5} " + " ".join(cells), flush=True)
+    if floors[qs[0]]:
+        print(f"{'median':>5} " + " ".join(f"{np.median(floors[q]):>11.4f} {np.median(ours[q]):>10.4f}" for q in qs))
+    print(f"pair witnesses {time.perf_counter() - t0:.0f} s (offsets searched in steps of {PAIR_OFFSETS[0]:g} rad)")
+    for f in failures:
+        print("SOUNDNESS FAILURE:", f)
+    return 1 if failures else 0
 
 
 if __name__ == "__main__":

@@ -77,3 +77,53 @@ def test_a_heading_far_off_has_no_witness(log):
     assert find_position(p, p[2], 0, check) is not None
     assert find_position(p, p[2] + 0.05, 0, check) is None
     assert find_position(p, p[2] - 0.05, 5, check) is None
+
+
+def _free_by_cones(pts, sensor, ang_all, free, ra):
+    """Per point: inside the free space of a scan from ``sensor`` (x, y, yaw): within ``ra`` of a
+    beam's angle and nearer than its free range (an independent, vectorised form)."""
+    d = np.hypot(pts[:, 0] - sensor[0], pts[:, 1] - sensor[1])
+    b = np.arctan2(pts[:, 1] - sensor[1], pts[:, 0] - sensor[0]) - sensor[2]
+    b = np.angle(np.exp(1j * b))
+    off = np.abs(np.angle(np.exp(1j * (b[:, None] - ang_all[None, :]))))
+    return ((off <= ra) & (d[:, None] < free[None, :]) & (free[None, :] > 0)).any(axis=1)
+
+
+def _region_points(sensor, ang, lo, hi, ra, n=9):
+    """Points across each beam's end region: (beams, n * n, 2)."""
+    t = ang[:, None] + sensor[2] + ra * 0.999 * np.linspace(-1.0, 1.0, n)[None, :]
+    r = lo[:, None] + (hi - lo)[:, None] * np.linspace(0.0, 1.0, n)[None, :]
+    R, T = r[:, :, None], t[:, None, :]
+    return np.stack([sensor[0] + R * np.cos(T), sensor[1] + R * np.sin(T)], -1).reshape(ang.size, n * n, 2)
+
+
+def test_pair_witnesses_hold_a_world_and_lie_in_our_matchers_union():
+    """Each two-scan witness leaves at most q beams of each scan whose whole end region is in the
+    other's free cones (checked by an independent vectorised form); every other beam has a point
+    outside: a world of points both scans agree with. Our matcher, sound, keeps every witness;
+    a heading far off has none."""
+    from bench.bench_lidar_floor import pair_floor, pair_scan, pair_witness, relative_pose
+    from ivslam_cli.config import resolve_config
+    from ivslam_cli.slam.lidar.params import Params
+
+    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=5, duration=3.0))
+    params = Params.from_config(resolve_config(None, {}, log_bounds=log.bounds))
+    b, mount, q = params.beams, log.scans.mount, 5
+    ra = float(b.bearing)
+    k, j = 25, 15
+    below, above, wit, union = pair_floor(log, k, j, q, params)
+    assert len(wit) >= 3 and below + above > 0
+    S, A = pair_scan(log, k, b.range_abs, b.range_rel), pair_scan(log, j, b.range_abs, b.range_rel)
+    all_s = S[4] + S[5] * np.arange(S[3].size)
+    all_a = A[4] + A[5] * np.arange(A[3].size)
+    a_sensor = sensor_pose(np.zeros(3), mount)
+    for w in wit:
+        s_sensor = sensor_pose(w, mount)
+        inside_a = _free_by_cones(_region_points(s_sensor, S[0], S[1], S[2], ra).reshape(-1, 2), a_sensor, all_a, A[3], ra)
+        inside_s = _free_by_cones(_region_points(a_sensor, A[0], A[1], A[2], ra).reshape(-1, 2), s_sensor, all_s, S[3], ra)
+        assert inside_a.reshape(S[0].size, -1).all(axis=1).sum() <= q
+        assert inside_s.reshape(A[0].size, -1).all(axis=1).sum() <= q
+        assert np.any((union[:, 0] <= w[0]) & (w[0] <= union[:, 1]) & (union[:, 2] <= w[1]) & (w[1] <= union[:, 3])
+                      & (union[:, 4] <= w[2]) & (w[2] <= union[:, 5]))
+    t = relative_pose(np.asarray(log.truth.pose[j], float), np.asarray(log.truth.pose[k], float))
+    assert not pair_witness(t[0], t[1], t[2] + 0.3, 0.12, 0.002, tuple(float(v) for v in mount), S, A, ra, q, 9, 7)[0]
