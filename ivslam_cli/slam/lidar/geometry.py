@@ -285,8 +285,8 @@ def window_in_branch(pl, ph, a0, inc, h, nb, lo_edge, hi_edge):
     uh = up(up(up(ph + h) - a0) / inc)
     if not (-1e9 < ul and uh < 1e9):
         return 0, nb - 1, 0, -1, False
-    e_lo = int(math.floor(ul))
-    e_hi = int(math.ceil(uh))
+    e_lo = int(math.ceil(ul))  # the beams whose cones a_i + [-h, h] meet [pl, ph] (h >= inc / 2: they cover it)
+    e_hi = int(math.floor(uh))
     cover = e_lo >= 0 and e_hi <= nb - 1
     o_lo = max(e_lo, 0)
     o_hi = min(e_hi, nb - 1)

@@ -129,11 +129,12 @@ def _geom1(cx, cy, eps, pxl, pxh, pyl, pyh, thl, thh, a0, h, nb, mid, lo_edge, h
     o_hi, e_lo, e_hi, cover, state)``, state 0 = window decided, -1 = undecided (then use
     :func:`_cell`).
 
-    The bearings come from :func:`box_bearings_fast`; the reference's window is ``floor /
-    ceil`` of ``(bearing -/+ theta -/+ h - a0) / inc`` after a shift by ``2 pi m``: when the
-    approximate value is farther than ``err / inc`` (``err``: ATAN_ERR plus every rounding of
-    the reference's chain) from an integer, the floor / ceil are those of the exact value, and
-    so are the branch and the "other branch" test when farther than ``err`` from their limits.
+    The bearings come from :func:`box_bearings_fast`; the reference's window is ``ceil /
+    floor`` of ``(bearing -/+ theta -/+ h - a0) / inc`` after a shift by ``2 pi m`` (the beams
+    whose cones meet the bearings): when the approximate value is farther than ``err / inc``
+    (``err``: ATAN_ERR plus every rounding of the reference's chain) from an integer, the
+    ceil / floor are those of the exact value, and so are the branch and the "other branch"
+    test when farther than ``err`` from their limits.
     """
     return _geom1_d(dn(dn(cx * eps) - pxh), upf(upf((cx + 1) * eps) - pxl), dn(dn(cy * eps) - pyh),
                     upf(upf((cy + 1) * eps) - pyl), thl, thh, a0, h, nb, mid, lo_edge, hi_edge, err, inv_inc)
@@ -160,9 +161,9 @@ def _geom1_d(dxl, dxh, dyl, dyh, thl, thh, a0, h, nb, mid, lo_edge, hi_edge, err
     u_lo = u_lo if ok else 0.0
     u_hi = u_hi if ok else 0.0
     d = err * inv_inc + 1e-9
-    f_lo = math.floor(u_lo - d)
-    f_hi = math.ceil(u_hi + d)
-    und = bad or f_lo != math.floor(u_lo + d) or f_hi != math.ceil(u_hi - d)
+    f_lo = math.ceil(u_lo - d)
+    f_hi = math.floor(u_hi + d)
+    und = bad or f_lo != math.ceil(u_lo + d) or f_hi != math.floor(u_hi - d)
     e_lo = int(f_lo)
     e_hi = int(f_hi)
     g1 = pl + 2.0 * math.pi - hi_edge  # the reference widens to the whole scan when <= 0
@@ -358,8 +359,8 @@ def _level_geom(n, s, LX, LY, CX, CY, thl, thh, a0, inv_inc, h, nb, mid, lo_edge
         u_lo = (pl - h - a0) * inv_inc - 1e-9
         u_hi = (ph + h - a0) * inv_inc + 1e-9
         ok = (not full) and bh - bl < 3.0 and narrow and -1e5 < u_lo and u_hi < 1e5
-        e_lo = int(math.floor(u_lo if ok else 0.0))
-        e_hi = int(math.ceil(u_hi if ok else -1.0))
+        e_lo = int(math.ceil(u_lo if ok else 0.0))
+        e_hi = int(math.floor(u_hi if ok else -1.0))
         RL[j] = r_lo
         RH[j] = r_hi
         OL[j] = max(e_lo, 0) if ok else 0
