@@ -195,7 +195,7 @@ def relative_pose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def pair_scan(log, k: int, r_abs: float, r_rel: float):
     """Scan ``k`` for :func:`pair_witness`, in the matcher's convention of the bounds."""
-    from ivslam_cli.slam.lidar.matcher import free_of
+    from ivslam_cli.slam.lidar.free_cones import free_of
 
     sc = log.scans
     o0, o1 = int(sc.offsets[k]), int(sc.offsets[k + 1])

@@ -1,0 +1,153 @@
+"""What a scan's free cones prove: the cone model of the map kernels (docs/lidar.md) read by the
+matcher (:mod:`.matcher`) in continuous polar form, without cells.
+
+Beam ``i`` of a scan points at ``a0 + i·inc``; the nearest surface in its cone (half-width
+``ra``, the stated bearing bound) is at a true distance within its range bounds, so every point
+of the cone nearer than the lower bound (its free range) is free. Cones that touch (``ra ≥
+inc / 2``) leave no bearing between beams; with narrower cones the gap between two beams is free
+only under ``fill_gaps``. :func:`covered_free` certifies a window of bearings free to a
+distance, :func:`_seg_free` a rectangle, and :func:`_may_cover` is a cheap necessary condition
+of the latter. Float bearings are widened by explicit bounds on their error.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ivslam_cli.interval.rounding import down, up
+from ivslam_cli.slam.lidar.geometry import ATAN_ERR, atan2_fast, dn, range_bounds, upf
+
+TWO_PI = 2.0 * math.pi
+#: margin on bearings shifted by whole turns (2π·n in floating point, |n| small)
+SHIFT_MARGIN = 1e-12
+#: bearings from :func:`box_bearings_fast` are within ATAN_ERR (+ an ulp) of the true ones
+_BEAR_MARGIN = ATAN_ERR + 1e-12
+
+
+@njit(cache=True)
+def free_ranges(ranges, valid, r_abs, r_rel, out):
+    """``out[i]`` = the true distance's lower bound of beam ``i`` (every point of its cone nearer
+    than this is free), −1 for an invalid beam."""
+    for i in range(ranges.shape[0]):
+        if valid[i]:
+            out[i] = range_bounds(float(ranges[i]), r_abs, r_rel)[0]
+        else:
+            out[i] = -1.0
+
+
+@njit(cache=True)
+def covered_free(f, a0, inc, ra, bl, bh, rho_h):
+    """True if every point at bearing in ``[bl, bh]`` (sensor frame) and distance ≤ ``rho_h``
+    is proven free by a scan with free ranges ``f`` (beams at ``a0 + i·inc``, each cone of
+    half-width ``ra``). Cones that touch (``ra ≥ inc / 2``): every beam whose cone meets the
+    window is valid with free range > ``rho_h`` (a bearing lies in some cone, and that cone is
+    free to ``rho_h``); gaps assumed free (``ra < inc / 2``, ``fill_gaps``): every beam from the
+    one at or before ``bl`` to the one at or after ``bh``."""
+    nb = f.shape[0]
+    if not (bh - bl < TWO_PI):
+        return False
+    ac = a0 + 0.5 * (nb - 1) * inc
+    n = math.floor((0.5 * (bl + bh) - ac) / TWO_PI + 0.5)
+    if n != 0:
+        bl = down(bl - n * TWO_PI) - SHIFT_MARGIN
+        bh = up(bh - n * TWO_PI) + SHIFT_MARGIN
+    if ra >= 0.5 * inc:  # the beams i with a0 + i·inc ± ra meeting [bl, bh]; more, never fewer
+        i0 = math.ceil(down(down(down(bl - a0) - ra) / inc))
+        i1 = math.floor(up(up(up(bh - a0) + ra) / inc))
+    else:
+        i0 = math.floor(down(down(bl - a0) / inc))
+        i1 = math.ceil(up(up(bh - a0) / inc))
+    if i0 < 0 or i1 > nb - 1:
+        return False
+    for i in range(i0, i1 + 1):
+        if not (rho_h < f[i]):
+            return False
+    return True
+
+
+@njit(cache=True, inline="always")
+def _seg_free(vx, vy, ux, uy, ah, ac, stl, sth, f, a0, inc, ra):
+    """True if every point ``v + s u + t u⊥`` (``|s| <= ah``, ``|t| <= ac``; ``v`` relative to a
+    sensor whose heading is in ``[stl, sth]``) lies in the certain free space of that sensor's
+    scan (free ranges ``f``, beams at ``a0 + i·inc``, cones of half-width ``ra``)."""
+    dist = math.hypot(vx, vy)
+    if not dist > 0.0:
+        return False
+    ex, ey = vx / dist, vy / dist
+    cb = abs(ux * ex + uy * ey)
+    sb = abs(ux * ey - uy * ex)
+    along = upf(upf(ah * cb + ac * sb) * (1.0 + 1e-12)) + 1e-12  # extents along and across v
+    lat = upf(upf(ah * sb + ac * cb) * (1.0 + 1e-12)) + 1e-12
+    near = dn(dist * (1.0 - 1e-12)) - along
+    if not near > 2.0 * lat:
+        return False
+    half = upf(upf(lat / near) * (1.0 + 1e-12)) + 1e-12  # >= atan(lat / near)
+    bc = atan2_fast(vy, vx)
+    far = upf(dist * (1.0 + 1e-12)) + along
+    rho_h = upf(upf(math.hypot(far, lat)) * (1.0 + 1e-12))
+    return covered_free(f, a0, inc, ra, bc - half - _BEAR_MARGIN - sth, bc + half + _BEAR_MARGIN - stl, rho_h)
+
+
+#: angle error of :func:`_may_cover`'s bearings: atan2_fast's plus what coordinates below
+#: :data:`_QUICK_COORD` can add at distances above :data:`_QUICK_RHO2`'s root
+_QUICK_M = ATAN_ERR + 1e-7
+_QUICK_COORD = 1e4
+_QUICK_RHO2 = 1e-6
+
+
+@njit(cache=True, inline="always")
+def _cover_setup(nb, a0, inc, ra):
+    """:func:`_may_cover`'s per-scan constants: ``(1 / inc, centre angle, index margin, usable,
+    cone half-width / inc)``, the last at least 1/2 when the cones touch (as
+    :func:`covered_free` decides) and 0 otherwise."""
+    ok = inc >= 1e-5 and (nb - 1) * inc < TWO_PI - 1e-3
+    ii = 1.0 / inc if inc > 0.0 else 0.0
+    rr = max(ra * ii * (1.0 + 1e-12), 0.5) if ra >= 0.5 * inc else 0.0
+    return ii, a0 + 0.5 * (nb - 1) * inc, _QUICK_M * ii + 1e-9, ok, rr
+
+
+@njit(cache=True, inline="always")
+def _may_cover(px, py, cx, cy, c, f, a0, ii, ac, mi, ok, rr):
+    """False only if the point ``(px, py)`` cannot be in what :func:`covered_free` certifies
+    free for a scan (free ranges ``f``, beams at ``a0 + i·inc``; ``ii, ac, mi, ok, rr`` from
+    :func:`_cover_setup`) from a sensor at ``(cx, cy)`` with heading ``c``: a certified point
+    at sensor bearing ``β`` is nearer than ``f[j]`` for a beam ``j`` in every window holding
+    ``β`` — one whose cone holds ``β`` (cones that touch, ``rr ≥ 1/2``), or
+    ``j = ⌊(β − a0) / inc⌋`` (gaps assumed free). A cheap necessary condition, so
+    :func:`_seg_free` runs only where it may succeed."""
+    if not ok or not (abs(px) + abs(py) + abs(cx) + abs(cy) < _QUICK_COORD):
+        return True
+    dx = px - cx
+    dy = py - cy
+    rho2 = dx * dx + dy * dy
+    if not rho2 > _QUICK_RHO2:
+        return True
+    b = atan2_fast(dy, dx) - c
+    if not abs(b - ac) < 64.0:  # a heading far from the principal turns (or NaN): no shortcut
+        return True
+    while b - ac >= math.pi:
+        b -= TWO_PI
+    while b - ac < -math.pi:
+        b += TWO_PI
+    jc = (b - a0) * ii
+    if rr >= 0.5:
+        j0 = max(math.ceil(jc - rr - mi), 0)
+        j1 = min(math.floor(jc + rr + mi), f.shape[0] - 1)
+    else:
+        j0 = max(math.floor(jc - mi), 0)
+        j1 = min(math.floor(jc + mi), f.shape[0] - 1)
+    fm = -1.0
+    for j in range(j0, j1 + 1):
+        fm = max(fm, f[j])
+    return fm > 0.0 and rho2 < fm * fm * (1.0 + 1e-9)
+
+
+def free_of(ranges, valid, r_abs: float, r_rel: float) -> np.ndarray:
+    """Free ranges of a scan's beams (every point of a beam's cone nearer than this is free;
+    −1 for an invalid beam)."""
+    f = np.full(ranges.shape[0], -1.0)
+    free_ranges(ranges, valid, r_abs, r_rel, f)
+    return f
