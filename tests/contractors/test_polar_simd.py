@@ -19,7 +19,7 @@ import math
 import mpmath
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from bench.bench_kernels import _looser, polar_truths, regular_polar_truths
@@ -96,6 +96,8 @@ def _strictly_within(S, V, ok):
 
 @settings(max_examples=examples(ci=300))
 @given(st.lists(point, min_size=1, max_size=80))
+@example([(1.7701284233172415e-157, 1.0, 0, [0.0, 0.0, 0.0, 0.0, 1.401298464324817e-45, 0.0, 0.0, 0.0])])
+@example([(1e-160, 0.5, 0, [0.0] * 8), (3e-151, -2.0, 1, [1e-170] * 8)])
 def test_simd_never_looser_than_the_scalar_kernel(points):
     """Random boxes around random true points: the same rows emptied as ``polar_scalar``, no
     bound outside its result beyond rounding."""
