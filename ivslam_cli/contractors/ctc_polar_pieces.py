@@ -5,9 +5,10 @@ cos(theta)``, ``dy = rho sin(theta)``, ``rho >= 0``, theta in its own branch): e
 the input box is in the output box. This is the route of
 :mod:`~ivslam_cli.contractors.ctc_polar_simd` for the boxes its fast path does not take but
 whose ``(dx, dy)`` box, split along the axes, gives closed quadrant pieces that the polar lane
-can contract (:func:`_take` states the condition: finite bounds, not all below ``TINY``,
-theta narrower than 4.7, and the origin either outside the ``(dx, dy)`` box or excluded by
-``rho > 0``); near an axis that is two pieces, around the origin four.
+can contract (:func:`_take` states the condition: finite bounds, solutions not all within
+``NEAR_ORIGIN`` of the origin, theta narrower than 4.7, and the origin either outside the
+``(dx, dy)`` box or excluded by ``rho > 0``); near an axis that is two pieces, around the
+origin four.
 
 The solutions of a box are the union of those of its closed pieces, so the hull of the pieces'
 contractions holds every solution. In the piece of quadrant ``q`` (``u = |dx|``, ``v = |dy|``
@@ -70,9 +71,10 @@ F = EMPTY_HI
 PB, PQ, PCL, PCH, PSL, PSH = 0, 1, 2, 3, 4, 5
 PROWS = 6
 MAX_PIECES = 4
-#: boxes whose every bound is smaller in magnitude (squares below the normal range, where the
-#: lanes' products lose their relative precision) go to ``polar_scalar``, on both SIMD routes
-TINY = 1e-150
+#: boxes whose rho upper bound, or whose every dx and dy bound, is smaller in magnitude (then
+#: every solution is that near the origin: squares below the normal range, where the lanes'
+#: products lose their relative precision) go to ``polar_scalar``, on both SIMD routes
+NEAR_ORIGIN = 1e-150
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -101,8 +103,8 @@ def _arc_copy(q, tl, th):
 @njit(cache=True, inline="always", error_model="numpy")
 def _take(i, dx, dy, rho, theta, L, P, tb, rows, cnt):
     """Box ``i`` of the flat bound arrays onto the pieces route, if it fits: non-empty, finite
-    (``|bound| < 1e300``, ``|theta| < 1e6``), some bound of dx, dy or rho at least ``TINY`` in
-    magnitude, theta narrower than 4.7, and ``rho > 0`` or the
+    (``|bound| < 1e300``, ``|theta| < 1e6``), the rho upper bound and some dx or dy bound at
+    least ``NEAR_ORIGIN`` in magnitude, theta narrower than 4.7, and ``rho > 0`` or the
     origin outside its ``(dx, dy)`` box. Its non-empty closed pieces become lanes
     ``cnt[0]..`` of ``L`` (``t ∩= v / u`` in the t rows, as :func:`_to_fixpoint`'s polar lanes
     expect) and ``P``; the box takes slot ``cnt[1]`` (its row in ``rows``, its theta in
@@ -114,7 +116,7 @@ def _take(i, dx, dy, rho, theta, L, P, tb, rows, cnt):
     fin = ((-1e300 < xl) & (xl <= xh) & (xh < 1e300) & (-1e300 < yl) & (yl <= yh)
            & (yh < 1e300) & (0.0 <= rl) & (rl <= rh) & (rh < 1e300) & (-1e6 < tl)
            & (tl <= th) & (th < 1e6) & (th - tl < 4.7)
-           & (_mx(_mx(xh, -xl), _mx(_mx(yh, -yl), rh)) >= TINY))
+           & (rh >= NEAR_ORIGIN) & (_mx(_mx(xh, -xl), _mx(yh, -yl)) >= NEAR_ORIGIN))
     origin = (xl <= 0.0) & (0.0 <= xh) & (yl <= 0.0) & (0.0 <= yh)
     if not fin or (origin and not rl > 0.0):
         return False

@@ -11,8 +11,8 @@ case in a SLAM sweep; :func:`_setup` states the condition); every other box goes
 route of :mod:`~ivslam_cli.contractors.ctc_polar_pieces` (boxes near an axis or around the
 origin, with finite bounds: each closed quadrant piece a polar lane of its own, hulled per box)
 or, if it does not fit there either, to ``polar_scalar`` (unbounded or very wide boxes, the
-origin with ``rho`` reaching 0, boxes whose every bound is below ``TINY`` in magnitude, where
-the lanes' squares would leave the normal range). In the quadrant, with ``u =
+origin with ``rho`` reaching 0, boxes whose solutions all lie within ``NEAR_ORIGIN`` of the
+origin, where the lanes' squares would leave the normal range). In the quadrant, with ``u =
 |dx|``, ``v = |dy|`` and ``psi in [0, pi/2]`` given by ``theta = s psi + C`` (``s = ±1``, ``C``
 a multiple of ``pi / 2`` fixed per box and enclosed once), the constraint is the polar lane of
 :mod:`~ivslam_cli.contractors.simd_polar_lanes` on ``(u, v, rho, t)``, ``t = tan(psi)``
@@ -51,7 +51,7 @@ from ivslam_cli.contractors.ctc_polar import (
     _two_pi_times,
 )
 from ivslam_cli.contractors.ctc_polar_pieces import buffers as pieces_buffers
-from ivslam_cli.contractors.ctc_polar_pieces import TINY, _arc_copy
+from ivslam_cli.contractors.ctc_polar_pieces import NEAR_ORIGIN, _arc_copy
 from ivslam_cli.contractors.ctc_polar_pieces import flush as flush_pieces
 from ivslam_cli.contractors.ctc_polar_pieces import off_fast_path
 from ivslam_cli.contractors.simd_polar_lanes import (
@@ -121,7 +121,8 @@ def _setup(xl, xh, yl, yh, rl, rh, tl, th):
     z = 0.0
     bad = (False, 0, z, z, z, z, z, z, z, z, z)
     if not (-1e300 < xl <= xh < 1e300 and -1e300 < yl <= yh < 1e300 and 0.0 <= rl <= rh < 1e300
-            and -1e6 < tl <= th < 1e6 and th - tl < 4.7 and max(xh, -xl, yh, -yl, rh) >= TINY):
+            and -1e6 < tl <= th < 1e6 and th - tl < 4.7 and rh >= NEAR_ORIGIN
+            and max(xh, -xl, yh, -yl) >= NEAR_ORIGIN):
         return bad
     if xl > 0.0:
         ul, uh = xl, xh
@@ -244,7 +245,7 @@ def _entry(s, nb, dx, dy, rho, theta, W):
         fin = ((-1e300 < xl) & (xl <= xh) & (xh < 1e300) & (-1e300 < yl) & (yl <= yh)
                & (yh < 1e300) & (0.0 <= rl) & (rl <= rh) & (rh < 1e300) & (-1e6 < tl)
                & (tl <= th) & (th < 1e6) & (th - tl < 4.7)
-               & (_mx(_mx(xh, -xl), _mx(_mx(yh, -yl), rh)) >= TINY))
+               & (rh >= NEAR_ORIGIN) & (_mx(_mx(xh, -xl), _mx(yh, -yl)) >= NEAR_ORIGIN))
         xp, yp = xl > 0.0, yl > 0.0
         quad = (xp | (xh < 0.0)) & (yp | (yh < 0.0))
         q = (0.0 if yp else 1.0) if xp else (3.0 if yp else 2.0)

@@ -98,6 +98,8 @@ def _strictly_within(S, V, ok):
 @given(st.lists(point, min_size=1, max_size=80))
 @example([(1.7701284233172415e-157, 1.0, 0, [0.0, 0.0, 0.0, 0.0, 1.401298464324817e-45, 0.0, 0.0, 0.0])])
 @example([(1e-160, 0.5, 0, [0.0] * 8), (3e-151, -2.0, 1, [1e-170] * 8)])
+@example([(4.422436230716104e-242, 1.0, 0, [0.0, 0.0, 6.50809621507267e-13, 3.4833030734159337e-13,
+                                            2.223390066047704e-13, 0.0, 9.493832106531228e-07, 9.098446451930451e-07])])
 def test_simd_never_looser_than_the_scalar_kernel(points):
     """Random boxes around random true points: the same rows emptied as ``polar_scalar``, no
     bound outside its result beyond rounding."""
