@@ -17,7 +17,7 @@ from ivslam_cli.contractors.ctc_range_bearing import range_bearing_pass
 from ivslam_cli.interval.angles import angle_meet, angle_meet_narrow, arg_box
 from ivslam_cli.interval.arith import EMPTY_HI, EMPTY_LO, INF, add, cos, mul, sin, sqr, sqrt, sub
 from ivslam_cli.interval.rounding import down, up
-from ivslam_cli.slam.landmarks.pose_sets import _commit, _empty, _hull_into, live_slices
+from ivslam_cli.slam.landmarks.pose_sets import _commit, _empty, _hull_into, _set_empty_at, live_slices
 
 OBS_USED = 0
 OBS_REJECTED_LANDMARK = 1  # its landmark candidate misses the q-relaxed landmark box
@@ -417,8 +417,7 @@ def _contract_piece(B, m, W, buf, lo, hi, piece, q_pose, capped, groups, ka, kb)
                 buf[s, 2, 0], buf[s, 2, 1] = B[2, 0], B[2, 1]
                 ok = buf[s, 0, 0] <= buf[s, 0, 1] and buf[s, 1, 0] <= buf[s, 1, 1]
         if not ok:
-            for d in range(3):
-                buf[s, d, 0], buf[s, d, 1] = EMPTY_LO, EMPTY_HI
+            _set_empty_at(buf, s)
             n_empty += 1
             if n_empty > q_pose:
                 return False
@@ -590,8 +589,7 @@ def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, 
     for s in range(m):
         lever = max(lever, rho[idx[s], 1])
     for b in range(S):
-        for d in range(3):
-            NEW[b, d, 0], NEW[b, d, 1] = EMPTY_LO, EMPTY_HI
+        _set_empty_at(NEW, b)
         if _empty(PS, k, b):
             continue
         # a paving of the slice (SIVIA with contraction, depth first, at most `budget`

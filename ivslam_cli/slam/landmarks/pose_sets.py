@@ -64,19 +64,19 @@ def live_slices(PS, k):
 
 
 @njit(cache=True)
-def _set_empty3(a):
+def _set_empty_at(acc, b):
+    """Box ``acc[b]`` (a (3, 2) box of ``acc``) empty. Indexed, not a view: numba counts
+    references to a view on every call."""
     for d in range(3):
-        a[d, 0] = EMPTY_LO
-        a[d, 1] = EMPTY_HI
+        acc[b, d, 0] = EMPTY_LO
+        acc[b, d, 1] = EMPTY_HI
 
 
 @njit(cache=True)
 def _set_empty_slices(acc):
     """Every box of ``acc`` (S, 3, 2) empty."""
     for b in range(acc.shape[0]):
-        for d in range(3):
-            acc[b, d, 0] = EMPTY_LO
-            acc[b, d, 1] = EMPTY_HI
+        _set_empty_at(acc, b)
 
 
 @njit(cache=True)
@@ -112,7 +112,7 @@ def set_from_box(PS, k, box, BINS):
             PS[k, b, 1, 0], PS[k, b, 1, 1] = box[1, 0], box[1, 1]
             PS[k, b, 2, 0], PS[k, b, 2, 1] = pl, ph
         else:
-            _set_empty3(PS[k, b])
+            _set_empty_at(PS[k], b)
 
 
 @njit(cache=True)
@@ -156,8 +156,7 @@ def node_hull(PS, k, H, h_lo, h_hi):
         h_hi[n] = PS[k, b, 2, 1]
         n += 1
     if n == 0:
-        for d in range(3):
-            H[k, d, 0], H[k, d, 1] = EMPTY_LO, EMPTY_HI
+        _set_empty_at(H, k)
         return False
     tl, th = _circular_hull(h_lo, h_hi, n, -PI_HI, PI_HI)
     H[k, 0, 0], H[k, 0, 1], H[k, 1, 0], H[k, 1, 1], H[k, 2, 0], H[k, 2, 1] = xl, xh, yl, yh, tl, th
