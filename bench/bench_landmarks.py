@@ -400,14 +400,16 @@ def _ivslam() -> list[str]:
 
 def _child(cmd: list[str]) -> tuple[float, float, float]:
     """Run ``cmd``; (wall s, its CPU s, its peak resident MiB). Raises WorkerError if it fails."""
-    t0 = time.perf_counter()
-    p = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, ru = os.wait4(p.pid, 0)
-    wall = time.perf_counter() - t0
-    err = p.stderr.read().decode(errors="replace") if p.stderr else ""
-    p.returncode = os.waitstatus_to_exitcode(status)
-    if p.returncode != 0:
-        raise WorkerError(f"{' '.join(cmd)} failed (exit {p.returncode}): {err[-2000:]}")
+    with tempfile.TemporaryFile() as errf:  # a file, not a pipe: a chatty child cannot block on it
+        t0 = time.perf_counter()
+        p = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.DEVNULL, stderr=errf)
+        _, status, ru = os.wait4(p.pid, 0)
+        wall = time.perf_counter() - t0
+        p.returncode = os.waitstatus_to_exitcode(status)
+        if p.returncode != 0:
+            errf.seek(0)
+            err = errf.read().decode(errors="replace")
+            raise WorkerError(f"{' '.join(cmd)} failed (exit {p.returncode}): {err[-2000:]}")
     return wall, ru.ru_utime + ru.ru_stime, ru.ru_maxrss / 1024.0
 
 

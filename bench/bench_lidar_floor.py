@@ -201,10 +201,13 @@ def pair_scan(log, k: int, r_abs: float, r_rel: float):
     o0, o1 = int(sc.offsets[k]), int(sc.offsets[k + 1])
     r, v = np.asarray(sc.ranges[o0:o1], float), np.asarray(sc.valid[o0:o1], bool)
     a0, inc = float(sc.angle_min[k]), float(sc.angle_increment[k])
+    # a witness must hold the real model: free ranges rounded up (the kernels' are rounded
+    # down), end regions rounded inward, so a point found outside is outside
     f = free_of(r, v, r_abs, r_rel)
+    f = np.where(f > 0.0, np.nextafter(f, np.inf), f)
     z = r[v]
-    lo = np.maximum((z - r_abs) / (1 + r_rel), 0.0)
-    hi = (z + r_abs) / (1 - r_rel)
+    lo = np.nextafter(np.maximum((z - r_abs) / (1 + r_rel), 0.0), np.inf)
+    hi = np.nextafter((z + r_abs) / (1 - r_rel), -np.inf)
     return (a0 + inc * np.flatnonzero(v), lo, hi, f, a0, inc)
 
 
