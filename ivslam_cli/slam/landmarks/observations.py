@@ -592,20 +592,20 @@ def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, 
         _set_empty_at(NEW, b)
         if _empty(PS, k, b):
             continue
-        # a paving of the slice (SIVIA with contraction, depth first, at most `budget`
+        # a paving of the slice (SIVIA with contraction, breadth first, at most `budget`
         # contractions): each box is contracted by the q-relaxed intersection of its candidates
         # (most boxes of a lost heading die after q_pose + 1 of them); a survivor is bisected
         # across its widest side (the heading weighted by `lever`) while the budget allows,
-        # else it joins the slice's hull
+        # else it joins the slice's hull. Breadth first, the budget refines the whole slice
+        # evenly: the hull is set by its coarsest boxes
         for d in range(3):
             stack[0, d, 0], stack[0, d, 1] = PS[k, b, d, 0], PS[k, b, d, 1]
-        top = 1
-        used = 0
-        while top > 0:
-            top -= 1
+        head = 0
+        tail = 1
+        while head < tail:
             for d in range(3):
-                B[d, 0], B[d, 1] = stack[top, d, 0], stack[top, d, 1]
-            used += 1
+                B[d, 0], B[d, 1] = stack[head, d, 0], stack[head, d, 1]
+            head += 1
             if per_node and 0 < m_own < m:  # the pose's own observations alone first: q_pose of them
                 if not _contract_piece(B, m_own, W, buf, lo, hi, piece, q_pose, False, groups, ka, kb):
                     continue
@@ -617,17 +617,17 @@ def pose_update(PS, H, L, U, k, node_obs, node_stamp, obs_node_stamp, chain_lo, 
             wy = piece[1, 1] - piece[1, 0]
             wt = (piece[2, 1] - piece[2, 0]) * lever
             wmax = max(wx, max(wy, wt))
-            if used + top + 2 <= budget and wmax > MIN_PIECE and wmax < INF:
+            if tail + 2 <= budget and wmax > MIN_PIECE and wmax < INF:
                 d = 0 if wx == wmax else (1 if wy == wmax else 2)
                 mid = 0.5 * (piece[d, 0] + piece[d, 1])  # both halves hold mid: they cover the box
                 for h in range(2):
                     for e in range(3):
-                        stack[top, e, 0], stack[top, e, 1] = piece[e, 0], piece[e, 1]
+                        stack[tail, e, 0], stack[tail, e, 1] = piece[e, 0], piece[e, 1]
                     if h == 0:
-                        stack[top, d, 1] = mid
+                        stack[tail, d, 1] = mid
                     else:
-                        stack[top, d, 0] = mid
-                    top += 1
+                        stack[tail, d, 0] = mid
+                    tail += 1
             else:
                 _hull_into(NEW, b, piece[0, 0], piece[0, 1], piece[1, 0], piece[1, 1], piece[2, 0], piece[2, 1])
                 _mark_agree(buf, m, piece, agree)
