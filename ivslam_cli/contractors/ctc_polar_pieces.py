@@ -101,11 +101,21 @@ def _arc_copy(q, tl, th):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def fits_lanes(xl, xh, yl, yh, rl, rh, tl, th):
+    """Whether a box (``rl`` already ``>= 0``) may go on a lane, on either SIMD route: non-empty,
+    finite (``|bound| < 1e300``, ``|theta| < 1e6``), theta narrower than 4.7, and not every
+    solution within ``NEAR_ORIGIN`` of the origin. Selects only (no branch): it stays in SIMD
+    loops."""
+    return ((-1e300 < xl) & (xl <= xh) & (xh < 1e300) & (-1e300 < yl) & (yl <= yh)
+            & (yh < 1e300) & (0.0 <= rl) & (rl <= rh) & (rh < 1e300) & (-1e6 < tl)
+            & (tl <= th) & (th < 1e6) & (th - tl < 4.7)
+            & (rh >= NEAR_ORIGIN) & (_mx(_mx(xh, -xl), _mx(yh, -yl)) >= NEAR_ORIGIN))
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _take(i, dx, dy, rho, theta, L, P, tb, rows, cnt):
-    """Box ``i`` of the flat bound arrays onto the pieces route, if it fits: non-empty, finite
-    (``|bound| < 1e300``, ``|theta| < 1e6``), the rho upper bound and some dx or dy bound at
-    least ``NEAR_ORIGIN`` in magnitude, theta narrower than 4.7, and ``rho > 0`` or the
-    origin outside its ``(dx, dy)`` box. Its non-empty closed pieces become lanes
+    """Box ``i`` of the flat bound arrays onto the pieces route, if it fits (:func:`fits_lanes`,
+    and ``rho > 0`` or the origin outside its ``(dx, dy)`` box). Its non-empty closed pieces become lanes
     ``cnt[0]..`` of ``L`` (``t ∩= v / u`` in the t rows, as :func:`_to_fixpoint`'s polar lanes
     expect) and ``P``; the box takes slot ``cnt[1]`` (its row in ``rows``, its theta in
     ``tb``). Returns False, taking nothing, for a box that does not fit."""
@@ -113,10 +123,7 @@ def _take(i, dx, dy, rho, theta, L, P, tb, rows, cnt):
     k = 2 * i
     xl, xh, yl, yh = dx[k], dx[k + 1], dy[k], dy[k + 1]
     rl, rh, tl, th = _mx(rho[k], 0.0), rho[k + 1], theta[k], theta[k + 1]
-    fin = ((-1e300 < xl) & (xl <= xh) & (xh < 1e300) & (-1e300 < yl) & (yl <= yh)
-           & (yh < 1e300) & (0.0 <= rl) & (rl <= rh) & (rh < 1e300) & (-1e6 < tl)
-           & (tl <= th) & (th < 1e6) & (th - tl < 4.7)
-           & (rh >= NEAR_ORIGIN) & (_mx(_mx(xh, -xl), _mx(yh, -yl)) >= NEAR_ORIGIN))
+    fin = fits_lanes(xl, xh, yl, yh, rl, rh, tl, th)
     origin = (xl <= 0.0) & (0.0 <= xh) & (yl <= 0.0) & (0.0 <= yh)
     if not fin or (origin and not rl > 0.0):
         return False

@@ -51,7 +51,7 @@ from ivslam_cli.contractors.ctc_polar import (
     _two_pi_times,
 )
 from ivslam_cli.contractors.ctc_polar_pieces import buffers as pieces_buffers
-from ivslam_cli.contractors.ctc_polar_pieces import NEAR_ORIGIN, _arc_copy
+from ivslam_cli.contractors.ctc_polar_pieces import _arc_copy, fits_lanes
 from ivslam_cli.contractors.ctc_polar_pieces import flush as flush_pieces
 from ivslam_cli.contractors.ctc_polar_pieces import off_fast_path
 from ivslam_cli.contractors.simd_polar_lanes import (
@@ -120,9 +120,7 @@ def _setup(xl, xh, yl, yh, rl, rh, tl, th):
     rho lower bound after ``max(rl, 0)``)."""
     z = 0.0
     bad = (False, 0, z, z, z, z, z, z, z, z, z)
-    if not (-1e300 < xl <= xh < 1e300 and -1e300 < yl <= yh < 1e300 and 0.0 <= rl <= rh < 1e300
-            and -1e6 < tl <= th < 1e6 and th - tl < 4.7 and rh >= NEAR_ORIGIN
-            and max(xh, -xl, yh, -yl) >= NEAR_ORIGIN):
+    if not fits_lanes(xl, xh, yl, yh, rl, rh, tl, th):
         return bad
     if xl > 0.0:
         ul, uh = xl, xh
@@ -242,10 +240,7 @@ def _entry(s, nb, dx, dy, rho, theta, W):
         yl, yh = W[(BX + 2) * C + j], W[(BX + 3) * C + j]
         rl, rh = _mx(W[(BX + 4) * C + j], 0.0), W[(BX + 5) * C + j]
         tl, th = W[(BX + 6) * C + j], W[(BX + 7) * C + j]
-        fin = ((-1e300 < xl) & (xl <= xh) & (xh < 1e300) & (-1e300 < yl) & (yl <= yh)
-               & (yh < 1e300) & (0.0 <= rl) & (rl <= rh) & (rh < 1e300) & (-1e6 < tl)
-               & (tl <= th) & (th < 1e6) & (th - tl < 4.7)
-               & (rh >= NEAR_ORIGIN) & (_mx(_mx(xh, -xl), _mx(yh, -yl)) >= NEAR_ORIGIN))
+        fin = fits_lanes(xl, xh, yl, yh, rl, rh, tl, th)
         xp, yp = xl > 0.0, yl > 0.0
         quad = (xp | (xh < 0.0)) & (yp | (yh < 0.0))
         q = (0.0 if yp else 1.0) if xp else (3.0 if yp else 2.0)
