@@ -72,9 +72,11 @@ PB, PQ, PCL, PCH, PSL, PSH = 0, 1, 2, 3, 4, 5
 PROWS = 6
 MAX_PIECES = 4
 #: boxes whose rho upper bound, or whose every dx and dy bound, is smaller in magnitude (then
-#: every solution is that near the origin: squares below the normal range, where the lanes'
-#: products lose their relative precision) go to ``polar_scalar``, on both SIMD routes
-NEAR_ORIGIN = 1e-150
+#: every solution is that near the origin) go to ``polar_scalar``, on both SIMD routes: the lanes
+#: square their bounds, and a square's rounding error (2^-53 of it) leaves the normal range
+#: below ~1.6e-146 (rho 1.5e-148 came out 2e-12 looser than the scalar kernel); 1e-140 keeps
+#: a margin for the products of squares with the lanes' other factors
+NEAR_ORIGIN = 1e-140
 
 
 @njit(cache=True, inline="always", error_model="numpy")
