@@ -301,11 +301,11 @@ def throughput(kind: str = "mixed", n: int = N_POLAR, n_codac: int = N_CODAC,
     return res
 
 
-def _looser(ours: np.ndarray, cod: np.ndarray) -> tuple[int, int]:
-    """Boxes (columns of ``(4, n, 2)`` arrays) where some bound of ours is outside Codac's: by
-    any amount, and beyond the rounding tolerance of ``tests/contractors/test_codac_crosscheck.py`` (see its
-    docstring: ``LOOSER_ULPS`` ulps of the scale plus the tan conditioning and ``rho^2 - dy^2``
-    cancellation terms, through which both kernels' roundings are amplified)."""
+def rounding_tolerance(cod: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per box of ``cod`` (a ``(4, n, 2)`` array): how far a bound of another sound kernel may lie
+    outside it through rounding alone, for x, y, rho and for theta: ``LOOSER_ULPS`` ulps of the
+    scale plus the tan conditioning and ``rho^2 - dy^2`` cancellation terms, through which both
+    kernels' roundings are amplified (see ``tests/contractors/test_codac_crosscheck.py``)."""
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         fin = np.where(np.isfinite(cod), cod, 0.0)
         scale = np.abs(fin[:3]).max(axis=(0, 2))
@@ -318,17 +318,22 @@ def _looser(ours: np.ndarray, cod: np.ndarray) -> tuple[int, int]:
         small = np.minimum(np.abs(fin[0]).max(1), np.abs(fin[1]).max(1))
         canc = scale * np.spacing(scale) / np.maximum(small, 1e-300)
         r_lo = np.maximum(fin[2, :, 0], 1e-300)
-        any_ = np.zeros(ours.shape[1], dtype=bool)
-        beyond = np.zeros(ours.shape[1], dtype=bool)
+        return (LOOSER_ULPS * (np.spacing(scale) + cond + canc),
+                LOOSER_ULPS * (np.spacing(t_scale) + (cond + canc) / r_lo))
+
+
+def _looser(ours: np.ndarray, cod: np.ndarray) -> tuple[int, int]:
+    """Boxes (columns of ``(4, n, 2)`` arrays) where some bound of ours is outside Codac's: by
+    any amount, and beyond :func:`rounding_tolerance`."""
+    tol_xyr, tol_t = rounding_tolerance(cod)
+    any_ = np.zeros(ours.shape[1], dtype=bool)
+    beyond = np.zeros(ours.shape[1], dtype=bool)
+    with np.errstate(invalid="ignore"):
         for j in range(4):
-            if j < 3:
-                tol = LOOSER_ULPS * (np.spacing(scale) + cond + canc)
-            else:
-                tol = LOOSER_ULPS * (np.spacing(t_scale) + (cond + canc) / r_lo)
             out = np.maximum(np.nan_to_num(cod[j, :, 0] - ours[j, :, 0], nan=0.0),
                              np.nan_to_num(ours[j, :, 1] - cod[j, :, 1], nan=0.0))
             any_ |= out > 0
-            beyond |= out > tol
+            beyond |= out > (tol_xyr if j < 3 else tol_t)
     return int(any_.sum()), int(beyond.sum())
 
 

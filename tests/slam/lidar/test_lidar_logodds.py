@@ -112,7 +112,8 @@ def test_bad_arguments():
 def _meets(x0, y0, x1, y1, cx, cy, tol=1e-9) -> bool:
     """Does the segment meet the closed unit cell [cx, cx+1] × [cy, cy+1] (within tol)?"""
     t0, t1 = 0.0, 1.0
-    dx, dy = float(x1 - x0), float(y1 - y0)  # Python floats: q / p for a tiny p is inf, no warning
+    x0, y0, cx, cy = float(x0), float(y0), float(cx), float(cy)  # Python floats: q / p for a tiny p is inf, no warning
+    dx, dy = float(x1) - x0, float(y1) - y0
     for p, q in ((-dx, x0 - (cx - tol)), (dx, cx + 1 + tol - x0), (-dy, y0 - (cy - tol)), (dy, cy + 1 + tol - y0)):
         if p == 0:
             if q < 0:
