@@ -163,6 +163,26 @@ def scan_sets(scans: Scans, k: int, robot_box, bounds: LidarBounds, eps: float,
     return np.column_stack([ex, ey]), np.column_stack([ox, oy])
 
 
+def map_union_free(tmap: TileMap, scans: Scans, k: int, robot_boxes, bounds: LidarBounds) -> int:
+    """Scan ``k``'s pose lies in the union of ``robot_boxes`` (m, 6): mark as EMPTY the cells its
+    P_EMPTY proves free from every box (:mod:`.map_union`); returns their number. Meant after
+    :func:`update_map` with their hull, which wrote P_OBSTACLE^k and the cells the hull proves
+    free."""
+    from ivslam_cli.paving.tiles import EMPTY
+    from ivslam_cli.slam.lidar.map_union import union_empty
+
+    ensure_round_to_nearest()
+    bounds.check()
+    boxes = _boxes(robot_boxes, scans.mount)
+    r, v, a0, inc = _scan(scans, k)
+    ix, iy = union_empty(r, v, a0, inc, boxes, float(bounds.range_abs), float(bounds.range_rel),
+                         float(bounds.bearing), float(tmap.eps), bool(bounds.fill_gaps))
+    if ix.size:
+        tmap.set(ix, iy, EMPTY)
+        _check_cells(tmap)
+    return int(ix.size)
+
+
 def inclusion_new(tmap: TileMap, scans: Scans, k: int, robot_box, bounds: LidarBounds) -> np.ndarray:
     """The slides' full old/new test for scan ``k`` against ``tmap``: ``new`` per beam (see
     :func:`ivslam_cli.slam.lidar.map_reference.inclusion_new`)."""

@@ -60,6 +60,7 @@ class Params:
     match_resolution: float
     relocalise: tuple[float, float]
     match_slices: int
+    map_sets: bool
     poses_known: bool
     known_poses: str
     pose_margin: tuple[float, float, float]
@@ -98,7 +99,7 @@ class Params:
             match_boxes=int(cfg["lidar.match_boxes"]), match_stride=int(cfg["lidar.match_stride"]),
             match_resolution=float(cfg["lidar.match_resolution"]),
             relocalise=tuple(float(v) for v in cfg["lidar.relocalise"]),
-            match_slices=int(cfg["lidar.match_slices"]),
+            match_slices=int(cfg["lidar.match_slices"]), map_sets=bool(cfg["lidar.map_sets"]),
             poses_known=bool(cfg["lidar.poses_known"]), known_poses=known,
             pose_margin=tuple(float(v) for v in cfg["lidar.pose_margin"]),
             loop_closure=bool(cfg["lidar.loop_closure"]), loop_every=int(cfg["lidar.loop_every"]),

@@ -12,7 +12,8 @@ LiDAR localisation keeps scans relative to keyframes:
    both scans' continuous free space: :mod:`.scanmatch`) and against the submap's map built
    so far (a set inversion in pose space: :mod:`.contract`), q-relaxed over the beams;
 3. **mapping** of the scan into its submap with its relative box (:mod:`.map_update`):
-   P_EMPTY (inner) and P_OBSTACLE (outer) proven *in the anchor's frame*.
+   P_EMPTY (inner) and P_OBSTACLE (outer) proven *in the anchor's frame*; with the match's
+   pose set, also the cells every box of it proves free (:mod:`.map_union`).
 
 A new submap starts at the current scan when the robot is ``submap_distance`` away from the
 anchor, has turned ``submap_turn``, or the relative box is wider than ``submap_width``.
@@ -46,7 +47,7 @@ from ivslam_cli.slam.lidar import loops as L
 from ivslam_cli.logs.model import LogData, Scans
 from ivslam_cli.paving.tiles import TileMap
 from ivslam_cli.slam.lidar.loopsearch import PAVE_BUDGET, PAVE_LEAF, PAVE_LEAVES, PAVE_STRIDE, pave
-from ivslam_cli.slam.lidar.map_update import check_extent, extent_limits, update_map
+from ivslam_cli.slam.lidar.map_update import check_extent, extent_limits, map_union_free, update_map
 from ivslam_cli.slam.lidar.matcher import Matcher, hull
 from ivslam_cli.slam.lidar.params import Params
 from ivslam_cli.slam.lidar.prediction import PosePrediction, trajectory
@@ -414,6 +415,15 @@ class _Track:
             all_boxes[scan] = r
             one[0] = scan
             out.res = update_map(s.tmap, self.scans, all_boxes, params.beams, order=one)
+            if params.map_sets and s.union is not None and s.union_row == j and s.union.shape[0] > 1:
+                # the cells every box of its pose set proves free, beyond the hull's
+                lo = np.maximum(s.union[:, 0::2], r[0::2])
+                hi = np.minimum(s.union[:, 1::2], r[1::2])
+                keep = np.all(lo <= hi, axis=1)
+                if keep.sum() > 1:
+                    u = np.empty((int(keep.sum()), 6))
+                    u[:, 0::2], u[:, 1::2] = lo[keep], hi[keep]
+                    map_union_free(s.tmap, self.scans, scan, u, params.beams)
             s.mapped.append(j)
             s.last_row = j
             s.last_box = r.copy()

@@ -376,3 +376,13 @@ def test_scans_beyond_q_beams_are_retried_with_q_retry_and_keep_the_truth():
     cfg0 = resolve_config(None, {"lidar.q_beams": 5, "lidar.q_retry": 0}, log_bounds=log.bounds)
     kinds0 = [str(c) for c in solve(bad, LidarParams.from_config(cfg0)).consistency.empty_events.constraint]
     assert "q_relaxed" not in kinds0 and ({"motion_outlier", "submap_match"} & set(kinds0)), kinds0
+
+
+def test_mapping_with_the_pose_sets_adds_free_cells_and_keeps_the_truth():
+    """``lidar.map_sets``: the cells every slice of a scan's pose set proves free join its hull's;
+    on a rooms log that is more free space than the hulls alone, none of it on a true wall."""
+    log, params, out = run_sim(2, "rooms", steps=60)
+    res, _ = assert_truth_kept(log, params, out)
+    _, off_params, off = run_sim(2, "rooms", steps=60, overrides={"lidar.map_sets": False})
+    assert params.map_sets and not off_params.map_sets
+    assert out.stats["empty_cells"] > off.stats["empty_cells"]

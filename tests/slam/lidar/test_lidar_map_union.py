@@ -1,0 +1,99 @@
+"""P_EMPTY of a scan whose pose lies in a union of boxes (:mod:`ivslam_cli.slam.lidar.map_union`):
+the intersection of each box's P_EMPTY, cell for cell, and never a cell meeting a true wall when
+one box of the union holds the true pose (the others are anywhere in its hull)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from ivslam_cli.paving.tiles import EMPTY, TileMap
+from ivslam_cli.slam.lidar.map_union import _keys, union_empty
+from ivslam_cli.slam.lidar.map_update import LidarBounds, _scan, map_union_free, scan_sets, sensor_boxes, update_map
+from tests.helpers.hyp import examples
+from tests.helpers.lidar_world import make_scans, random_box, random_pose, random_world, segments_meet_cells
+
+EPS = 0.05
+
+
+def _world(seed: int, wxy: float, wth: float, m: int):
+    """A scan from a true pose, and a union of ``m`` heading slices of a box around it: the
+    truth's slice keeps an (x, y) box holding the truth, the others random sub-boxes of the hull."""
+    rng = np.random.default_rng(seed)
+    segs, room = random_world(rng)
+    pose = random_pose(rng, segs, room)
+    bounds = LidarBounds(0.03, 0.01, 0.5 * 2 * math.pi / 1024)
+    scans, _, _ = make_scans(rng, segs, pose[None], (0.1, 0.0, 0.0), bounds.bearing, bounds.range_abs,
+                             bounds.range_rel)
+    box = random_box(rng, pose, wxy, wth)
+    edges = np.linspace(box[4], box[5], m + 1)
+    union = np.tile(box, (m, 1))
+    union[:, 4], union[:, 5] = edges[:-1], edges[1:]
+    for i in range(m):
+        holds = union[i, 4] <= pose[2] <= union[i, 5]
+        for a in range(2):
+            lo, hi = box[2 * a], box[2 * a + 1]
+            u = np.sort(rng.uniform(lo, hi, 2))
+            if holds:
+                u = np.array([min(u[0], pose[a]), max(u[1], pose[a])])
+            union[i, 2 * a], union[i, 2 * a + 1] = u
+    return segs, bounds, scans, box, union
+
+
+def _cells(a: np.ndarray) -> set:
+    return set(map(tuple, a.tolist()))
+
+
+@given(st.integers(0, 2**32 - 1), st.floats(0.0, 0.3), st.floats(0.0, math.radians(6)), st.integers(1, 6))
+@settings(max_examples=examples(ci=20), deadline=None)
+def test_union_empty_is_the_boxes_intersection_and_sound(seed, wxy, wth, m):
+    segs, bounds, scans, box, union = _world(seed, wxy, wth, m)
+    r, v, a0, inc = _scan(scans, 0)
+    ix, iy = union_empty(r, v, a0, inc, sensor_boxes(union, scans.mount), bounds.range_abs, bounds.range_rel,
+                         bounds.bearing, EPS, bounds.fill_gaps)
+    got = np.column_stack([ix, iy])
+    assert len(_cells(got)) == got.shape[0]
+    expected = set.intersection(*(_cells(scan_sets(scans, 0, b, bounds, EPS)[0]) for b in union))
+    assert _cells(got) == expected
+    bad = segments_meet_cells(segs, got, EPS)
+    assert not bad.any(), f"{bad.sum()} cells meet a wall, e.g. {got[bad][:3]}"
+
+
+def test_a_sheared_set_proves_more_than_its_hull():
+    """Heading slices whose (x, y) boxes move with the heading (as a turning robot's do): the
+    union proves cells free that its hull does not, and marks them in the map."""
+    segs, bounds, scans, box, _ = _world(3, 0.0, 0.0, 1)
+    pose = 0.5 * (box[0::2] + box[1::2])
+    m, dth, dxy = 6, math.radians(8), 0.3
+    union = np.empty((m, 6))
+    for i in range(m):
+        f = i / (m - 1) - 0.5
+        c = pose + np.array([f * dxy, -f * dxy, f * dth])
+        union[i] = [c[0] - 0.01, c[0] + 0.01, c[1] - 0.01, c[1] + 0.01, c[2] - dth / (2 * m), c[2] + dth / (2 * m)]
+    hull = np.array([union[:, 0].min(), union[:, 1].max(), union[:, 2].min(), union[:, 3].max(),
+                     union[:, 4].min(), union[:, 5].max()])
+    tmap = TileMap(EPS)
+    update_map(tmap, scans, hull[None], bounds)
+    before = tmap.counts()["empty"]
+    added = map_union_free(tmap, scans, 0, union, bounds)
+    hull_free = _cells(scan_sets(scans, 0, hull, bounds, EPS)[0])
+    r, v, a0, inc = _scan(scans, 0)
+    ix, iy = union_empty(r, v, a0, inc, sensor_boxes(union, scans.mount), bounds.range_abs, bounds.range_rel,
+                         bounds.bearing, EPS, bounds.fill_gaps)
+    assert added == ix.size and np.all(tmap.get(ix, iy) & EMPTY)
+    more = _cells(np.column_stack([ix, iy])) - hull_free
+    assert len(more) > 0.1 * len(hull_free)
+    assert tmap.counts()["empty"] == before + len(more)
+
+
+def test_keys_round_trip_and_drop_beyond_int32():
+    ix = np.array([-5, 3, 0, -(2**31), 2**31 - 1, 2**31, 7], np.int64)
+    iy = np.array([2, -9, 0, 2**31 - 1, -(2**31), 0, -(2**31) - 1], np.int64)
+    k = _keys(ix, iy)
+    assert k.size == 5 and np.all(np.diff(k) > 0)
+    r = (k + 2**31) % 2**32 - 2**31
+    back = set(zip(((k - r) // 2**32).tolist(), r.tolist()))
+    assert back == set(zip(ix[:5].tolist(), iy[:5].tolist()))
