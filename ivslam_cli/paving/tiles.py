@@ -261,11 +261,9 @@ class TileMap:
 
     def set(self, ix, iy, flags) -> None:
         """OR ``flags`` into cells ``(ix, iy)`` (arrays or scalars, broadcast)."""
-        ix, iy, flags = np.broadcast_arrays(np.asarray(ix, np.int64), np.asarray(iy, np.int64),
-                                            np.asarray(flags, np.uint8))
-        self.set_arrays(*_set_cells(self.keys, self.slots, self.cells, self.coords, self.n,
-                                    np.ascontiguousarray(ix).ravel(), np.ascontiguousarray(iy).ravel(),
-                                    np.ascontiguousarray(flags).ravel()))
+        ix, iy, flags = (np.array(a).ravel() for a in np.broadcast_arrays(  # copies: broadcast views are read-only
+            np.asarray(ix, np.int64), np.asarray(iy, np.int64), np.asarray(flags, np.uint8)))
+        self.set_arrays(*_set_cells(self.keys, self.slots, self.cells, self.coords, self.n, ix, iy, flags))
 
     def get(self, ix, iy) -> np.ndarray:
         """Flags of cells ``(ix, iy)`` (0 where never written)."""
