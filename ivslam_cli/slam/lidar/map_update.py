@@ -165,9 +165,9 @@ def scan_sets(scans: Scans, k: int, robot_box, bounds: LidarBounds, eps: float,
 
 def map_union_free(tmap: TileMap, scans: Scans, k: int, robot_boxes, bounds: LidarBounds) -> int:
     """Scan ``k``'s pose lies in the union of ``robot_boxes`` (m, 6): mark as EMPTY the cells its
-    P_EMPTY proves free from every box (:mod:`.map_union`); returns their number. Meant after
-    :func:`update_map` with their hull, which wrote P_OBSTACLE^k and the cells the hull proves
-    free."""
+    P_EMPTY proves free from every box (:mod:`.map_union`); returns how many were not EMPTY
+    before. Meant after :func:`update_map` with their hull, which wrote P_OBSTACLE^k and the
+    cells the hull proves free."""
     from ivslam_cli.paving.tiles import EMPTY
     from ivslam_cli.slam.lidar.map_union import union_empty
 
@@ -175,8 +175,8 @@ def map_union_free(tmap: TileMap, scans: Scans, k: int, robot_boxes, bounds: Lid
     bounds.check()
     boxes = _boxes(robot_boxes, scans.mount)
     r, v, a0, inc = _scan(scans, k)
-    ix, iy = union_empty(r, v, a0, inc, boxes, float(bounds.range_abs), float(bounds.range_rel),
-                         float(bounds.bearing), float(tmap.eps), bool(bounds.fill_gaps))
+    ix, iy = union_empty(tmap.keys, tmap.slots, tmap.cells, r, v, a0, inc, boxes, float(bounds.range_abs),
+                         float(bounds.range_rel), float(bounds.bearing), float(tmap.eps), bool(bounds.fill_gaps))
     if ix.size:
         tmap.set(ix, iy, EMPTY)
         _check_cells(tmap)
