@@ -21,10 +21,10 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ivslam_cli.paving.tiles import EMPTY, TILE, cell_flags
+from ivslam_cli.paving.tiles import EMPTY, cell_flags
 from ivslam_cli.slam.lidar.map_blocks import _cell, _scan_angles
-from ivslam_cli.slam.lidar.map_kernel import _level_buffers, _record_buffers, _traverse_grown
-from ivslam_cli.slam.lidar.map_tables import _block_cells, _cos_gap, _fast_buffers, _fast_tables
+from ivslam_cli.slam.lidar.map_kernel import scan_cells
+from ivslam_cli.slam.lidar.map_tables import _cos_gap, _fast_buffers, _fast_tables
 
 
 @njit(cache=True, nogil=True)
@@ -34,20 +34,9 @@ def union_empty(keys, slots, cells, ranges, valid, a0, inc, boxes, r_abs, r_rel,
     :func:`~.map_kernel.scan_cells`' P_EMPTY^k of ``boxes[0]`` and passes the leaf test of every
     other box."""
     nb = ranges.shape[0]
+    ex, ey, _, _ = scan_cells(ranges, valid, a0, inc, boxes[0], r_abs, r_rel, r_alpha, eps, False, fill)
     lg, T = _fast_buffers(max(nb, 1))
-    new = np.zeros(max(nb, 1), dtype=np.bool_)
-    k0 = np.full(4, np.int64(-(2**63)), dtype=np.int64)
-    s0 = np.full(4, -1, dtype=np.int64)
-    c0 = np.zeros((1, TILE, TILE), dtype=np.uint8)
-    tl, blk, mblk, cand, cand_f = _record_buffers()
-    WF, WI = _level_buffers()
     st = np.zeros(4, dtype=np.int64)
-    n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f, WF, WI = _traverse_grown(
-        k0, s0, c0, ranges, valid, a0, inc, boxes[0], r_abs, r_rel, r_alpha, eps, False, lg, T, new,
-        tl, blk, mblk, cand, cand_f, st, WF, WI, fill)
-    ex = np.empty(st[1], dtype=np.int64)
-    ey = np.empty(st[1], dtype=np.int64)
-    _block_cells(blk, n_blk, ex, ey, 0)
     rmax = _fast_tables(ranges, valid, r_abs, r_rel, _cos_gap(r_alpha, inc, fill), T)
     h = max(r_alpha, 0.5 * inc)
     m = boxes.shape[0]
