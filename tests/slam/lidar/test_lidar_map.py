@@ -632,6 +632,7 @@ def test_bench_lidar_map_runs_and_checks(capsys):
     out = capsys.readouterr().out
     assert out.count("same map, old beams and counts: OK") == 2
     assert "P_OBSTACLE^k ∪ P_OLD^k: OK" in out
+    assert "P_EMPTY cells meet a wall: OK" in out and "map_union_free added" in out
     assert "load average" in out and "beams/s" in out
 
 
