@@ -120,6 +120,7 @@ def report_dict(rep: Report) -> dict[str, Any]:
             "proven_free_cells_total": int(sum(free)),
             "proven_free_m2_total": float(sum(free) * sm.resolution ** 2),
             "logodds_free_cells_total": int(st.get("logodds_free_cells", 0)),
+            "pose_set_cells": int(st.get("pose_set_cells", 0)),
             "mapped_fraction": float(st.get("mapped_fraction", float("nan"))),
         }
     if r.loops is not None:

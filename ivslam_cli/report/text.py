@@ -143,6 +143,9 @@ def render_text(rep: Report, source: str = "") -> str:
         ratio = f" = {sum(free) / lo_free:.3g}× the log-odds free cells on the same scans ({lo_free})" if lo_free else ""
         add(f"            proven free: {sum(free)} cells = {sum(free) * sm.resolution ** 2:.4g} m² in all (median "
             f"{_g(float(np.median(free))) if free else 0} per submap){ratio}")
+        if st.get("pose_set_cells", 0):
+            add(f"            of them first proven by the scans' pose sets beyond their hulls (lidar.map_sets): "
+                f"{int(st['pose_set_cells'])}")
         if "mapped_fraction" in st:
             add(f"            scans mapped: {st.get('scans_mapped', 0)}/{st.get('scans_used', 0)} "
                 f"({100.0 * float(st['mapped_fraction']):.4g} %)")

@@ -291,6 +291,7 @@ def solve(log: LogData, params: Params, progress=None) -> LidarOutput:
             "scans_q_relaxed": int(len(tracking.q_relaxed)),
             "scans_contradicting": int(len({j for j, _, _ in tracking.contradicted})),
             "contraction_boxes_tested": int(tracking.tested),
+            "pose_set_cells": int(tracking.set_cells),
             "median_predicted_width": _median(position_width(tracking.predicted)),
             "median_forward_width": _median(position_width(tracking.forward)),
             "nodes_smoothed": int(tracking.smoothed),
@@ -354,6 +355,11 @@ def run(log: LogData, params: Params, progress=None) -> Result:
                        stats=out.stats)
 
 
+def _from_sets(s: dict) -> str:
+    n = s.get("pose_set_cells", 0)
+    return f", {n} first proven by the scans' pose sets beyond their hulls" if n else ""
+
+
 def summary(result: Result) -> str:
     """The CLI line: scans used and mapped, submaps, widths, the map's areas, empty events."""
     s = result.stats
@@ -365,5 +371,6 @@ def summary(result: Result) -> str:
     return (f"lidar: {s['scans_used']}/{s['scans']} scans ({s['scans_mapped']} mapped), {sub}global box median "
             f"{s['median_pose_width']:.3g} m, {s['motion']}; map {s['area_empty_m2']:.4g} m² proven free"
             f"{' (sum over the submaps, each in its frame)' if 'submaps' in s else ''} "
-            f"({s['empty_cells']} cells; log-odds free {s['logodds_free_cells']}), {s['area_obstacle_m2']:.4g} m² "
+            f"({s['empty_cells']} cells{_from_sets(s)}; log-odds free {s['logodds_free_cells']}), "
+            f"{s['area_obstacle_m2']:.4g} m² "
             f"obstacle; {len(result.consistency.empty_events)} empty event(s)")

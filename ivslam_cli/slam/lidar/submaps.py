@@ -110,6 +110,7 @@ class SubmapTracking:
     graph: L.AnchorGraph | None = None  # the anchor graph (edges, loop constraints)
     open_loop: np.ndarray | None = None  # (S', 6) global boxes from the chain of anchors only (no loop edges)
     anchor_before: np.ndarray | None = None  # (n_submaps, 6) anchor boxes from the chain only
+    set_cells: int = 0  # cells first proven free by a scan's pose set beyond its hull, over the submaps
 
 
 def _width(b: np.ndarray) -> float:
@@ -291,6 +292,7 @@ class _Tracked:
     contradicted: bool = False
     contracted: bool = False
     res: object = None  # the map update's result when the scan was mapped into the submap
+    set_cells: int = 0  # cells its pose set proved free that the submap did not hold yet (lidar.map_sets)
 
 
 class _Track:
@@ -423,7 +425,7 @@ class _Track:
                 if keep.sum() > 1:
                     u = np.empty((int(keep.sum()), 6))
                     u[:, 0::2], u[:, 1::2] = lo[keep], hi[keep]
-                    map_union_free(s.tmap, self.scans, scan, u, params.beams)
+                    out.set_cells = map_union_free(s.tmap, self.scans, scan, u, params.beams)
             s.mapped.append(j)
             s.last_row = j
             s.last_box = r.copy()
@@ -465,6 +467,7 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
     g = np.empty(6)
     met = np.empty(6)
     tested = 0
+    set_cells = 0
     submaps: list[Submap] = []
     active: list[Submap] = []
     kg_prev = 0
@@ -493,6 +496,7 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                 active.append(s0)
             for s, (r, out) in zip(active, track.map(lambda s: track.one(s, j, k, scan, rp, rt), list(active))):
                 tested += out.tested
+                set_cells += out.set_cells
                 if out.q_relaxed:
                     q_relaxed.append((j, s.index))
                 if out.relocalised:
@@ -648,4 +652,4 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                           node_stamp=m.node_stamp, dropped=dropped)
     return SubmapTracking(pred, submaps, home, relative, mapped, contracted, contradicted, compose_empty,
                           relocalised, q_relaxed, forward, predicted, tested, smoothed, stats, is_old, graph, open_loop,
-                          anchor_before)
+                          anchor_before, set_cells)

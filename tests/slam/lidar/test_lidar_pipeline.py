@@ -29,7 +29,7 @@ from ivslam_cli.errors import IvslamError
 from ivslam_cli.results.model import CELL_EMPTY, CELL_OBSTACLE, FRAME_FIRST_POSE, FRAME_WORLD
 from ivslam_cli.simulate import SimConfig, simulate
 from ivslam_cli.slam.lidar import Params as LidarParams
-from ivslam_cli.slam.lidar.pipeline import run, solve
+from ivslam_cli.slam.lidar.pipeline import run, solve, summary
 from tests.helpers.hyp import lanes, seeds
 from tests.helpers.lidar_truth import assert_contained, hits_outside_obstacle, nearest_in_cones
 from tests.helpers.paths import CONFIGS, SAMPLE_LOGS as SAMPLES
@@ -386,3 +386,5 @@ def test_mapping_with_the_pose_sets_adds_free_cells_and_keeps_the_truth():
     _, off_params, off = run_sim(2, "rooms", steps=60, overrides={"lidar.map_sets": False})
     assert params.map_sets and not off_params.map_sets
     assert out.stats["empty_cells"] > off.stats["empty_cells"]
+    assert 0 < out.stats["pose_set_cells"] <= out.stats["empty_cells"] and off.stats["pose_set_cells"] == 0
+    assert "first proven by the scans' pose sets" in summary(res)
