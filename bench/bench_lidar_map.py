@@ -218,13 +218,13 @@ def main(argv: list[str] | None = None) -> int:
 SLICES = 8
 
 
-def _slices(rng: np.random.Generator, box: np.ndarray, pose: np.ndarray) -> np.ndarray:
-    """``box`` cut into :data:`SLICES` heading slices, each with a random (x, y) sub-box of it;
-    the slice holding the true heading keeps the true position (a union that holds the truth)."""
-    edges = np.linspace(box[4], box[5], SLICES + 1)
-    u = np.tile(box, (SLICES, 1))
+def slices_around(rng: np.random.Generator, box: np.ndarray, pose: np.ndarray, m: int = SLICES) -> np.ndarray:
+    """``box`` cut into ``m`` heading slices, each with a random (x, y) sub-box of it; the slice
+    holding the true heading keeps the true position (a union that holds the truth)."""
+    edges = np.linspace(box[4], box[5], m + 1)
+    u = np.tile(box, (m, 1))
     u[:, 4], u[:, 5] = edges[:-1], edges[1:]
-    for i in range(SLICES):
+    for i in range(m):
         for a in range(2):
             lo, hi = np.sort(rng.uniform(box[2 * a], box[2 * a + 1], 2))
             if u[i, 4] <= pose[2] <= u[i, 5]:
@@ -236,7 +236,7 @@ def _slices(rng: np.random.Generator, box: np.ndarray, pose: np.ndarray) -> np.n
 def _pose_sets(n_scans: int) -> bool:
     """``lidar.map_sets`` on a log of cone beams (the simulator's default: every beam the nearest
     surface in its cone, so no gap assumption): each scan mapped with its box, then with a union
-    of slices of it (:func:`_slices`) by ``map_union_free``; the cells it adds, its time, and
+    of slices of it (:func:`slices_around`) by ``map_union_free``; the cells it adds, its time, and
     every P_EMPTY cell of the map against the true walls."""
     from ivslam_cli.paving.tiles import TileMap
     from ivslam_cli.simulate import SimConfig, simulate
@@ -247,7 +247,7 @@ def _pose_sets(n_scans: int) -> bool:
     bounds = LidarBounds(b["range_abs"], b["range_rel"], b["beam_angle"])
     boxes = _boxes(np.random.default_rng(0), log.truth.pose)
     rng = np.random.default_rng(1)
-    unions = [_slices(rng, boxes[k], log.truth.pose[k]) for k in range(len(scans))]
+    unions = [slices_around(rng, boxes[k], log.truth.pose[k]) for k in range(len(scans))]
     map_union_free(TileMap(EPS), scans, 0, unions[0], bounds)  # compile / cache load
     tmap = TileMap(EPS)
     one = np.zeros(1, np.int64)

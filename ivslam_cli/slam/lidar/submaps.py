@@ -113,6 +113,16 @@ class SubmapTracking:
     set_cells: int = 0  # cells first proven free by a scan's pose set beyond its hull, over the submaps
 
 
+def _met_rows(boxes: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The boxes (n, 6) met with ``r`` (6,), the empty meets left out: (n', 6)."""
+    lo = np.maximum(boxes[:, 0::2], r[0::2])
+    hi = np.minimum(boxes[:, 1::2], r[1::2])
+    good = np.all(lo <= hi, axis=1)
+    out = np.empty((int(good.sum()), 6))
+    out[:, 0::2], out[:, 1::2] = lo[good], hi[good]
+    return out
+
+
 def _width(b: np.ndarray) -> float:
     return max(b[1] - b[0], b[3] - b[2])
 
@@ -365,14 +375,9 @@ class _Track:
                     prop = np.empty_like(s.union)
                     ok = propagate_boxes(s.P[kp - s.k0], s.union, m.reach[jp], m.kind[s.k0:], m.U[s.k0:],
                                          kp - s.k0, k - s.k0, m.reach[j], prop)
-                    prop = prop[ok]
-                    if prop.shape[0]:
-                        lo = np.maximum(prop[:, 0::2], r[0::2])
-                        hi = np.minimum(prop[:, 1::2], r[1::2])
-                        good = np.all(lo <= hi, axis=1)
-                        if good.any():
-                            roots = np.empty((int(good.sum()), 6))
-                            roots[:, 0::2], roots[:, 1::2] = lo[good], hi[good]
+                    met = _met_rows(prop[ok], r)
+                    if met.shape[0]:
+                        roots = met
                 refs = [(s.anchor_scan, np.zeros(6))]
                 if s.last_row >= 0 and s.last_row != s.anchor_row:
                     refs.append((int(used[s.last_row]), s.last_box))
@@ -419,12 +424,8 @@ class _Track:
             out.res = update_map(s.tmap, self.scans, all_boxes, params.beams, order=one)
             if params.map_sets and s.union is not None and s.union_row == j and s.union.shape[0] > 1:
                 # the cells every box of its pose set proves free, beyond the hull's
-                lo = np.maximum(s.union[:, 0::2], r[0::2])
-                hi = np.minimum(s.union[:, 1::2], r[1::2])
-                keep = np.all(lo <= hi, axis=1)
-                if keep.sum() > 1:
-                    u = np.empty((int(keep.sum()), 6))
-                    u[:, 0::2], u[:, 1::2] = lo[keep], hi[keep]
+                u = _met_rows(s.union, r)
+                if u.shape[0] > 1:
                     out.set_cells = map_union_free(s.tmap, self.scans, scan, u, params.beams)
             s.mapped.append(j)
             s.last_row = j

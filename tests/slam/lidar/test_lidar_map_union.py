@@ -11,8 +11,10 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from bench.bench_lidar_map import slices_around
 from ivslam_cli.paving.tiles import EMPTY, TileMap
 from ivslam_cli.slam.lidar.map_union import union_empty
+from ivslam_cli.slam.lidar.matcher import hull as hull_of
 from ivslam_cli.slam.lidar.map_update import LidarBounds, _scan, map_union_free, scan_sets, sensor_boxes, update_map
 from tests.helpers.hyp import examples
 from tests.helpers.lidar_world import make_scans, random_box, random_pose, random_world, segments_meet_cells
@@ -30,18 +32,7 @@ def _world(seed: int, wxy: float, wth: float, m: int):
     scans, _, _ = make_scans(rng, segs, pose[None], (0.1, 0.0, 0.0), bounds.bearing, bounds.range_abs,
                              bounds.range_rel)
     box = random_box(rng, pose, wxy, wth)
-    edges = np.linspace(box[4], box[5], m + 1)
-    union = np.tile(box, (m, 1))
-    union[:, 4], union[:, 5] = edges[:-1], edges[1:]
-    for i in range(m):
-        holds = union[i, 4] <= pose[2] <= union[i, 5]
-        for a in range(2):
-            lo, hi = box[2 * a], box[2 * a + 1]
-            u = np.sort(rng.uniform(lo, hi, 2))
-            if holds:
-                u = np.array([min(u[0], pose[a]), max(u[1], pose[a])])
-            union[i, 2 * a], union[i, 2 * a + 1] = u
-    return segs, bounds, scans, box, union
+    return segs, bounds, scans, box, slices_around(rng, box, pose, m)
 
 
 def _cells(a: np.ndarray) -> set:
@@ -88,8 +79,7 @@ def test_a_sheared_set_proves_more_than_its_hull():
         f = i / (m - 1) - 0.5
         c = pose + np.array([f * dxy, -f * dxy, f * dth])
         union[i] = [c[0] - 0.01, c[0] + 0.01, c[1] - 0.01, c[1] + 0.01, c[2] - dth / (2 * m), c[2] + dth / (2 * m)]
-    hull = np.array([union[:, 0].min(), union[:, 1].max(), union[:, 2].min(), union[:, 3].max(),
-                     union[:, 4].min(), union[:, 5].max()])
+    hull = hull_of(union)
     tmap = TileMap(EPS)
     update_map(tmap, scans, hull[None], bounds)
     before = tmap.counts()["empty"]
