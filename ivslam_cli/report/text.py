@@ -96,8 +96,9 @@ def render_text(rep: Report, source: str = "") -> str:
                 add(f"            width = {cv.definition}")
     if rep.final_width:
         add("final widths:")
+        pad = max(13, *(len(k) + 1 for k in rep.final_width))
         for kind, w in rep.final_width.items():
-            add(f"  {kind:<13}{w.count} enclosures: {_ws(w)}")
+            add(f"  {kind:<{pad}}{w.count} enclosures: {_ws(w)}")
     if r.relative is not None:
         wr = (r.relative.box[..., 1] - r.relative.box[..., 0]).reshape(-1, 3)
         med = np.median(wr, axis=0) if wr.size else np.full(3, np.nan)
