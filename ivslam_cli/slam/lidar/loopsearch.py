@@ -104,13 +104,14 @@ def merge_leaves(leaves: np.ndarray) -> np.ndarray:
 
 
 def pave(matcher, k: int, prior: np.ndarray, tmap, refs, stride: int, fine: float, budget: int,
-         max_leaves: int) -> tuple[np.ndarray | None, int]:
+         max_leaves: int, q: int | None = None) -> tuple[np.ndarray | None, int]:
     """Pave the wide ``prior`` (6,) of scan ``k`` against the submap ``tmap`` and its ``refs``
     with the :class:`~.matcher.Matcher`'s rules. Returns ``(roots, tested)``: the kept leaves
     merged (an empty array: every pose excluded, a contradiction), or None when the paving is
-    incomplete or nothing could be tested (then nothing follows from it)."""
+    incomplete or nothing could be tested (then nothing follows from it). ``q``: beams allowed
+    to break each rule (default ``q_beams``)."""
     prior = np.ascontiguousarray(prior, float).reshape(6)
-    setup = matcher.kernel_args(k, prior[None, :], tmap, refs, int(stride))
+    setup = matcher.kernel_args(k, prior[None, :], tmap, refs, int(stride), q)
     if setup is None:
         return None, 0
     scan, rules, split_reach = setup

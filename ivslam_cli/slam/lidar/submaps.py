@@ -78,7 +78,7 @@ class Submap:
     rel: list = field(default_factory=list)  # their relative boxes (6,), in step with ``rows``
     mapped: list = field(default_factory=list)  # rows mapped into this submap
     closes_at: float = math.inf  # travel at which the submap stops tracking (overlap end)
-    last_row: int = -1  # last row mapped (the "previous scan" of rule B)
+    last_row: int = -1  # last row mapped, not q-relaxed (the "previous scan" of the rules)
     last_box: np.ndarray | None = None  # its relative box
     union: np.ndarray | None = None  # (m, 6) the last tracked scan's pose set (one box per heading slice)
     union_row: int = -1  # ... of which row
@@ -232,7 +232,8 @@ def _search_loops(j: int, scan: int, gb: np.ndarray, submaps, active, graph: L.A
     added = False
     for (_, _, s, prior, narrow), (paved, pave_nt, roots, box, nb, nt) in zip(
             cands[: params.loop_candidates],
-            track.map(lambda c: _loop_match(track.matcher(), scan, c[2], c[3], c[4], params, reach),
+            track.map(lambda c: _loop_match(track.matcher(), scan, c[2], c[3], c[4], params, reach,
+                                            track.q_for([(scan, None), (c[2].anchor_scan, None)])),
                       cands[: params.loop_candidates])):
         if paved:
             graph.paved += 1
@@ -252,20 +253,22 @@ def _search_loops(j: int, scan: int, gb: np.ndarray, submaps, active, graph: L.A
     return added
 
 
-def _loop_match(matcher, scan: int, s: Submap, prior: np.ndarray, narrow: bool, params: Params, reach: float):
-    """Scan ``scan`` matched against old submap ``s`` over ``prior`` (a wide prior paved first):
-    ``(paved, paving_tests, roots, box, beams, tested)`` — ``roots`` None when the paving ran out
-    of budget (no constraint), ``box`` None when no pose of the prior agrees (an empty
-    constraint); ``tested`` counts the paving's tests too."""
+def _loop_match(matcher, scan: int, s: Submap, prior: np.ndarray, narrow: bool, params: Params, reach: float,
+                q: int | None = None):
+    """Scan ``scan`` matched against old submap ``s`` over ``prior`` (a wide prior paved first),
+    ``q`` beams allowed (default ``q_beams``): ``(paved, paving_tests, roots, box, beams,
+    tested)`` — ``roots`` None when the paving ran out of budget (no constraint), ``box`` None
+    when no pose of the prior agrees (an empty constraint); ``tested`` counts the paving's tests
+    too."""
     refs = [(s.anchor_scan, np.zeros(6))]
     roots = prior[None, :]
     nt = 0
     if not narrow:  # a wide prior: pave it on every n-th beam first, the kept leaves are the roots
-        roots, nt = pave(matcher, scan, prior, s.tmap, refs, PAVE_STRIDE, PAVE_LEAF, PAVE_BUDGET, PAVE_LEAVES)
+        roots, nt = pave(matcher, scan, prior, s.tmap, refs, PAVE_STRIDE, PAVE_LEAF, PAVE_BUDGET, PAVE_LEAVES, q)
         if roots is None or roots.shape[0] == 0:
             return True, nt, roots, None, matcher.last_beams, nt
     pave_nt = nt
-    union, ok, nt2 = matcher.match(scan, roots, s.tmap, refs, budget=params.loop_boxes, stride=params.loop_stride)
+    union, ok, nt2 = matcher.match(scan, roots, s.tmap, refs, budget=params.loop_boxes, stride=params.loop_stride, q=q)
     nt += nt2
     nb = matcher.last_beams
     # the kept set is a sound prior for the same search: repeat while it shrinks
@@ -273,7 +276,8 @@ def _loop_match(matcher, scan: int, s: Submap, prior: np.ndarray, narrow: bool, 
         if not ok:
             break
         w0 = L.width(hull(union)) + reach * L.heading(hull(union))
-        u2, ok2, nt2 = matcher.match(scan, union, s.tmap, refs, budget=params.loop_boxes, stride=params.loop_stride)
+        u2, ok2, nt2 = matcher.match(scan, union, s.tmap, refs, budget=params.loop_boxes, stride=params.loop_stride,
+                                     q=q)
         nt += nt2
         if not ok2:
             ok = False
@@ -303,6 +307,7 @@ class _Tracked:
     contracted: bool = False
     res: object = None  # the map update's result when the scan was mapped into the submap
     set_cells: int = 0  # cells its pose set proved free that the submap did not hold yet (lidar.map_sets)
+    last: tuple = ()  # the submap's reference scan before this one became it (row, box)
 
 
 class _Track:
@@ -313,6 +318,9 @@ class _Track:
 
     def __init__(self, params: Params, scans: Scans, m, used: np.ndarray, extent, path, threads: int) -> None:
         self.p, self.scans, self.m, self.used, self.extent, self.path = params, scans, m, used, extent, path
+        # scans matched with q_retry somewhere: up to q_retry of their beams may be wrong, so a
+        # match that uses one as a reference allows as many
+        self.relaxed = np.zeros(len(scans), bool)
         self.local = threading.local()
         self.pool = ThreadPoolExecutor(max_workers=threads) if threads > 1 else None
 
@@ -357,6 +365,14 @@ class _Track:
             s.pending.result()
             s.pending = None
 
+    def q_for(self, refs) -> int | None:
+        """The q of a match against ``refs``: q_retry when one of them was q-relaxed, else the
+        default (None)."""
+        p = self.p
+        if p.q_retry > p.q_beams and any(self.relaxed[i] for i, _ in refs):
+            return p.q_retry
+        return None
+
     def one(self, s: Submap, j: int, k: int, scan: int, rp: float, rt: float) -> tuple[np.ndarray, _Tracked]:
         """Scan row ``j`` (node ``k``) in submap ``s``: its relative box and what was found."""
         params, m, used = self.p, self.m, self.used
@@ -381,10 +397,11 @@ class _Track:
                 refs = [(s.anchor_scan, np.zeros(6))]
                 if s.last_row >= 0 and s.last_row != s.anchor_row:
                     refs.append((int(used[s.last_row]), s.last_box))
-                union, ok, nt = matcher.match(scan, roots, s.tmap, refs)
+                q = self.q_for(refs)
+                union, ok, nt = matcher.match(scan, roots, s.tmap, refs, q=q)
                 out.tested += nt
                 reloc = False
-                if not ok and params.q_retry > params.q_beams:
+                if not ok and params.q_retry > params.q_beams and q is None:
                     # more than q beams contradict every predicted pose: people, glass, mixed
                     # returns? match again allowing q_retry beams before doubting the motion
                     union, ok, nt = matcher.match(scan, roots, s.tmap, refs, q=params.q_retry)
@@ -395,7 +412,7 @@ class _Track:
                     # its bounds (an odometry jump)? search the relocalisation window around it
                     wx, wt = params.relocalise
                     wide = r + np.array([-wx, wx, -wx, wx, -wt, wt])
-                    union, ok, nt = matcher.match(scan, wide[None, :], s.tmap, refs)
+                    union, ok, nt = matcher.match(scan, wide[None, :], s.tmap, refs, q=q)
                     out.tested += nt
                     if ok:
                         reloc = out.relocalised = True
@@ -428,6 +445,7 @@ class _Track:
                 if u.shape[0] > 1:
                     out.set_cells = map_union_free(s.tmap, self.scans, scan, u, params.beams)
             s.mapped.append(j)
+            out.last = (s.last_row, s.last_box)
             s.last_row = j
             s.last_box = r.copy()
         return r, out
@@ -495,7 +513,14 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                 s0 = _new_submap(0, j, scan, k, gb, n_nodes, m.reach[j], params.eps)
                 submaps.append(s0)
                 active.append(s0)
-            for s, (r, out) in zip(active, track.map(lambda s: track.one(s, j, k, scan, rp, rt), list(active))):
+            results = track.map(lambda s: track.one(s, j, k, scan, rp, rt), list(active))
+            if any(out.q_relaxed for _, out in results):
+                # up to q_retry of its beams may break the model: no reference for later scans
+                track.relaxed[scan] = True
+                for s, (_, out) in zip(active, results):
+                    if out.last:
+                        s.last_row, s.last_box = out.last
+            for s, (r, out) in zip(active, results):
                 tested += out.tested
                 set_cells += out.set_cells
                 if out.q_relaxed:
