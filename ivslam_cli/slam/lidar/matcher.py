@@ -16,9 +16,10 @@ A sub-box is excluded when more than ``q`` beams of the scan break rule A for al
 more than ``q`` reference beams break rule B. :func:`bound_kernel` finds the heading's two
 bounds over the prior (best-first: sub-boxes popped in the order of that bound, excluded ones
 dropped, others split along the widest of x, y and median range × θ — rotation is split first
-while it moves the beam ends more than the translation — until the first leaf of
-``resolution`` is kept), then cuts the heading interval into slices and finds each slice's x and
-y bounds: the pose set is a union of boxes, one per heading slice, not one hull. A search out
+while it moves the beam ends more than the translation — until the first leaf of the heading
+resolution is kept), then cuts the heading interval into slices and finds each slice's x and y
+bounds (to a coarser resolution: two searches decide the heading, eight times as many the
+slices): the pose set is a union of boxes, one per heading slice, not one hull. A search out
 of budget returns the key on top of its heap (no pose beyond it was left): sound, looser.
 
 Cost: the submap's cells not proven free are counted in a summed-area table over a window (a
@@ -342,10 +343,11 @@ def beam_table(ranges, valid, a0, inc, r_abs, r_rel, stride):
 @njit(cache=True, nogil=True)
 def bound_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_rel, r_alpha, cones, q, stride,
                  W, n_w, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref, fine,
-                 reach, max_nodes, max_slices, kept):
+                 reach, max_nodes, max_slices, kept, fine_th):
     """The poses of the prior ``roots[:n_roots]`` not excluded, as boxes per heading slice:
-    first the heading's two bounds (best-first searches over the prior's hull), then the
-    heading interval cut into at most ``max_slices`` slices and each slice's x and y bounds.
+    first the heading's two bounds (best-first searches over the prior's hull, to leaves of
+    ``fine_th``), then the heading interval cut into at most ``max_slices`` slices and each
+    slice's x and y bounds (to leaves of ``fine``).
     Writes the slices to ``kept``; returns ``(n_slices, tested)`` (0 slices: every pose
     excluded)."""
     beam_rl, beam_rh, beam_ca, beam_sa, free, n_beams = beam_table(ranges, valid, a0, inc, r_abs, r_rel, stride)
@@ -365,7 +367,7 @@ def bound_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_
     for side in (4, 5):
         v, t = _search(hull, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w,
                        mx, my, myaw, r_alpha, cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc,
-                       ref_c, ref_th, n_ref, fine, reach, b_th, bx, keys, heap)
+                       ref_c, ref_th, n_ref, fine_th, reach, b_th, bx, keys, heap)
         tested += t
         if math.isnan(v):
             return 0, tested
@@ -569,7 +571,7 @@ class Matcher:
         if self.kept.shape[0] < need:
             self.kept = np.empty((need, 6))
         n_kept, tested = bound_kernel(roots, roots.shape[0], *scan, *rules, float(p.match_resolution), split_reach,
-                                      budget, int(p.match_slices), self.kept)
+                                      budget, int(p.match_slices), self.kept, float(p.match_heading_resolution))
         if n_kept == 0:
             return roots, False, int(tested)
         return slices(self.kept[:n_kept].copy(), int(p.match_slices)), True, int(tested)

@@ -58,6 +58,7 @@ class Params:
     match_boxes: int
     match_stride: int
     match_resolution: float
+    match_heading_resolution: float
     relocalise: tuple[float, float]
     match_slices: int
     map_sets: bool
@@ -98,6 +99,7 @@ class Params:
             submap_width=float(cfg["lidar.submap_width"]), submap_overlap=float(cfg["lidar.submap_overlap"]),
             match_boxes=int(cfg["lidar.match_boxes"]), match_stride=int(cfg["lidar.match_stride"]),
             match_resolution=float(cfg["lidar.match_resolution"]),
+            match_heading_resolution=float(cfg["lidar.match_heading_resolution"]),
             relocalise=tuple(float(v) for v in cfg["lidar.relocalise"]),
             match_slices=int(cfg["lidar.match_slices"]), map_sets=bool(cfg["lidar.map_sets"]),
             poses_known=bool(cfg["lidar.poses_known"]), known_poses=known,
