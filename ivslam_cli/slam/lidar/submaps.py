@@ -233,7 +233,7 @@ def _search_loops(j: int, scan: int, gb: np.ndarray, submaps, active, graph: L.A
     for (_, _, s, prior, narrow), (paved, pave_nt, roots, box, nb, nt) in zip(
             cands[: params.loop_candidates],
             track.map(lambda c: _loop_match(track.matcher(), scan, c[2], c[3], c[4], params, reach,
-                                            track.q_for([(scan, None), (c[2].anchor_scan, None)])),
+                                            track.q_for((scan, c[2].anchor_scan))),
                       cands[: params.loop_candidates])):
         if paved:
             graph.paved += 1
@@ -365,11 +365,11 @@ class _Track:
             s.pending.result()
             s.pending = None
 
-    def q_for(self, refs) -> int | None:
-        """The q of a match against ``refs``: q_retry when one of them was q-relaxed, else the
-        default (None)."""
+    def q_for(self, scans) -> int | None:
+        """The q of a match among ``scans`` (indices): q_retry when one of them was q-relaxed,
+        else the default (None)."""
         p = self.p
-        if p.q_retry > p.q_beams and any(self.relaxed[i] for i, _ in refs):
+        if p.q_retry > p.q_beams and any(self.relaxed[i] for i in scans):
             return p.q_retry
         return None
 
@@ -397,7 +397,7 @@ class _Track:
                 refs = [(s.anchor_scan, np.zeros(6))]
                 if s.last_row >= 0 and s.last_row != s.anchor_row:
                     refs.append((int(used[s.last_row]), s.last_box))
-                q = self.q_for(refs)
+                q = self.q_for(i for i, _ in refs)
                 union, ok, nt = matcher.match(scan, roots, s.tmap, refs, q=q)
                 out.tested += nt
                 reloc = False

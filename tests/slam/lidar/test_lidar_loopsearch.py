@@ -12,48 +12,19 @@ as the prior (measured: 1.5 m past the mapped scans, ±1 m and any heading keeps
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ivslam_cli.config import resolve_config
-from ivslam_cli.paving.tiles import TileMap
-from ivslam_cli.report.core import relative_pose, truth_at
-from ivslam_cli.simulate import SimConfig, simulate
-from ivslam_cli.slam.lidar import Params as LidarParams
 from ivslam_cli.slam.lidar.loopsearch import PAVE_BUDGET, PAVE_LEAF, PAVE_LEAVES, PAVE_STRIDE, merge_leaves, pave
-from ivslam_cli.slam.lidar.map_update import update_map
-from ivslam_cli.slam.lidar.matcher import Matcher, hull
+from ivslam_cli.slam.lidar.matcher import hull
 from tests.helpers.hyp import examples
+from tests.helpers.lidar_submap import inside as _inside
+from tests.helpers.lidar_submap import prior_around as _prior
+from tests.helpers.lidar_submap import true_submap as _setup
 
-MAPPED = 50  # scans 0..49 (2.5 m of travel) at their true poses make the submap (the anchor: scan 0)
 PROBES = (60, 90, 120)  # later scans searched against it: 0.5 m, 1.5 m and 2.5 m of travel beyond
-
-
-@lru_cache(maxsize=1)
-def _setup():
-    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=3, steps=130))
-    params = LidarParams.from_config(resolve_config(None, {}, log_bounds=log.bounds))
-    sc = log.scans
-    true = truth_at(log.truth, sc.stamp)
-    rel = relative_pose(np.repeat(true[:1], len(sc), axis=0), true)  # every scan in scan 0's frame
-    boxes = np.zeros((len(sc), 6))
-    boxes[:, 0::2] = rel - 1e-9
-    boxes[:, 1::2] = rel + 1e-9
-    tmap = TileMap(params.eps)
-    update_map(tmap, sc, boxes, params.beams, order=np.arange(MAPPED))
-    return log, params, Matcher(params, sc), tmap, rel
-
-
-def _inside(p, boxes):
-    return bool(np.any((boxes[:, 0] <= p[0]) & (p[0] <= boxes[:, 1]) & (boxes[:, 2] <= p[1]) & (p[1] <= boxes[:, 3])
-                       & (boxes[:, 4] <= p[2]) & (p[2] <= boxes[:, 5])))
-
-
-def _prior(p, lo, hi, th_lo, th_hi):
-    return np.array([p[0] - lo[0], p[0] + hi[0], p[1] - lo[1], p[1] + hi[1], p[2] - th_lo, p[2] + th_hi])
 
 
 @settings(max_examples=examples(ci=100))

@@ -17,7 +17,10 @@ from hypothesis import strategies as st
 
 from ivslam_cli.slam.lidar.matcher import Matcher, hull
 from tests.helpers.hyp import examples
-from tests.slam.lidar.test_lidar_loopsearch import MAPPED, _inside, _prior, _setup
+from tests.helpers.lidar_submap import MAPPED
+from tests.helpers.lidar_submap import inside as _inside
+from tests.helpers.lidar_submap import prior_around as _prior
+from tests.helpers.lidar_submap import true_submap as _setup
 
 COARSE = 0.02
 
