@@ -1,8 +1,9 @@
 """A submap of scans mapped at their true poses, and scans to match against it: the fixture of
-the matcher and loop-search tests."""
+the matcher and loop-search tests; logs with phantom returns (people near the laser)."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from functools import lru_cache
 
 import numpy as np
@@ -45,3 +46,17 @@ def inside(p, boxes) -> bool:
 def prior_around(p, lo, hi, th_lo, th_hi) -> np.ndarray:
     """The box (6,) from ``p − lo`` to ``p + hi`` in x, y and ``θ − th_lo`` to ``θ + th_hi``."""
     return np.array([p[0] - lo[0], p[0] + hi[0], p[1] - lo[1], p[1] + hi[1], p[2] - th_lo, p[2] + th_hi])
+
+
+def phantoms(seed=2, first=20, last=26, every=40, factor=0.3, steps=40):
+    """``(log, bad)``: a rooms log and its copy whose scans ``first … last − 1`` have every
+    ``every``-th valid beam returning at ``factor`` of its range (a person close to the laser:
+    at the default 40, about 17 beams of a scan break the static world)."""
+    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=seed, steps=steps))
+    sc = log.scans
+    r = sc.ranges.copy()
+    for k in range(first, last):
+        idx = np.arange(sc.offsets[k], sc.offsets[k + 1])
+        idx = idx[sc.valid[idx]][::every]
+        r[idx] *= factor
+    return log, replace(log, scans=replace(sc, ranges=r))

@@ -255,6 +255,9 @@ def solve(log: LogData, params: Params, progress=None) -> LidarOutput:
         assumption += (f"; {len(tracking.q_relaxed)} scan(s) contradicted the static world beyond q_beams beams "
                        f"(empty events q_relaxed): their poses hold if at most q = {params.q_retry} of their "
                        "beams (and of their references') break it")
+        if tracking.q_held:
+            assumption += (f", and so do those of the {len(tracking.q_held)} scan(s) within q_hold = "
+                           f"{params.q_hold:g} s after one (matched with q = {params.q_retry} from the start)")
     if tracking is not None and tracking.relocalised:
         assumption += (f"; {len(tracking.relocalised)} motion step(s) broke their bounds, or more than "
                        f"q_beams beams of their scans did (empty events motion_outlier): their scans were relocalised, assuming the true pose within "
@@ -289,6 +292,7 @@ def solve(log: LogData, params: Params, progress=None) -> LidarOutput:
             "scans_contracted": int(tracking.contracted.sum()),
             "scans_relocalised": int(len(tracking.relocalised)),
             "scans_q_relaxed": int(len(tracking.q_relaxed)),
+            "scans_q_held": int(len(tracking.q_held)),
             "scans_contradicting": int(len({j for j, _, _ in tracking.contradicted})),
             "contraction_boxes_tested": int(tracking.tested),
             "pose_set_cells": int(tracking.set_cells),

@@ -8,9 +8,10 @@ LiDAR localisation keeps scans relative to keyframes:
 
 1. **dead reckoning in the anchor frame**: the motion steps of :mod:`ivslam_cli.slam.motion`
    from the anchor's node (exact, up to the scan's reach of its node);
-2. **contraction** of that relative box against the anchor scan (interval scan matching,
-   both scans' continuous free space: :mod:`.scanmatch`) and against the submap's map built
-   so far (a set inversion in pose space: :mod:`.contract`), q-relaxed over the beams;
+2. **contraction** of that relative box against the anchor scan and the previous scan (both
+   scans' continuous free space) and against the submap's map built so far: a set inversion
+   in pose space (:mod:`.matcher`), q-relaxed over the beams; one scan's matches in all its
+   submaps first, then what they prove (:mod:`.submap_track`);
 3. **mapping** of the scan into its submap with its relative box (:mod:`.map_update`):
    P_EMPTY (inner) and P_OBSTACLE (outer) proven *in the anchor's frame*; with the match's
    pose set, also the cells every box of it proves free (:mod:`.map_union`).
@@ -28,16 +29,13 @@ box then contracts (forward), and a backward pass over the motion steps smooths.
 
 Guarantee: if the initial pose is in its box, the odometry within its bounds, every valid
 return within the range and bearing bounds (the static world but for at most ``q_beams`` beams
-per scan), then every relative box holds the true pose of its scan in its anchor's frame, every
+per scan, ``q_retry`` for the scans the run names q-relaxed), then every relative box holds the true pose of its scan in its anchor's frame, every
 global box the true pose, and each submap's P_EMPTY is free in its anchor's frame.
 """
 
 from __future__ import annotations
 
 import math
-import os
-import threading
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -47,14 +45,14 @@ from ivslam_cli.slam.lidar import loops as L
 from ivslam_cli.logs.model import LogData, Scans
 from ivslam_cli.paving.tiles import TileMap
 from ivslam_cli.slam.lidar.loopsearch import PAVE_BUDGET, PAVE_LEAF, PAVE_LEAVES, PAVE_STRIDE, pave
-from ivslam_cli.slam.lidar.map_update import check_extent, extent_limits, map_union_free, update_map
-from ivslam_cli.slam.lidar.matcher import Matcher, hull
+from ivslam_cli.slam.lidar.map_update import extent_limits
+from ivslam_cli.slam.lidar.matcher import hull
 from ivslam_cli.slam.lidar.params import Params
 from ivslam_cli.slam.lidar.prediction import PosePrediction, trajectory
+from ivslam_cli.slam.lidar.submap_track import Track, reset_node, threads, width
 from ivslam_cli.slam.motion_kernel import (
     meet_node,
     propagate,
-    propagate_boxes,
     smooth_backward,
     smooth_backward_range,
     widen_boxes,
@@ -111,20 +109,8 @@ class SubmapTracking:
     open_loop: np.ndarray | None = None  # (S', 6) global boxes from the chain of anchors only (no loop edges)
     anchor_before: np.ndarray | None = None  # (n_submaps, 6) anchor boxes from the chain only
     set_cells: int = 0  # cells first proven free by a scan's pose set beyond its hull, over the submaps
-
-
-def _met_rows(boxes: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """The boxes (n, 6) met with ``r`` (6,), the empty meets left out: (n', 6)."""
-    lo = np.maximum(boxes[:, 0::2], r[0::2])
-    hi = np.minimum(boxes[:, 1::2], r[1::2])
-    good = np.all(lo <= hi, axis=1)
-    out = np.empty((int(good.sum()), 6))
-    out[:, 0::2], out[:, 1::2] = lo[good], hi[good]
-    return out
-
-
-def _width(b: np.ndarray) -> float:
-    return max(b[1] - b[0], b[3] - b[2])
+    q_rematched: list = field(default_factory=list)  # (row, submap) matched again with q_retry: relaxed elsewhere
+    q_held: list = field(default_factory=list)  # rows matched with q_retry from the start (lidar.q_hold)
 
 
 def _centre(b: np.ndarray) -> tuple[float, float, float]:
@@ -138,24 +124,6 @@ def _new_submap(index: int, row: int, scan: int, k: int, G: np.ndarray, n_nodes:
     rp, rt = float(reach[0]), float(reach[1])  # node k holds the modelled pose, within reach of the scan's
     P[0] = [[-rp, rp], [-rp, rp], [-rt, rt]]
     return Submap(index, row, scan, k, G.copy(), TileMap(eps), P, np.zeros(max(n_nodes - k - 1, 0), np.int64), k)
-
-
-def _reset_node(P, k: int, box: np.ndarray, rp: float, rt: float) -> None:
-    """``P[k]`` = the robot box (6,) of an event at node ``k`` widened by its reach."""
-    P[k, 0] = box[0] - rp, box[1] + rp
-    P[k, 1] = box[2] - rp, box[3] + rp
-    P[k, 2] = box[4] - rt, box[5] + rt
-    P[k, :, 0] = np.nextafter(P[k, :, 0], -np.inf)
-    P[k, :, 1] = np.nextafter(P[k, :, 1], np.inf)
-
-
-def _relative_box(s: Submap, m, j: int, k: int) -> np.ndarray:
-    """Propagate submap ``s``'s trajectory to node ``k`` and return scan row ``j``'s box in its frame."""
-    propagate(s.P, m.kind[s.k0:], m.U[s.k0:], s.events, s.k_prev - s.k0, k - s.k0)
-    s.k_prev = k
-    out = np.empty((1, 6))
-    widen_boxes(s.P, np.array([k - s.k0]), m.reach[j:j + 1], out)
-    return out[0]
 
 
 def _anchor_boxes(submaps) -> np.ndarray:
@@ -296,170 +264,6 @@ def _loop_match(matcher, scan: int, s: Submap, prior: np.ndarray, narrow: bool, 
     return not narrow, pave_nt, roots, np.column_stack([lo, hi]).reshape(6), nb, nt
 
 
-@dataclass
-class _Tracked:
-    """What tracking one scan in one submap found (the caller records it, in submap order)."""
-
-    tested: int = 0
-    q_relaxed: bool = False
-    relocalised: bool = False
-    contradicted: bool = False
-    contracted: bool = False
-    res: object = None  # the map update's result when the scan was mapped into the submap
-    set_cells: int = 0  # cells its pose set proved free that the submap did not hold yet (lidar.map_sets)
-    last: tuple = ()  # the submap's reference scan before this one became it (row, box)
-
-
-class _Track:
-    """The per-scan work in each active submap — dead reckoning in its frame, the match against
-    it, the map update — which touches nothing but that submap: the submaps of a scan are
-    tracked in parallel threads (the kernels release the GIL), with the same results as one
-    after the other. Each thread keeps its own matcher and buffers."""
-
-    def __init__(self, params: Params, scans: Scans, m, used: np.ndarray, extent, path, threads: int) -> None:
-        self.p, self.scans, self.m, self.used, self.extent, self.path = params, scans, m, used, extent, path
-        # scans matched with q_retry somewhere: up to q_retry of their beams may be wrong, so a
-        # match that uses one as a reference allows as many
-        self.relaxed = np.zeros(len(scans), bool)
-        self.local = threading.local()
-        self.pool = ThreadPoolExecutor(max_workers=threads) if threads > 1 else None
-
-    def close(self) -> None:
-        if self.pool is not None:
-            self.pool.shutdown()
-
-    def _buffers(self):
-        b = getattr(self.local, "b", None)
-        if b is None:
-            b = self.local.b = (Matcher(self.p, self.scans), np.zeros((len(self.scans), 6)), np.zeros(1, np.int64))
-        return b
-
-    def matcher(self) -> Matcher:
-        """This thread's matcher."""
-        return self._buffers()[0]
-
-    def map(self, f, items: list) -> list:
-        """``[f(x) for x in items]``, in parallel when it can."""
-        if self.pool is None or len(items) < 2:
-            return [f(x) for x in items]
-        return list(self.pool.map(f, items))
-
-    def submit(self, f, *args):
-        """``f(*args)`` on the pool (a future), or at once (None) without one."""
-        if self.pool is None:
-            f(*args)
-            return None
-        return self.pool.submit(f, *args)
-
-    def map_anchor(self, s: Submap) -> None:
-        """The anchor scan mapped into its own submap, at the frame's origin."""
-        _, all_boxes, one = self._buffers()
-        all_boxes[s.anchor_scan] = 0.0
-        one[0] = s.anchor_scan
-        update_map(s.tmap, self.scans, all_boxes, self.p.beams, order=one)
-
-    @staticmethod
-    def settle(s: Submap) -> None:
-        """Wait for ``s``'s pending map update (its errors are raised here)."""
-        if s.pending is not None:
-            s.pending.result()
-            s.pending = None
-
-    def q_for(self, scans) -> int | None:
-        """The q of a match among ``scans`` (indices): q_retry when one of them was q-relaxed,
-        else the default (None)."""
-        p = self.p
-        if p.q_retry > p.q_beams and any(self.relaxed[i] for i in scans):
-            return p.q_retry
-        return None
-
-    def one(self, s: Submap, j: int, k: int, scan: int, rp: float, rt: float) -> tuple[np.ndarray, _Tracked]:
-        """Scan row ``j`` (node ``k``) in submap ``s``: its relative box and what was found."""
-        params, m, used = self.p, self.m, self.used
-        self.settle(s)
-        matcher, all_boxes, one = self._buffers()
-        out = _Tracked()
-        if s.anchor_row == j:
-            r = np.zeros(6)  # the frame is the anchor's pose
-        else:
-            r = _relative_box(s, m, j, k)
-            if params.contract and np.all(np.isfinite(r)):
-                roots = r[None, :]
-                if s.union is not None and s.union_row >= 0:
-                    jp = s.union_row
-                    kp = int(m.node[jp])
-                    prop = np.empty_like(s.union)
-                    ok = propagate_boxes(s.P[kp - s.k0], s.union, m.reach[jp], m.kind[s.k0:], m.U[s.k0:],
-                                         kp - s.k0, k - s.k0, m.reach[j], prop)
-                    met = _met_rows(prop[ok], r)
-                    if met.shape[0]:
-                        roots = met
-                refs = [(s.anchor_scan, np.zeros(6))]
-                if s.last_row >= 0 and s.last_row != s.anchor_row:
-                    refs.append((int(used[s.last_row]), s.last_box))
-                q = self.q_for(i for i, _ in refs)
-                union, ok, nt = matcher.match(scan, roots, s.tmap, refs, q=q)
-                out.tested += nt
-                reloc = False
-                if not ok and params.q_retry > params.q_beams and q is None:
-                    # more than q beams contradict every predicted pose: people, glass, mixed
-                    # returns? match again allowing q_retry beams before doubting the motion
-                    union, ok, nt = matcher.match(scan, roots, s.tmap, refs, q=params.q_retry)
-                    out.tested += nt
-                    out.q_relaxed = bool(ok)
-                if not ok and params.relocalise[0] > 0:
-                    # no pose of the prediction agrees with the submap: the motion step broke
-                    # its bounds (an odometry jump)? search the relocalisation window around it
-                    wx, wt = params.relocalise
-                    wide = r + np.array([-wx, wx, -wx, wx, -wt, wt])
-                    union, ok, nt = matcher.match(scan, wide[None, :], s.tmap, refs, q=q)
-                    out.tested += nt
-                    if ok:
-                        reloc = out.relocalised = True
-                        r = wide
-                if not ok:
-                    out.contradicted = True
-                    s.union = r[None, :].copy()
-                else:
-                    s.union = union
-                    h = hull(union)
-                    lo = np.maximum(h[0::2], r[0::2])
-                    hi = np.minimum(h[1::2], r[1::2])
-                    if np.all(lo <= hi) and not np.array_equal(np.column_stack([lo, hi]).reshape(6), r):
-                        r = np.column_stack([lo, hi]).reshape(6)
-                        out.contracted = True
-                        if reloc:  # the trajectory restarts from the relocalised box
-                            _reset_node(s.P, k - s.k0, r, rp, rt)
-                        else:
-                            meet_node(s.P, k - s.k0, r, rp, rt)
-                s.union_row = j
-        # map the scan into the submap
-        if params.max_pose_width <= 0 or _width(r) <= params.max_pose_width:
-            check_extent(r, used[j:j + 1], self.extent, self.path)
-            all_boxes[scan] = r
-            one[0] = scan
-            out.res = update_map(s.tmap, self.scans, all_boxes, params.beams, order=one)
-            if params.map_sets and s.union is not None and s.union_row == j and s.union.shape[0] > 1:
-                # the cells every box of its pose set proves free, beyond the hull's
-                u = _met_rows(s.union, r)
-                if u.shape[0] > 1:
-                    out.set_cells = map_union_free(s.tmap, self.scans, scan, u, params.beams)
-            s.mapped.append(j)
-            out.last = (s.last_row, s.last_box)
-            s.last_row = j
-            s.last_box = r.copy()
-        return r, out
-
-
-def _threads(params: Params) -> int:
-    if params.threads > 0:
-        return params.threads
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except (AttributeError, OSError):
-        return max(1, os.cpu_count() or 1)
-
-
 def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> SubmapTracking:
     """Track and map every scan in submaps (see the module docstring); ``progress(fraction,
     label)``, if given, hears of every scan."""
@@ -479,10 +283,12 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
     compose_empty: list = []
     relocalised: list = []
     q_relaxed: list = []
+    q_rematched: list = []
+    q_held: list = []
     broken_global = False
     stats = np.zeros((len(scans), 6), np.int64)
     is_old = np.zeros(scans.ranges.shape[0], bool)
-    track = _Track(params, scans, m, used, extent, path, _threads(params))
+    track = Track(params, scans, m, used, extent, path, threads(params))
     g = np.empty(6)
     met = np.empty(6)
     tested = 0
@@ -513,18 +319,16 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                 s0 = _new_submap(0, j, scan, k, gb, n_nodes, m.reach[j], params.eps)
                 submaps.append(s0)
                 active.append(s0)
-            results = track.map(lambda s: track.one(s, j, k, scan, rp, rt), list(active))
-            if any(out.q_relaxed for _, out in results):
-                # up to q_retry of its beams may break the model: no reference for later scans
-                track.relaxed[scan] = True
-                for s, (_, out) in zip(active, results):
-                    if out.last:
-                        s.last_row, s.last_box = out.last
+            results, held = track.track(list(active), j, k, scan, rp, rt)
+            if held:
+                q_held.append(j)
             for s, (r, out) in zip(active, results):
                 tested += out.tested
                 set_cells += out.set_cells
                 if out.q_relaxed:
                     q_relaxed.append((j, s.index))
+                if out.q_rematched:
+                    q_rematched.append((j, s.index))
                 if out.relocalised:
                     relocalised.append((j, s.index))
                 if out.contradicted:
@@ -573,7 +377,7 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                     # anchor edge, which composes its relative box twice)
                     gb = _meet_loops(graph.loops[n_loops:], submaps, gb, compose_empty)
             if broken_global:
-                _reset_node(Pg, k, gb, rp, rt)
+                reset_node(Pg, k, gb, rp, rt)
                 broken_global = False
             else:
                 meet_node(Pg, k, gb, rp, rt)
@@ -594,7 +398,7 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
             r = relative[j]
             if j + 1 < S and newest.anchor_row != j and np.all(np.isfinite(r)) and np.all(np.isfinite(gb)) and (
                     math.hypot(c[0], c[1]) >= params.submap_distance or abs(c[2]) >= params.submap_turn
-                    or _width(r) >= params.submap_width):
+                    or width(r) >= params.submap_width):
                 newest.closes_at = travel + params.submap_overlap
                 s_new = _new_submap(len(submaps), j, scan, k, gb, n_nodes, m.reach[j], params.eps)
                 # the new anchor is mapped into its own submap (exact pose in its frame) while the
@@ -678,4 +482,4 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                           node_stamp=m.node_stamp, dropped=dropped)
     return SubmapTracking(pred, submaps, home, relative, mapped, contracted, contradicted, compose_empty,
                           relocalised, q_relaxed, forward, predicted, tested, smoothed, stats, is_old, graph, open_loop,
-                          anchor_before, set_cells)
+                          anchor_before, set_cells, q_rematched, q_held)

@@ -31,6 +31,7 @@ from ivslam_cli.simulate import SimConfig, simulate
 from ivslam_cli.slam.lidar import Params as LidarParams
 from ivslam_cli.slam.lidar.pipeline import run, solve, summary
 from tests.helpers.hyp import lanes, seeds
+from tests.helpers.lidar_submap import phantoms
 from tests.helpers.lidar_truth import assert_contained, hits_outside_obstacle, nearest_in_cones
 from tests.helpers.paths import CONFIGS, SAMPLE_LOGS as SAMPLES
 
@@ -350,21 +351,8 @@ def test_a_scan_contradicting_its_submap_is_an_empty_event():
     assert "contradiction" in out.consistency.assumption
 
 
-def _phantoms(seed=2, first=20, last=26, every=40, factor=0.3):
-    """Scans ``first..last-1`` with every ``every``-th valid beam returning at ``factor`` of its
-    range (a person close to the laser): more than q_beams = 5 beams break the static world."""
-    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=seed, steps=40))
-    sc = log.scans
-    r = sc.ranges.copy()
-    for k in range(first, last):
-        idx = np.arange(sc.offsets[k], sc.offsets[k + 1])
-        idx = idx[sc.valid[idx]][::every]
-        r[idx] *= factor
-    return log, replace(log, scans=replace(sc, ranges=r))
-
-
 def test_scans_beyond_q_beams_are_retried_with_q_retry_and_keep_the_truth():
-    log, bad = _phantoms()
+    log, bad = phantoms()
     cfg = resolve_config(None, {"lidar.q_beams": 5, "lidar.q_retry": 30}, log_bounds=log.bounds)
     res = run(bad, LidarParams.from_config(cfg))
     kinds = [str(c) for c in res.consistency.empty_events.constraint]

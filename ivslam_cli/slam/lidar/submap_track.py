@@ -1,0 +1,281 @@
+"""One scan tracked in the submaps that hold it: dead reckoning in each anchor's frame, the
+match against each submap, then the contraction and the map update.
+
+The two steps are apart because the q of a scan is one assumption over all its submaps. Each
+match first allows ``q_beams`` wrong beams; when no pose of some submap's prediction agrees
+with that many, the scan is matched there again allowing ``q_retry`` (it is *q-relaxed*). From
+then on only ``q_retry`` is assumed for that scan, so its matches in its other submaps are made
+again with ``q_retry`` before any of them contracts a pose or maps a cell. Whatever broke the
+static world (people, glass) is likely still there a moment later, and a scan with more than
+``q_beams`` such beams may still agree with some wrong pose: the scans of the next ``q_hold``
+seconds are *held*, matched with ``q_retry`` from the start. A q-relaxed or held scan is no
+reference (the "previous scan") for later scans, and every match against it allows ``q_retry``.
+
+Guarantee: if the scan's true pose is in its dead-reckoned box in a submap's frame, the
+submap's map is sound, and at most the q it was matched with of its beams (and of its
+references') break the static world, the box :meth:`Track.commit` returns holds the true pose
+in that frame, and the cells it maps are free (P_EMPTY) or may hold a surface (P_OBSTACLE) in
+that frame.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+from ivslam_cli.logs.model import Scans
+from ivslam_cli.slam.lidar.map_update import check_extent, map_union_free, update_map
+from ivslam_cli.slam.lidar.matcher import Matcher, hull
+from ivslam_cli.slam.lidar.params import Params
+from ivslam_cli.slam.motion_kernel import meet_node, propagate, propagate_boxes, widen_boxes
+
+
+def met_rows(boxes: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The boxes (n, 6) met with ``r`` (6,), the empty meets left out: (n', 6)."""
+    lo = np.maximum(boxes[:, 0::2], r[0::2])
+    hi = np.minimum(boxes[:, 1::2], r[1::2])
+    good = np.all(lo <= hi, axis=1)
+    out = np.empty((int(good.sum()), 6))
+    out[:, 0::2], out[:, 1::2] = lo[good], hi[good]
+    return out
+
+
+def width(b: np.ndarray) -> float:
+    """The larger x-y side of a pose box (6,)."""
+    return max(b[1] - b[0], b[3] - b[2])
+
+
+def reset_node(P, k: int, box: np.ndarray, rp: float, rt: float) -> None:
+    """``P[k]`` = the robot box (6,) of an event at node ``k`` widened by its reach."""
+    P[k, 0] = box[0] - rp, box[1] + rp
+    P[k, 1] = box[2] - rp, box[3] + rp
+    P[k, 2] = box[4] - rt, box[5] + rt
+    P[k, :, 0] = np.nextafter(P[k, :, 0], -np.inf)
+    P[k, :, 1] = np.nextafter(P[k, :, 1], np.inf)
+
+
+def relative_box(s, m, j: int, k: int) -> np.ndarray:
+    """Propagate submap ``s``'s trajectory to node ``k`` and return scan row ``j``'s box in its frame."""
+    propagate(s.P, m.kind[s.k0:], m.U[s.k0:], s.events, s.k_prev - s.k0, k - s.k0)
+    s.k_prev = k
+    out = np.empty((1, 6))
+    widen_boxes(s.P, np.array([k - s.k0]), m.reach[j:j + 1], out)
+    return out[0]
+
+
+def threads(params: Params) -> int:
+    """The tracking threads: ``lidar.threads``, or the CPUs this process may use when 0."""
+    if params.threads > 0:
+        return params.threads
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return max(1, os.cpu_count() or 1)
+
+
+@dataclass
+class Tracked:
+    """What tracking one scan in one submap found (the caller records it, in submap order)."""
+
+    dead_reckoned: np.ndarray | None = None  # (6,) the scan's box in the frame before any match
+    r: np.ndarray | None = None  # (6,) its box: the match's hull met with the prior (the anchor: 0)
+    matched: bool = False  # a match ran
+    ok: bool = False  # ... and some pose agreed with the submap
+    union: np.ndarray | None = None  # (m, 6) the kept pose set
+    q: int | None = None  # the q the match began with (None: q_beams)
+    tested: int = 0
+    q_relaxed: bool = False  # no pose agreed with q_beams beams; matched with q_retry
+    q_rematched: bool = False  # matched again with q_retry: the scan was q-relaxed in another submap
+    relocalised: bool = False
+    contradicted: bool = False
+    contracted: bool = False
+    res: object = None  # the map update's result when the scan was mapped into the submap
+    set_cells: int = 0  # cells its pose set proved free that the submap did not hold yet (lidar.map_sets)
+
+
+class Track:
+    """The per-scan work in each active submap, which touches nothing but that submap: the
+    submaps of a scan are matched, then committed, in parallel threads (the kernels release
+    the GIL), with the same results as one after the other. Each thread keeps its own matcher
+    and buffers."""
+
+    def __init__(self, params: Params, scans: Scans, m, used: np.ndarray, extent, path, n_threads: int) -> None:
+        self.p, self.scans, self.m, self.used, self.extent, self.path = params, scans, m, used, extent, path
+        # scans q-relaxed somewhere: up to q_retry of their beams may be wrong, so every match of
+        # one, or against one, allows as many
+        self.relaxed = np.zeros(len(scans), bool)
+        self.hold_until = -math.inf  # scans up to this stamp are matched with q_retry from the start
+        self.local = threading.local()
+        self.pool = ThreadPoolExecutor(max_workers=n_threads) if n_threads > 1 else None
+
+    def close(self) -> None:
+        if self.pool is not None:
+            self.pool.shutdown()
+
+    def _buffers(self):
+        b = getattr(self.local, "b", None)
+        if b is None:
+            b = self.local.b = (Matcher(self.p, self.scans), np.zeros((len(self.scans), 6)), np.zeros(1, np.int64))
+        return b
+
+    def matcher(self) -> Matcher:
+        """This thread's matcher."""
+        return self._buffers()[0]
+
+    def map(self, f, items: list) -> list:
+        """``[f(x) for x in items]``, in parallel when it can."""
+        if self.pool is None or len(items) < 2:
+            return [f(x) for x in items]
+        return list(self.pool.map(f, items))
+
+    def submit(self, f, *args):
+        """``f(*args)`` on the pool (a future), or at once (None) without one."""
+        if self.pool is None:
+            f(*args)
+            return None
+        return self.pool.submit(f, *args)
+
+    def map_anchor(self, s) -> None:
+        """The anchor scan mapped into its own submap, at the frame's origin."""
+        _, all_boxes, one = self._buffers()
+        all_boxes[s.anchor_scan] = 0.0
+        one[0] = s.anchor_scan
+        update_map(s.tmap, self.scans, all_boxes, self.p.beams, order=one)
+
+    @staticmethod
+    def settle(s) -> None:
+        """Wait for ``s``'s pending map update (its errors are raised here)."""
+        if s.pending is not None:
+            s.pending.result()
+            s.pending = None
+
+    def q_for(self, scans) -> int | None:
+        """The q of a match among ``scans`` (indices): q_retry when one of them was q-relaxed,
+        else the default (None)."""
+        p = self.p
+        if p.q_retry > p.q_beams and any(self.relaxed[i] for i in scans):
+            return p.q_retry
+        return None
+
+    def track(self, active: list, j: int, k: int, scan: int, rp: float, rt: float) -> tuple[list, bool]:
+        """Scan row ``j`` (node ``k``) in each of the ``active`` submaps: ``([(box, Tracked)],
+        held)``, ``held`` when the scan was matched with ``q_retry`` from the start (within
+        ``q_hold`` seconds of a q-relaxed scan)."""
+        p = self.p
+        t = float(self.scans.stamp[scan])
+        held = p.q_retry > p.q_beams and t <= self.hold_until
+        if held:
+            self.relaxed[scan] = True
+        outs = self.map(lambda s: self.match(s, j, k, scan, q=p.q_retry if held else None), active)
+        if any(o.q_relaxed for o in outs):
+            self.relaxed[scan] = True
+            self.hold_until = t + p.q_hold if p.q_hold > 0 else -math.inf
+            again = [i for i, o in enumerate(outs) if o.matched and o.q is None and not o.q_relaxed]
+            if p.q_retry > p.q_beams and again:
+                redo = self.map(lambda i: self.match(active[i], j, k, scan, q=p.q_retry,
+                                                     prior=outs[i].dead_reckoned), again)
+                for i, o in zip(again, redo):
+                    o.tested += outs[i].tested
+                    o.q_rematched = True
+                    outs[i] = o
+        relaxed = bool(self.relaxed[scan])
+        return self.map(lambda so: self.commit(so[0], j, k, scan, rp, rt, so[1], relaxed), list(zip(active, outs))), held
+
+    def match(self, s, j: int, k: int, scan: int, q: int | None = None, prior: np.ndarray | None = None) -> Tracked:
+        """Scan row ``j`` matched against submap ``s`` (nothing in ``s`` but its dead reckoning
+        changes): ``q`` beams allowed (default: as :meth:`q_for` says, with a ``q_retry`` retry);
+        ``prior`` the dead-reckoned box when it is known."""
+        params, m, used = self.p, self.m, self.used
+        self.settle(s)
+        matcher = self.matcher()
+        out = Tracked()
+        if s.anchor_row == j:
+            out.r = np.zeros(6)  # the frame is the anchor's pose
+            return out
+        r = relative_box(s, m, j, k) if prior is None else prior
+        out.dead_reckoned = out.r = r
+        if not (params.contract and np.all(np.isfinite(r))):
+            return out
+        roots = r[None, :]
+        if s.union is not None and s.union_row >= 0:
+            jp = s.union_row
+            kp = int(m.node[jp])
+            prop = np.empty_like(s.union)
+            ok = propagate_boxes(s.P[kp - s.k0], s.union, m.reach[jp], m.kind[s.k0:], m.U[s.k0:],
+                                 kp - s.k0, k - s.k0, m.reach[j], prop)
+            met = met_rows(prop[ok], r)
+            if met.shape[0]:
+                roots = met
+        refs = [(s.anchor_scan, np.zeros(6))]
+        if s.last_row >= 0 and s.last_row != s.anchor_row:
+            refs.append((int(used[s.last_row]), s.last_box))
+        if q is None:
+            q = self.q_for(i for i, _ in refs)
+        out.matched, out.q = True, q
+        union, ok, nt = matcher.match(scan, roots, s.tmap, refs, q=q)
+        out.tested += nt
+        if not ok and params.q_retry > params.q_beams and q is None:
+            # more than q beams contradict every predicted pose: people, glass, mixed
+            # returns? match again allowing q_retry beams before doubting the motion
+            union, ok, nt = matcher.match(scan, roots, s.tmap, refs, q=params.q_retry)
+            out.tested += nt
+            out.q_relaxed = bool(ok)
+        if not ok and params.relocalise[0] > 0:
+            # no pose of the prediction agrees with the submap: the motion step broke its
+            # bounds (an odometry jump)? search the relocalisation window around it
+            wx, wt = params.relocalise
+            wide = r + np.array([-wx, wx, -wx, wx, -wt, wt])
+            union, ok, nt = matcher.match(scan, wide[None, :], s.tmap, refs, q=q)
+            out.tested += nt
+            if ok:
+                out.relocalised = True
+                out.r = wide
+        out.ok, out.union = bool(ok), union
+        return out
+
+    def commit(self, s, j: int, k: int, scan: int, rp: float, rt: float, out: Tracked,
+               relaxed: bool) -> tuple[np.ndarray, Tracked]:
+        """What the match ``out`` of row ``j`` proved, into submap ``s``: its pose set and node
+        box contracted, the scan mapped with its box; it becomes the submap's reference scan
+        unless ``relaxed``. Returns ``(box, out)``."""
+        params = self.p
+        _, all_boxes, one = self._buffers()
+        r = out.r
+        if out.matched:
+            if not out.ok:
+                out.contradicted = True
+                s.union = r[None, :].copy()
+            else:
+                s.union = out.union
+                h = hull(out.union)
+                lo = np.maximum(h[0::2], r[0::2])
+                hi = np.minimum(h[1::2], r[1::2])
+                if np.all(lo <= hi) and not np.array_equal(np.column_stack([lo, hi]).reshape(6), r):
+                    r = np.column_stack([lo, hi]).reshape(6)
+                    out.contracted = True
+                    if out.relocalised:  # the trajectory restarts from the relocalised box
+                        reset_node(s.P, k - s.k0, r, rp, rt)
+                    else:
+                        meet_node(s.P, k - s.k0, r, rp, rt)
+            s.union_row = j
+        if params.max_pose_width <= 0 or width(r) <= params.max_pose_width:
+            check_extent(r, self.used[j:j + 1], self.extent, self.path)
+            all_boxes[scan] = r
+            one[0] = scan
+            out.res = update_map(s.tmap, self.scans, all_boxes, params.beams, order=one)
+            if params.map_sets and s.union is not None and s.union_row == j and s.union.shape[0] > 1:
+                # the cells every box of its pose set proves free, beyond the hull's
+                u = met_rows(s.union, r)
+                if u.shape[0] > 1:
+                    out.set_cells = map_union_free(s.tmap, self.scans, scan, u, params.beams)
+            s.mapped.append(j)
+            if not relaxed:
+                # up to q_retry of a relaxed scan's beams may break the model: no reference
+                s.last_row = j
+                s.last_box = r.copy()
+        return r, out
