@@ -53,6 +53,9 @@ def _options(f):
 @click.option("--max-range", type=float, default=None, help="Landmark sensor max range [m].")
 @click.option("--fov", type=float, default=None, help="Landmark sensor half field of view [rad].")
 @click.option("--speed", type=float, default=0.5, show_default=True, help="Nominal speed [m/s].")
+@click.option("--sweep", type=float, default=0.0, show_default=True,
+              help="LiDAR: seconds from a scan's stamp (its first beam) to its last beam; each beam is "
+                   "taken from the robot pose at its own time (a URG-04LX: 0.067). 0: every beam at the stamp.")
 @click.option("--noise", type=click.Choice(NOISES), default="uniform", show_default=True,
               help="In-bound error distribution (edges = at the bound).")
 @click.option("--outlier-rate", type=float, default=0.0, show_default=True,
@@ -64,7 +67,7 @@ def _options(f):
 @_options
 @click.option("--force", is_flag=True, help="Overwrite an existing output.")
 def command(scenario, output, fmt, seed, steps, duration, rate, landmarks, world_size, world, sensor,
-            beam_model, min_range, max_range, fov, speed, noise, outlier_rate, outlier_magnitude,
+            beam_model, min_range, max_range, fov, speed, sweep, noise, outlier_rate, outlier_magnitude,
             wrong_association_rate, force, **bounds) -> None:
     """Simulate a log with ground truth (true poses, map, bounds, outliers).
 
@@ -89,7 +92,7 @@ def command(scenario, output, fmt, seed, steps, duration, rate, landmarks, world
     cfg = SimConfig(scenario=scenario, seed=seed, steps=steps, duration=duration, rate=rate,
                     landmarks=landmarks, world_size=world_size, world=world, sensor=sensor,
                     beam_model=beam_model, min_range=min_range, max_range=max_range, fov=fov,
-                    speed=speed, noise=noise,
+                    speed=speed, sweep=sweep, noise=noise,
                     bounds={k: v for k, v in bounds.items() if v is not None},
                     outlier_rate=outlier_rate, outlier_magnitude=outlier_magnitude,
                     wrong_association_rate=wrong_association_rate)

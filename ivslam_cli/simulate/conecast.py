@@ -90,6 +90,48 @@ def cone_scans(pose: np.ndarray, beam_angle: np.ndarray, half_width: float,
     return out
 
 
+@njit(cache=True)
+def swept_cone_scans(pose: np.ndarray, rate: np.ndarray, mount: np.ndarray, beam_angle: np.ndarray,
+                     beam_time: np.ndarray, half_width: float, segments: np.ndarray) -> np.ndarray:
+    """:func:`cone_scans` with each beam taken at its own time: beam ``b`` of scan ``i`` from the
+    sensor of the robot pose ``pose[i] + beam_time[b] · rate[i]`` (robot poses ``(T, 3)`` and
+    their rates of change ``(T, 3)``; ``mount`` (3,) the sensor on the robot)."""
+    n, m, k = pose.shape[0], beam_angle.shape[0], segments.shape[0]
+    out = np.empty((n, m))
+    for i in range(n):
+        for b in range(m):
+            t = beam_time[b]
+            x, y, th = pose[i, 0] + t * rate[i, 0], pose[i, 1] + t * rate[i, 1], pose[i, 2] + t * rate[i, 2]
+            c, s = math.cos(th), math.sin(th)
+            ox, oy = x + c * mount[0] - s * mount[1], y + s * mount[0] + c * mount[1]
+            a = th + mount[2] + beam_angle[b]
+            cx, cy = math.cos(a), math.sin(a)
+            lx, ly = math.cos(a - half_width), math.sin(a - half_width)
+            rx, ry = math.cos(a + half_width), math.sin(a + half_width)
+            best = np.inf
+            for j in range(k):
+                px, py = segments[j, 0] - ox, segments[j, 1] - oy
+                ex, ey = segments[j, 2] - segments[j, 0], segments[j, 3] - segments[j, 1]
+                qx, qy = px + ex, py + ey
+                lo, hi = _clip(cx * px + cy * py, cx * qx + cy * qy, 0.0, 1.0)  # ahead
+                if lo > hi:
+                    continue
+                lo, hi = _clip(lx * py - ly * px, lx * qy - ly * qx, lo, hi)  # left of a - h
+                if lo > hi:
+                    continue
+                lo, hi = _clip(px * ry - py * rx, qx * ry - qy * rx, lo, hi)  # right of a + h
+                if lo > hi:
+                    continue
+                e2 = ex * ex + ey * ey
+                tp = -(px * ex + py * ey) / e2 if e2 > 0.0 else 0.0
+                tc = min(hi, max(lo, tp))
+                d = math.hypot(px + tc * ex, py + tc * ey)
+                if d < best:
+                    best = d
+            out[i, b] = best
+    return out
+
+
 def cone_cast(pose: np.ndarray, beam_angle: np.ndarray, half_width: float,
               segments: np.ndarray) -> np.ndarray:
     """:func:`cone_scans` on any array-likes (made contiguous float64)."""

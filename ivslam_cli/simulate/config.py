@@ -49,6 +49,7 @@ class SimConfig:
     max_range: float | None = None
     fov: float | None = None  # half field of view [rad] (landmarks)
     speed: float = 0.5  # nominal linear speed [m/s]
+    sweep: float = 0.0  # lidar: seconds from a scan's stamp (its first beam) to its last beam
     noise: str = "uniform"
     bounds: dict[str, float] = field(default_factory=dict)  # overrides of DEFAULT_BOUNDS
     outlier_rate: float = 0.0
@@ -104,6 +105,10 @@ class SimConfig:
             raise ConfigError(f"unknown noise '{self.noise}' (choose from {', '.join(NOISES)})")
         if self.beam_model not in BEAM_MODELS:
             raise ConfigError(f"unknown beam model '{self.beam_model}' (choose from {', '.join(BEAM_MODELS)})")
+        if not (math.isfinite(self.sweep) and self.sweep >= 0.0):
+            raise ConfigError(f"--sweep must be a finite time >= 0, got {self.sweep}")
+        if self.sweep > 0.0 and (self.scenario != "lidar" or self.beam_model != "cone"):
+            raise ConfigError("--sweep applies to the lidar scenario with the cone beam model")
         if self.steps is not None and self.steps < 2:
             raise ConfigError(f"--steps must be >= 2, got {self.steps}")
         if self.steps is not None and self.duration is not None:

@@ -15,7 +15,7 @@ from ivslam_cli.errors import ConfigError
 from ivslam_cli.logs.model import GroundTruth, LogData, Provenance, Scans
 from ivslam_cli.simulate import noise
 from ivslam_cli.simulate.common import base_meta
-from ivslam_cli.simulate.conecast import cone_cast
+from ivslam_cli.simulate.conecast import cone_cast, swept_cone_scans
 from ivslam_cli.simulate.config import SimConfig
 from ivslam_cli.simulate.motion import T0, make_stamps, step_scalar
 from ivslam_cli.simulate.odometry import measure_twist
@@ -115,7 +115,17 @@ def simulate_lidar(cfg: SimConfig, progress=None) -> LogData:
     odo, odo_out = measure_twist(rngs[3], stamp, pose[0], twist, bounds, cfg.noise,
                                  cfg.outlier_rate, cfg.outlier_magnitude)
     sensor_pose = laser_poses(pose, prof.mount)
-    if cfg.beam_model == "cone":
+    if cfg.sweep > 0.0:
+        # each beam from the robot pose at its own time: poses between two stamps interpolated
+        th = np.unwrap(pose[:, 2])
+        p = np.column_stack([pose[:, :2], th])
+        rate_ = np.empty_like(p)
+        rate_[:-1] = np.diff(p, axis=0) / np.diff(stamp)[:, None]
+        rate_[-1] = rate_[-2] if n > 1 else 0.0
+        beam_time = np.linspace(0.0, cfg.sweep, prof.beams)
+        d = swept_cone_scans(p, rate_, np.asarray(prof.mount, float), prof.beam_angles(), beam_time,
+                             float(bounds["beam_angle"]), np.ascontiguousarray(world.segments, float)).ravel()
+    elif cfg.beam_model == "cone":
         d = cone_cast(sensor_pose, prof.beam_angles(), bounds["beam_angle"], world.segments).ravel()
     else:
         d = cast(sensor_pose, prof.beam_angles(), world.segments).ravel()
@@ -126,7 +136,7 @@ def simulate_lidar(cfg: SimConfig, progress=None) -> LogData:
                   range_max=full * prof.range_max,
                   offsets=np.arange(n + 1, dtype=np.int64) * prof.beams, ranges=ranges, valid=valid,
                   mount=prof.mount, frame_id="laser")
-    meta = base_meta(cfg, rate, n) | {"sensor": prof.as_dict(), "beam_model": cfg.beam_model,
+    meta = base_meta(cfg, rate, n) | {"sensor": prof.as_dict(), "beam_model": cfg.beam_model, "sweep": cfg.sweep,
                                       "world": world.name, "clearance": CLEARANCE}
     truth = GroundTruth(pose_stamp=stamp.copy(), pose=pose, world=world.segments.copy(),
                         outliers={"scans": out, "odometry": odo_out})
