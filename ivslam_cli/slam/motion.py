@@ -246,7 +246,9 @@ class MotionSteps:
     (N-1, 2) its heading change; ``lag`` (N, 2): true pose = modelled pose ± (lag_xy, lag_th)
     at each node (twist odometry; zero for pose increments); ``node`` (M,) the node of each
     event and ``reach`` (M, 2) the (position, heading) half-widths by which that node's box is
-    widened to hold the pose at the event's own stamp."""
+    widened to hold the pose at the event's own stamp; ``rate`` (N-1, 2) upper bounds of
+    ``|v|`` and ``|ω|`` within each step (twist), NaN for pose increments (nothing is known
+    within a step but that the robot stays within its bound)."""
 
     motion: str
     node_stamp: np.ndarray
@@ -257,6 +259,38 @@ class MotionSteps:
     lag: np.ndarray
     node: np.ndarray
     reach: np.ndarray
+    rate: np.ndarray | None = None
+
+    def reach_between(self, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
+        """Upper bounds ``(d, a)`` (M, 2) of how far the robot moves and turns between the times
+        ``t0`` and ``t1`` (each (M,), ``t0 <= t1``): with a twist, the largest speed and turn
+        rate of each step met times the time spent in it, plus twice the lag; with pose
+        increments, the whole bound of each step met. Clipped to the odometry's span (the
+        first and last steps go on)."""
+        ns = self.node_stamp
+        n1 = ns.shape[0] - 1
+        out = np.zeros((t0.shape[0], 2))
+        if n1 < 1:
+            return out
+        i0 = np.clip(np.searchsorted(ns, t0, side="right") - 1, 0, n1 - 1)
+        i1 = np.clip(np.searchsorted(ns, t1, side="left") - 1, 0, n1 - 1)
+        travel = self.step_travel
+        turn = np.maximum(np.abs(self.step_dth[:, 0]), np.abs(self.step_dth[:, 1]))
+        for e in range(t0.shape[0]):
+            d = a = 0.0
+            for k in range(int(i0[e]), int(max(i0[e], i1[e])) + 1):
+                if self.rate is not None and np.isfinite(self.rate[k, 0]):
+                    lo = t0[e] if k == i0[e] else ns[k]
+                    hi = t1[e] if k == i1[e] or k == n1 - 1 else ns[k + 1]
+                    tau = max(hi - lo, 0.0) * (1.0 + 1e-12)
+                    d += self.rate[k, 0] * tau
+                    a += self.rate[k, 1] * tau
+                else:
+                    d += travel[k]
+                    a += turn[k]
+            lag = self.lag[int(i0[e])] + self.lag[int(max(i0[e], i1[e])) + 1]
+            out[e] = d + lag[0], a + lag[1]
+        return np.nextafter(out * (1.0 + 1e-12), np.inf)
 
 
 def motion_steps(odo, bounds: MotionBounds, s: np.ndarray, prefer: str = "twist", max_step: float = 0.0,
@@ -299,6 +333,7 @@ def motion_steps(odo, bounds: MotionBounds, s: np.ndarray, prefer: str = "twist"
         kind = np.full(n - 1, K.INCREMENT, np.int8)
         step_travel = U[:, 0, 1].copy()
         step_dth = iv.mul(W, dt)
+        rate = np.column_stack([vmax, np.maximum(np.abs(W[:, 0]), np.abs(W[:, 1]))])
         node = np.searchsorted(node_stamp, s)
         # the true pose at an observation is within the lag of the modelled one
         reach = lag[node]
@@ -339,12 +374,13 @@ def motion_steps(odo, bounds: MotionBounds, s: np.ndarray, prefer: str = "twist"
         exact = t[node] == su
         reach = np.column_stack([np.where(exact, 0.0, step_travel[k]), np.where(exact, 0.0, step_turn[k])])
         lag = np.zeros((n, 2))
+        rate = np.full((n - 1, 2), np.nan)
     else:
         raise IvslamError("the odometry has neither twist nor poses", path)
 
     return MotionSteps(motion=motion, node_stamp=node_stamp, kind=kind, U=np.ascontiguousarray(U),
                        step_travel=step_travel, step_dth=step_dth, lag=lag, node=node.astype(np.int64),
-                       reach=np.ascontiguousarray(reach, dtype=np.float64))
+                       reach=np.ascontiguousarray(reach, dtype=np.float64), rate=rate)
 
 
 def choose_motion(log: LogData, want: str, bounds: MotionBounds) -> str:

@@ -32,8 +32,10 @@ one point of it is looked up in that scan's free ranges (a necessary condition,
 the exact test's time, with the same result.
 
 Guarantee: if the true relative pose is in the prior, the bounds hold, the world is static but
-for at most ``q`` beams of the scan and ``q`` of each rule's references, and the submap's
-P_EMPTY is sound, the true pose is in the union kept. Interval bounds are rounded outward; the
+for at most ``q`` beams of the scan and ``q`` of each rule's references, each scan's beams are
+taken from poses within its ``sweep`` (how far the robot moves and turns from the scan's pose
+while they are taken: every pose tested is widened by it) and the submap's P_EMPTY is sound, the
+true pose is in the union kept. Interval bounds are rounded outward; the
 oriented regions and bearings are evaluated in floating point and widened by explicit bounds on
 their error (:data:`MARGIN_ABS` + :data:`MARGIN_REL` of the range; ``ATAN_ERR`` for the
 polynomial atan2), which dominate the roundings involved.
@@ -146,16 +148,23 @@ def witness_segments(ranges, valid, a0, inc, box, mx, my, myaw, r_abs, r_rel, r_
 
 @njit(cache=True)
 def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw, r_alpha,
-               cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref):
+               cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref, sw_d,
+               sw_a):
     """True if the sub-box ``b`` (6,) is excluded: more than ``q`` beams break rule A (their end
     points in the submap's proven-free cells, or in the free space of a reference scan: row
     ``r`` of ``ref_*``, its sensor within ``ref_c[r, 2]`` of ``ref_c[r, :2]``, its heading in
-    ``ref_th[r]``), or more than ``q`` witnesses break rule B, for every pose of ``b``."""
-    ox, oxh, oy, oyh, stl, sth = sensor_offset(b[4], b[5], mx, my, myaw)
-    sxl = dn(b[0] + ox)
-    sxh = upf(b[1] + oxh)
-    syl = dn(b[2] + oy)
-    syh = upf(b[3] + oyh)
+    ``ref_th[r]``), or more than ``q`` witnesses break rule B, for every pose of ``b``. The scan's
+    beams are taken from poses within ``sw_d`` (x, y) and ``sw_a`` (θ) of the scan's pose (its
+    sweep): each is tested over ``b`` widened by as much."""
+    bxl, bxh, byl, byh, btl, bth = b[0], b[1], b[2], b[3], b[4], b[5]
+    if sw_d > 0.0 or sw_a > 0.0:
+        bxl, bxh, byl, byh = dn(bxl - sw_d), upf(bxh + sw_d), dn(byl - sw_d), upf(byh + sw_d)
+        btl, bth = dn(btl - sw_a), upf(bth + sw_a)
+    ox, oxh, oy, oyh, stl, sth = sensor_offset(btl, bth, mx, my, myaw)
+    sxl = dn(bxl + ox)
+    sxh = upf(bxh + oxh)
+    syl = dn(byl + oy)
+    syh = upf(byh + oyh)
     ccx, ccy = 0.5 * (sxl + sxh), 0.5 * (syl + syh)
     hsx = upf(upf(0.5 * (sxh - sxl)) + 1e-15 * abs(ccx))
     hsy = upf(upf(0.5 * (syh - syl)) + 1e-15 * abs(ccy))
@@ -265,7 +274,7 @@ def split_axis(wx, wy, wt, fine):
 @njit(cache=True)
 def _search(box, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my,
             myaw, r_alpha, cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th,
-            n_ref, fine, reach, budget, bx, keys, heap):
+            n_ref, sw_d, sw_a, fine, reach, budget, bx, keys, heap):
     """The extreme of side ``side`` (0..5: x_lo, x_hi, y_lo, y_hi, θ_lo, θ_hi) over the poses of
     ``box`` not excluded (and in some root), by a best-first search: sub-boxes popped in the
     order of that side; excluded ones dropped, others split along the widest of x, y and
@@ -291,7 +300,8 @@ def _search(box, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_bea
             continue
         t += 1
         if _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw, r_alpha,
-                      cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref):
+                      cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref,
+                      sw_d, sw_a):
             continue
         s = split_axis(b[1] - b[0], b[3] - b[2], (b[5] - b[4]) * reach, fine)
         if s < 0:
@@ -342,8 +352,8 @@ def beam_table(ranges, valid, a0, inc, r_abs, r_rel, stride):
 
 @njit(cache=True, nogil=True)
 def bound_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_rel, r_alpha, cones, q, stride,
-                 W, n_w, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref, fine,
-                 reach, max_nodes, max_slices, kept, fine_th):
+                 W, n_w, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref, sw_d, sw_a,
+                 fine, reach, max_nodes, max_slices, kept, fine_th):
     """The poses of the prior ``roots[:n_roots]`` not excluded, as boxes per heading slice:
     first the heading's two bounds (best-first searches over the prior's hull, to leaves of
     ``fine_th``), then the heading interval cut into at most ``max_slices`` slices and each
@@ -367,7 +377,7 @@ def bound_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_
     for side in (4, 5):
         v, t = _search(hull, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w,
                        mx, my, myaw, r_alpha, cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc,
-                       ref_c, ref_th, n_ref, fine_th, reach, b_th, bx, keys, heap)
+                       ref_c, ref_th, n_ref, sw_d, sw_a, fine_th, reach, b_th, bx, keys, heap)
         tested += t
         if math.isnan(v):
             return 0, tested
@@ -397,7 +407,7 @@ def bound_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_
         for side in range(4):
             v, t = _search(sl, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
                            n_w, mx, my, myaw, r_alpha, cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0,
-                           ref_inc, ref_c, ref_th, n_ref, fine, reach, b_s, bx, keys, heap)
+                           ref_inc, ref_c, ref_th, n_ref, sw_d, sw_a, fine, reach, b_s, bx, keys, heap)
             tested += t
             if math.isnan(v):
                 ok = False
@@ -448,6 +458,21 @@ def slices(kept: np.ndarray, max_boxes: int) -> np.ndarray:
     return np.array(boxes).reshape(-1, 6)
 
 
+def swept_box(box: np.ndarray, sweep) -> np.ndarray:
+    """Robot boxes (..., 6) widened by ``sweep`` (..., 2) ``= (d, a)`` (how far the robot moves
+    and turns while a scan's beams are taken), rounded outward; ``box`` itself when there is
+    no sweep."""
+    sw = np.asarray(sweep, float)
+    if not np.any(sw > 0.0):
+        return box
+    d, a = sw[..., 0], sw[..., 1]
+    w = np.stack([-d, d, -d, d, -a, a], axis=-1)
+    out = np.asarray(box, float) + w
+    out[..., 0::2] = np.where(w[..., 0::2] != 0.0, np.nextafter(out[..., 0::2], -np.inf), out[..., 0::2])
+    out[..., 1::2] = np.where(w[..., 1::2] != 0.0, np.nextafter(out[..., 1::2], np.inf), out[..., 1::2])
+    return out
+
+
 def hull(boxes: np.ndarray) -> np.ndarray:
     """The hull (6,) of boxes (n, 6)."""
     return np.array([boxes[:, 0].min(), boxes[:, 1].max(), boxes[:, 2].min(), boxes[:, 3].max(),
@@ -461,8 +486,10 @@ class Matcher:
     with the submap, as boxes; ``kept_any`` False when none agrees (the data contradict the
     model beyond q: the caller keeps the prior and records it)."""
 
-    def __init__(self, params, scans) -> None:
+    def __init__(self, params, scans, sweep: np.ndarray | None = None) -> None:
         b = params.beams
+        # per scan, how far the robot may move and turn while its beams are taken (0: at once)
+        self.sweep = np.zeros((len(scans), 2)) if sweep is None else np.asarray(sweep, float)
         self.p = params
         self.scans = scans
         self.r_abs, self.r_rel, self.r_alpha = float(b.range_abs), float(b.range_rel), float(b.bearing)
@@ -495,7 +522,7 @@ class Matcher:
             r, v, a0, inc = self._scan(k)
             if r.shape[0] + n > self.W.shape[0]:
                 self.W = np.concatenate([self.W, np.empty((r.shape[0] + n, 6))])
-            box = np.ascontiguousarray(box, float)
+            box = swept_box(np.ascontiguousarray(box, float), self.sweep[k])
             n += witness_segments(r, v, a0, inc, box, mx, my, myaw, self.r_abs, self.r_rel, self.r_alpha,
                                int(self.p.match_stride if stride is None else stride), self.W[n:])
             ref_f[t, : r.shape[0]] = free_of(r, v, self.r_abs, self.r_rel)
@@ -532,7 +559,7 @@ class Matcher:
     def kernel_args(self, k: int, roots: np.ndarray, tmap, refs, stride: int, q: int | None = None):
         """The kernels' arguments for scan ``k`` over ``roots`` against ``tmap`` and ``refs``:
         ``(scan, rules, split_reach)`` — scan ``(ranges, valid, a0, inc)``, rules the tuple from
-        the mount to ``n_ref`` in :func:`bound_kernel`'s order — or None when nothing can be
+        the mount to ``sw_a`` in :func:`bound_kernel`'s order — or None when nothing can be
         tested (no valid beam, unbounded roots, no map and no reference)."""
         r, v, a0, inc = self._scan(k)
         self.last_beams = int(np.count_nonzero(v[::stride]))
@@ -543,13 +570,14 @@ class Matcher:
         cones = self.fill or self.r_alpha >= 0.5 * inc  # as the map kernels decide (their _cos_gap)
         refs = refs if cones else []
         n_w, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref = self.references(refs, stride)
-        m, wx0, wy0, nx, ny, use_grid = self.window(tmap, roots, reach)
+        m, wx0, wy0, nx, ny, use_grid = self.window(tmap, roots, reach + float(self.sweep[k, 0]))
         if not (use_grid or n_w or n_ref):
             return None
         mx, my, myaw = self.mount
         q = int(self.p.q_beams if q is None else q)
         rules = (mx, my, myaw, self.r_abs, self.r_rel, self.r_alpha, cones, q, stride, self.W, n_w,
-                 self.S, m, wx0, wy0, nx, ny, float(tmap.eps), use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref)
+                 self.S, m, wx0, wy0, nx, ny, float(tmap.eps), use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref,
+                 float(self.sweep[k, 0]), float(self.sweep[k, 1]))
         return (r, v, a0, inc), rules, float(np.median(z))
 
     def match(self, k: int, roots: np.ndarray, tmap, refs, budget: int | None = None,

@@ -104,7 +104,11 @@ def _assumption(params: Params, scans: Scans, pred, submaps: bool, not_mapped: i
         f"{pose_text}; the laser at mount {tuple(round(float(v), 6) for v in scans.mount)} (x, y, yaw) on the robot; "
         f"every valid return within ±(range_abs + range_rel·range) of the true distance to the nearest surface "
         f"in its beam's cone, within ±bearing of its nominal angle (bounds used: range_abs {bounds.range_abs:.6g}, "
-        f"range_rel {bounds.range_rel:.6g}, bearing {bounds.bearing:.6g}); invalid beams prove nothing; "
+        f"range_rel {bounds.range_rel:.6g}, bearing {bounds.bearing:.6g}) from the robot pose "
+        + ("at the scan's stamp; " if params.sweep == 0.0 or not submaps else
+           f"at its own time, within {abs(params.sweep):g} s {'after' if params.sweep > 0 else 'before'} the scan's "
+           "stamp (lidar.sweep); ")
+        + "invalid beams prove nothing; "
         + ("scans whose beam step exceeds twice the bearing bound (gaps between cones): "
            + ("nothing pokes between two adjacent beams (lidar.fill_gaps); " if bounds.fill_gaps else
               "no free space proven from them (an obstacle can hide between beams; see lidar.fill_gaps); ")
@@ -321,9 +325,10 @@ def solve(log: LogData, params: Params, progress=None) -> LidarOutput:
             "loop_pave_incomplete": int(tracking.graph.pave_incomplete),
         })
         from ivslam_cli.slam.lidar.global_map import render_global
+        from ivslam_cli.slam.lidar.matcher import swept_box
 
         t3 = time.perf_counter()
-        gm = render_global(scans, used, pred.boxes, bounds, eps, max_w, path)
+        gm = render_global(scans, used, swept_box(pred.boxes, tracking.sweep), bounds, eps, max_w, path)
         global_grid = gm.grid
         stats.update({
             "global_scans_mapped": gm.scans_mapped, "global_empty_cells": gm.empty_cells,

@@ -30,7 +30,7 @@ import numpy as np
 
 from ivslam_cli.logs.model import Scans
 from ivslam_cli.slam.lidar.map_update import check_extent, map_union_free, update_map
-from ivslam_cli.slam.lidar.matcher import Matcher, hull
+from ivslam_cli.slam.lidar.matcher import Matcher, hull, swept_box
 from ivslam_cli.slam.lidar.params import Params
 from ivslam_cli.slam.motion_kernel import meet_node, propagate, propagate_boxes, widen_boxes
 
@@ -104,8 +104,11 @@ class Track:
     the GIL), with the same results as one after the other. Each thread keeps its own matcher
     and buffers."""
 
-    def __init__(self, params: Params, scans: Scans, m, used: np.ndarray, extent, path, n_threads: int) -> None:
+    def __init__(self, params: Params, scans: Scans, m, used: np.ndarray, extent, path, n_threads: int,
+                 sweep: np.ndarray | None = None) -> None:
         self.p, self.scans, self.m, self.used, self.extent, self.path = params, scans, m, used, extent, path
+        # per scan (d, a): how far the robot moves and turns while its beams are taken
+        self.sweep = np.zeros((len(scans), 2)) if sweep is None else sweep
         # scans q-relaxed somewhere: up to q_retry of their beams may be wrong, so every match of
         # one, or against one, allows as many
         self.relaxed = np.zeros(len(scans), bool)
@@ -120,7 +123,7 @@ class Track:
     def _buffers(self):
         b = getattr(self.local, "b", None)
         if b is None:
-            b = self.local.b = (Matcher(self.p, self.scans), np.zeros((len(self.scans), 6)), np.zeros(1, np.int64))
+            b = self.local.b = (Matcher(self.p, self.scans, self.sweep), np.zeros((len(self.scans), 6)), np.zeros(1, np.int64))
         return b
 
     def matcher(self) -> Matcher:
@@ -143,7 +146,7 @@ class Track:
     def map_anchor(self, s) -> None:
         """The anchor scan mapped into its own submap, at the frame's origin."""
         _, all_boxes, one = self._buffers()
-        all_boxes[s.anchor_scan] = 0.0
+        all_boxes[s.anchor_scan] = swept_box(np.zeros(6), self.sweep[s.anchor_scan])
         one[0] = s.anchor_scan
         update_map(s.tmap, self.scans, all_boxes, self.p.beams, order=one)
 
@@ -265,13 +268,14 @@ class Track:
             s.union_row = j
         if params.max_pose_width <= 0 or width(r) <= params.max_pose_width:
             check_extent(r, self.used[j:j + 1], self.extent, self.path)
-            all_boxes[scan] = r
+            all_boxes[scan] = swept_box(r, self.sweep[scan])
             one[0] = scan
             out.res = update_map(s.tmap, self.scans, all_boxes, params.beams, order=one)
             if params.map_sets and s.union is not None and s.union_row == j and s.union.shape[0] > 1:
                 # the cells every box of its pose set proves free, beyond the hull's
                 u = met_rows(s.union, r)
                 if u.shape[0] > 1:
+                    u = swept_box(u, self.sweep[scan])
                     out.set_cells = map_union_free(s.tmap, self.scans, scan, u, params.beams)
             s.mapped.append(j)
             if not relaxed:

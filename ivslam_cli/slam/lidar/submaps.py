@@ -111,6 +111,7 @@ class SubmapTracking:
     set_cells: int = 0  # cells first proven free by a scan's pose set beyond its hull, over the submaps
     q_rematched: list = field(default_factory=list)  # (row, submap) matched again with q_retry: relaxed elsewhere
     q_held: list = field(default_factory=list)  # rows matched with q_retry from the start (lidar.q_hold)
+    sweep: np.ndarray | None = None  # (S', 2) per used row: motion bound (d, a) while its beams are taken
 
 
 def _centre(b: np.ndarray) -> tuple[float, float, float]:
@@ -288,7 +289,11 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
     broken_global = False
     stats = np.zeros((len(scans), 6), np.int64)
     is_old = np.zeros(scans.ranges.shape[0], bool)
-    track = Track(params, scans, m, used, extent, path, threads(params))
+    sweep = np.zeros((len(scans), 2))
+    if params.sweep != 0.0:
+        s_used = np.asarray(scans.stamp, float)[used]
+        sweep[used] = m.reach_between(s_used + min(params.sweep, 0.0), s_used + max(params.sweep, 0.0))
+    track = Track(params, scans, m, used, extent, path, threads(params), sweep)
     g = np.empty(6)
     met = np.empty(6)
     tested = 0
@@ -482,4 +487,4 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                           node_stamp=m.node_stamp, dropped=dropped)
     return SubmapTracking(pred, submaps, home, relative, mapped, contracted, contradicted, compose_empty,
                           relocalised, q_relaxed, forward, predicted, tested, smoothed, stats, is_old, graph, open_loop,
-                          anchor_before, set_cells, q_rematched, q_held)
+                          anchor_before, set_cells, q_rematched, q_held, sweep[used])
