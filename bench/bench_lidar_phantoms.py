@@ -18,28 +18,15 @@ from __future__ import annotations
 import sys
 import time
 
-import numpy as np
-
 from ivslam_cli.config import resolve_config
 from ivslam_cli.slam.lidar import Params as LidarParams
 from ivslam_cli.slam.lidar.pipeline import run
 from tests.helpers.lidar_submap import phantoms
-from tests.helpers.lidar_truth import containment, true_relative
+from tests.helpers.lidar_truth import containment, members_outside
 
 CASES = [(seed, w) for seed in (2, 3, 4, 5) for w in ((30, 55), (40, 60), (60, 90), (80, 120))]
 SETTINGS = {"q_hold 0": {"lidar.q_hold": 0.0}, "q_hold 1 s (default)": {}}
 Q = {"lidar.q_beams": 5, "lidar.q_retry": 30}
-
-
-def members_outside(log, res) -> tuple[int, int]:
-    """Submap members whose box misses the true relative pose, and the members."""
-    rel, box = true_relative(log, res)
-    box = np.asarray(box).reshape(-1, 6)
-    inside = np.all((box[:, 0:4:2] <= rel[:, :2]) & (rel[:, :2] <= box[:, 1:4:2]), axis=1)
-    lo, hi = box[:, 4], box[:, 5]
-    th = rel[:, 2] + 2 * np.pi * np.round(((lo + hi) / 2 - rel[:, 2]) / (2 * np.pi))
-    inside &= (lo <= th) & (th <= hi)
-    return int((~inside).sum()), int(inside.size)
 
 
 def main() -> int:

@@ -34,6 +34,25 @@ def _clip(f0, f1, lo, hi):
     return lo, min(hi, t)
 
 
+@njit(cache=True, inline="always")
+def _in_cone(px, py, ex, ey, tp, cx, cy, lx, ly, rx, ry):
+    """Distance from the sensor to the segment ``p + t e`` (relative to it; ``tp`` the foot of
+    the perpendicular) clipped to the cone of bisector ``(cx, cy)`` and edges ``(lx, ly)``,
+    ``(rx, ry)``; ``inf`` when no part of it is in the cone."""
+    qx, qy = px + ex, py + ey
+    lo, hi = _clip(cx * px + cy * py, cx * qx + cy * qy, 0.0, 1.0)  # ahead
+    if lo > hi:
+        return np.inf
+    lo, hi = _clip(lx * py - ly * px, lx * qy - ly * qx, lo, hi)  # left of a - h
+    if lo > hi:
+        return np.inf
+    lo, hi = _clip(px * ry - py * rx, qx * ry - qy * rx, lo, hi)  # right of a + h
+    if lo > hi:
+        return np.inf
+    t = min(hi, max(lo, tp))
+    return math.hypot(px + t * ex, py + t * ey)
+
+
 @njit(cache=True)
 def cone_scans(pose: np.ndarray, beam_angle: np.ndarray, half_width: float,
                segments: np.ndarray) -> np.ndarray:
@@ -71,19 +90,7 @@ def cone_scans(pose: np.ndarray, beam_angle: np.ndarray, half_width: float,
             for j in range(k):
                 if near[j] >= best:
                     continue
-                px, py, ex, ey = rel[j, 0], rel[j, 1], rel[j, 2], rel[j, 3]
-                qx, qy = px + ex, py + ey
-                lo, hi = _clip(cx * px + cy * py, cx * qx + cy * qy, 0.0, 1.0)  # ahead
-                if lo > hi:
-                    continue
-                lo, hi = _clip(lx * py - ly * px, lx * qy - ly * qx, lo, hi)  # left of a - h
-                if lo > hi:
-                    continue
-                lo, hi = _clip(px * ry - py * rx, qx * ry - qy * rx, lo, hi)  # right of a + h
-                if lo > hi:
-                    continue
-                t = min(hi, max(lo, tp[j]))
-                d = math.hypot(px + t * ex, py + t * ey)
+                d = _in_cone(rel[j, 0], rel[j, 1], rel[j, 2], rel[j, 3], tp[j], cx, cy, lx, ly, rx, ry)
                 if d < best:
                     best = d
             out[i, b] = best
@@ -112,20 +119,9 @@ def swept_cone_scans(pose: np.ndarray, rate: np.ndarray, mount: np.ndarray, beam
             for j in range(k):
                 px, py = segments[j, 0] - ox, segments[j, 1] - oy
                 ex, ey = segments[j, 2] - segments[j, 0], segments[j, 3] - segments[j, 1]
-                qx, qy = px + ex, py + ey
-                lo, hi = _clip(cx * px + cy * py, cx * qx + cy * qy, 0.0, 1.0)  # ahead
-                if lo > hi:
-                    continue
-                lo, hi = _clip(lx * py - ly * px, lx * qy - ly * qx, lo, hi)  # left of a - h
-                if lo > hi:
-                    continue
-                lo, hi = _clip(px * ry - py * rx, qx * ry - qy * rx, lo, hi)  # right of a + h
-                if lo > hi:
-                    continue
                 e2 = ex * ex + ey * ey
                 tp = -(px * ex + py * ey) / e2 if e2 > 0.0 else 0.0
-                tc = min(hi, max(lo, tp))
-                d = math.hypot(px + tc * ex, py + tc * ey)
+                d = _in_cone(px, py, ex, ey, tp, cx, cy, lx, ly, rx, ry)
                 if d < best:
                     best = d
             out[i, b] = best

@@ -75,6 +75,18 @@ def true_relative(log, res) -> tuple[np.ndarray, np.ndarray]:
     return rel, sm.member_box
 
 
+def members_outside(log, res) -> tuple[int, int]:
+    """Submap members (every submap's, not only the newest's) whose box misses the true
+    relative pose, and the members."""
+    rel, box = true_relative(log, res)
+    box = np.asarray(box).reshape(-1, 6)
+    inside = np.all((box[:, 0:4:2] <= rel[:, :2]) & (rel[:, :2] <= box[:, 1:4:2]), axis=1)
+    lo, hi = box[:, 4], box[:, 5]
+    th = rel[:, 2] + 2 * np.pi * np.round(((lo + hi) / 2 - rel[:, 2]) / (2 * np.pi))
+    inside &= (lo <= th) & (th <= hi)
+    return int((~inside).sum()), int(inside.size)
+
+
 def nearest_in_cones(log) -> np.ndarray:
     """The true hit point (B, 2) of every beam of a cone-beam log: the nearest wall point within
     the beam's cone (its stated half-width ``beam_angle``), NaN where the cone sees no wall."""

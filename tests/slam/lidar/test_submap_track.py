@@ -4,7 +4,6 @@ next ``q_hold`` seconds are matched with ``q_retry`` from the start."""
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from ivslam_cli.config import resolve_config
@@ -13,20 +12,9 @@ from ivslam_cli.slam.lidar.pipeline import run, usable_scans
 from ivslam_cli.slam.lidar.submap_track import Track
 from ivslam_cli.slam.lidar.submaps import track_submaps
 from tests.helpers.lidar_submap import phantoms
-from tests.helpers.lidar_truth import assert_contained, true_relative
+from tests.helpers.lidar_truth import assert_contained, members_outside
 
 Q = {"lidar.q_beams": 5, "lidar.q_retry": 30}
-
-
-def _outside(log, res) -> int:
-    """Submap members (every submap, not only the newest) whose box misses the true relative pose."""
-    rel, box = true_relative(log, res)
-    box = np.asarray(box).reshape(-1, 6)
-    inside = np.all((box[:, 0:4:2] <= rel[:, :2]) & (rel[:, :2] <= box[:, 1:4:2]), axis=1)
-    lo, hi = box[:, 4], box[:, 5]
-    th = rel[:, 2] + 2 * np.pi * np.round(((lo + hi) / 2 - rel[:, 2]) / (2 * np.pi))
-    inside &= (lo <= th) & (th <= hi)
-    return int((~inside).sum())
 
 
 @pytest.mark.slow  # ~20 s
@@ -38,10 +26,10 @@ def test_the_scans_after_a_relaxed_one_are_held_and_keep_the_truth():
     res = run(bad, LidarParams.from_config(resolve_config(None, Q, log_bounds=log.bounds)))
     assert res.stats["scans_q_relaxed"] > 0 and res.stats["scans_q_held"] > 0
     assert "q_hold = 1 s" in res.consistency.assumption
-    assert _outside(bad, res) == 0
+    assert members_outside(bad, res)[0] == 0
     assert_contained(res, ("pose", "pose_relative", "map_free"))
     off = run(bad, LidarParams.from_config(resolve_config(None, {**Q, "lidar.q_hold": 0.0}, log_bounds=log.bounds)))
-    assert off.stats["scans_q_held"] == 0 and _outside(bad, off) > 0
+    assert off.stats["scans_q_held"] == 0 and members_outside(bad, off)[0] > 0
 
 
 @pytest.mark.slow  # ~10 s
