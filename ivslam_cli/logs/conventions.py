@@ -38,7 +38,7 @@ class ScanSink:
         self.n = 0
         self.nb = 0
         self.cols = {k: np.empty(self.cap, np.float64) for k in
-                     ("stamp", "angle_min", "angle_increment", "range_min", "range_max")}
+                     ("stamp", "angle_min", "angle_increment", "range_min", "range_max", "time_increment")}
         self.order = np.empty(self.cap, np.int64)
         self.counts = np.empty(self.cap, np.int64)
         self.ranges: np.ndarray | None = None
@@ -77,13 +77,16 @@ class ScanSink:
 
     def add(self, order, stamp, angle_min, angle_increment, range_min, range_max,
             ranges: np.ndarray, frame_id: str = "", angle_max=None,
-            error_codes_below: float = 0.0) -> None:
+            error_codes_below: float = 0.0, time_increment=None) -> None:
         """Append ``k`` scans of ``n`` beams each (``ranges`` is ``(k, n)``).
 
         ``order`` gives each scan's position in the file (to restore file order);
         ``angle_max`` (if given) lets a duplicated last beam be detected; values
-        ``<= error_codes_below`` are error codes (invalid), besides the usual rules.
+        ``<= error_codes_below`` are error codes (invalid), besides the usual rules;
+        ``time_increment`` the seconds between two beams, if the log says.
         """
+        if time_increment is None:
+            time_increment = np.full(ranges.shape[0], np.nan)
         k, n = ranges.shape
         if k == 0:
             return
@@ -99,7 +102,8 @@ class ScanSink:
                 for mask in (dup, ~dup):
                     self.add(np.asarray(order)[mask], *(np.asarray(a)[mask] for a in (
                         stamp, angle_min, angle_increment, range_min, range_max)),
-                        ranges[mask], frame_id, np.asarray(angle_max)[mask], error_codes_below)
+                        ranges[mask], frame_id, np.asarray(angle_max)[mask], error_codes_below,
+                        np.asarray(time_increment)[mask])
                 return
         if frame_id and not self.frame_id:
             self.frame_id = frame_id
@@ -108,7 +112,7 @@ class ScanSink:
         sl = slice(self.n, self.n + k)
         for key, val in (("stamp", stamp), ("angle_min", angle_min),
                          ("angle_increment", angle_increment), ("range_min", range_min),
-                         ("range_max", range_max)):
+                         ("range_max", range_max), ("time_increment", time_increment)):
             self.cols[key][sl] = val
         self.order[sl] = order
         self.counts[sl] = n
@@ -161,11 +165,13 @@ class ScanSink:
         for key, count in self.invalid.items():
             if count:
                 dropped.append(Dropped("scans", count, reasons[key]))
+        ti = cols["time_increment"]
         return Scans(stamp=cols["stamp"], angle_min=cols["angle_min"],
                      angle_increment=cols["angle_increment"], range_min=cols["range_min"],
                      range_max=cols["range_max"], offsets=offsets, ranges=ranges,
                      valid=valid, mount=tuple(float(x) for x in mount),
-                     frame_id=self.frame_id if frame_id is None else frame_id)
+                     frame_id=self.frame_id if frame_id is None else frame_id,
+                     time_increment=ti.copy() if np.isfinite(ti).any() else None)
 
 
 def _regather(ranges, valid, offsets, perm):

@@ -4,6 +4,7 @@ Layout (version 1, root attribute ``ivslam_log_version = 1``)::
 
     /                       attrs: ivslam_log_version, meta_json, bounds_json, provenance_json
     /scans                  stamp angle_min angle_increment range_min range_max (S,) f8
+                            time_increment (S,) f8, if the log records it
                             offsets (S+1,) i8, ranges (B,) f4, valid (B,) bool
                             attrs: mount (3,) f8, frame_id
     /odometry               stamp (N,) f8, pose (N, 3) f8 [optional], twist (N, 2) f8 [optional]
@@ -68,6 +69,8 @@ def _fill(f, log: LogData) -> None:
         g = f.create_group("scans")
         for name in _SCAN_FIELDS:
             _put(g, name, getattr(log.scans, name))
+        if log.scans.time_increment is not None:
+            _put(g, "time_increment", log.scans.time_increment)
         g.attrs["mount"] = np.asarray(log.scans.mount, dtype=np.float64)
         g.attrs["frame_id"] = log.scans.frame_id
     if log.odometry is not None:
@@ -235,9 +238,13 @@ def _read(f, path: Path) -> LogData:
         mount = np.asarray(g.attrs.get("mount", (0.0, 0.0, 0.0)), dtype=np.float64).reshape(-1)
         if mount.shape != (3,) or not np.isfinite(mount).all():
             raise _Corrupt("corrupt ivslam HDF5 log (bad laser mount attribute)")
+        ti = _ds(g, "time_increment", F, 1, "SCANS", required=False)
+        if ti is not None and ti.shape[0] != n:
+            raise _Corrupt("corrupt ivslam HDF5 log (scan columns differ in length)")
         log.scans = Scans(**{k: v.astype(np.float64) for k, v in cols.items()}, offsets=offsets,
                           ranges=ranges, valid=valid, mount=tuple(float(m) for m in mount),
-                          frame_id=str(g.attrs.get("frame_id", "")))
+                          frame_id=str(g.attrs.get("frame_id", "")),
+                          time_increment=None if ti is None else ti.astype(np.float64))
     dropped = log.provenance.dropped
     g = _node(f, "odometry")
     if g is not None:

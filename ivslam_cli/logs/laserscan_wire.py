@@ -43,6 +43,7 @@ class ScanBlock:
     range_max: np.ndarray  # (k,) float64
     ranges: np.ndarray  # (k, n) float32
     frame_id: str
+    time_increment: np.ndarray | None = None  # (k,) float64 seconds between two beams
 
 
 def _scan_dtype(ros: int, frame_len: int, n: int, size: int) -> tuple[np.dtype, int] | None:
@@ -140,6 +141,7 @@ def decode_laserscans(payloads: list, ros: int) -> tuple[list[ScanBlock], np.nda
                         range_max=r["range_max"].astype(np.float64),
                         ranges=r["ranges"],
                         frame_id=frame.decode("utf-8", "replace"),
+                        time_increment=r["time_increment"].astype(np.float64),
                     ))
         rejected.append(idx[~used])  # whatever no block took is malformed
     bad = np.concatenate(rejected) if rejected else np.zeros(0, np.int64)

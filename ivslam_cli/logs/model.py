@@ -35,6 +35,9 @@ class Scans:
     valid: np.ndarray  # (B,) bool
     mount: tuple[float, float, float] = (0.0, 0.0, 0.0)
     frame_id: str = ""
+    # (S,) float64 seconds between two beams (sensor_msgs/LaserScan time_increment; NaN where a
+    # scan does not say); None when the log records none
+    time_increment: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.stamp.shape[0])

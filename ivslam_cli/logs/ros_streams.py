@@ -160,10 +160,11 @@ class StreamCollector:
                 b = ScanBlock(index=b.index[ok], stamp=b.stamp[ok], angle_min=b.angle_min[ok],
                               angle_max=b.angle_max[ok], angle_increment=b.angle_increment[ok],
                               range_min=b.range_min[ok], range_max=b.range_max[ok], ranges=b.ranges[ok],
-                              frame_id=b.frame_id)
+                              frame_id=b.frame_id, time_increment=b.time_increment[ok])
             stamp = np.where(b.stamp > 0, b.stamp, log_times[b.index])
             self.sink.add(self.scan_seq + b.index, stamp, b.angle_min, b.angle_increment,
-                          b.range_min, b.range_max, b.ranges, b.frame_id, b.angle_max)
+                          b.range_min, b.range_max, b.ranges, b.frame_id, b.angle_max,
+                          time_increment=b.time_increment)
         self.scan_seq += len(payloads)
 
     # -- everything else: deserialised messages -----------------------------------

@@ -144,6 +144,8 @@ def messages(log: LogData, ros: int, meta_json: str) -> list[tuple[int, str, byt
         add(t0, "/tf_static", T[T_TF](transforms=[tf]))
         ns = seconds_to_ns(sc.stamp)
         empty = np.zeros(0, dtype=np.float32)
+        tinc = (np.zeros(len(sc)) if sc.time_increment is None
+                else np.where(np.isfinite(sc.time_increment), sc.time_increment, 0.0)).tolist()
         for k in range(len(sc)):
             a, z = int(sc.offsets[k]), int(sc.offsets[k + 1])
             n_beams = z - a
@@ -152,7 +154,7 @@ def messages(log: LogData, ros: int, meta_json: str) -> list[tuple[int, str, byt
                 header=b.header(ns[k], sc.frame_id or "laser"),
                 angle_min=float(sc.angle_min[k]), angle_increment=float(sc.angle_increment[k]),
                 angle_max=float(np.float32(sc.angle_min[k] + (n_beams - 1) * sc.angle_increment[k])),
-                time_increment=0.0, scan_time=scan_time,
+                time_increment=tinc[k], scan_time=scan_time,
                 range_min=float(sc.range_min[k]), range_max=float(sc.range_max[k]),
                 ranges=np.ascontiguousarray(sc.ranges[a:z], dtype=np.float32), intensities=empty))
 

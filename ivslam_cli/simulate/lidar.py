@@ -135,7 +135,8 @@ def simulate_lidar(cfg: SimConfig, progress=None) -> LogData:
                   angle_increment=full * prof.angle_increment, range_min=full * prof.range_min,
                   range_max=full * prof.range_max,
                   offsets=np.arange(n + 1, dtype=np.int64) * prof.beams, ranges=ranges, valid=valid,
-                  mount=prof.mount, frame_id="laser")
+                  mount=prof.mount, frame_id="laser",
+                  time_increment=full * (cfg.sweep / (prof.beams - 1)) if cfg.sweep > 0.0 else None)
     meta = base_meta(cfg, rate, n) | {"sensor": prof.as_dict(), "beam_model": cfg.beam_model, "sweep": cfg.sweep,
                                       "world": world.name, "clearance": CLEARANCE}
     truth = GroundTruth(pose_stamp=stamp.copy(), pose=pose, world=world.segments.copy(),

@@ -37,6 +37,8 @@ def test_ros2_db3_dir_and_mcap_agree(datasets):
         assert inf == pytest.approx(0.229, abs=0.005)  # README: 22.9 % inf
         assert not s.valid[~np.isfinite(s.ranges)].any()
         assert not s.valid[s.ranges > 12.0].any()
+        # the RPLIDAR turns once a scan: time_increment × 719 is about the scan period
+        assert np.median(s.time_increment * 719) == pytest.approx(np.median(np.diff(s.stamp)), rel=0.05)
     np.testing.assert_array_equal(a.scans.ranges, c.scans.ranges)
     np.testing.assert_array_equal(a.odometry.pose, c.odometry.pose)
 

@@ -118,6 +118,23 @@ def test_round_trip_h5(tmp_path, logs, name):
             assert f["scans/ranges"].compression == "gzip" and f["scans/ranges"].shuffle
 
 
+@pytest.mark.parametrize("fmt", ["mcap", "ros1", "ros2", "h5"])
+def test_the_time_between_beams_survives_the_formats(tmp_path, fmt):
+    """A swept log's time between two beams (LaserScan ``time_increment``) is written and read
+    back (a float32 in a LaserScan); a log that records none reads back without one."""
+    from ivslam_cli.logs import read_log
+
+    log = simulate(SimConfig(scenario="lidar", steps=6, seed=3, sweep=0.0667))
+    ti = log.scans.time_increment
+    assert ti is not None and np.allclose(ti, 0.0667 / (np.diff(log.scans.offsets) - 1))
+    path = tmp_path / f"log{EXT[fmt]}"
+    write_log(path, log, fmt)
+    np.testing.assert_allclose(read_log(path).scans.time_increment, ti, rtol=1e-6)
+    still = simulate(SimConfig(scenario="lidar", steps=6, seed=3))
+    write_log(tmp_path / "still.h5", still)
+    assert still.scans.time_increment is None and read_log(tmp_path / "still.h5").scans.time_increment is None
+
+
 def test_h5_errors_are_log_errors(tmp_path, logs):
     with pytest.raises(LogError, match="no such file"):
         read_ivslam_h5(tmp_path / "missing.h5")

@@ -53,6 +53,7 @@ class Params:
     q_retry: int
     q_hold: float
     sweep: float
+    sweep_from_log: bool
     submap_distance: float
     submap_turn: float
     submap_width: float
@@ -96,7 +97,7 @@ class Params:
             strict=bool(cfg["robust.strict"]), eps=float(cfg["lidar.eps"]), max_range=float(cfg["lidar.max_range"]),
             motion=motion, max_pose_width=float(cfg["lidar.max_pose_width"]), max_step=float(cfg["lidar.max_step"]),
             contract=bool(cfg["lidar.contract"]), q_beams=int(cfg["lidar.q_beams"]),
-            q_retry=int(cfg["lidar.q_retry"]), q_hold=float(cfg["lidar.q_hold"]), sweep=float(cfg["lidar.sweep"]),
+            q_retry=int(cfg["lidar.q_retry"]), q_hold=float(cfg["lidar.q_hold"]), sweep=float(cfg["lidar.sweep"]), sweep_from_log=bool(cfg["lidar.sweep_from_log"]),
             submap_distance=float(cfg["lidar.submap_distance"]), submap_turn=float(cfg["lidar.submap_turn"]),
             submap_width=float(cfg["lidar.submap_width"]), submap_overlap=float(cfg["lidar.submap_overlap"]),
             match_boxes=int(cfg["lidar.match_boxes"]), match_stride=int(cfg["lidar.match_stride"]),

@@ -50,7 +50,7 @@ from ivslam_cli.results.model import (
 )
 from ivslam_cli.slam.lidar.map_update import grid_of, map_scans, usable_scans
 from ivslam_cli.slam.lidar.params import Params
-from ivslam_cli.slam.lidar.prediction import predict_poses
+from ivslam_cli.slam.lidar.prediction import predict_poses, sweep_times
 from ivslam_cli.slam.pipeline import empty_events, make_result
 
 
@@ -85,6 +85,16 @@ def _heading_width(b: np.ndarray) -> np.ndarray:
     return np.where(np.all(b[:, 0::2] <= b[:, 1::2], axis=1), b[:, 5] - b[:, 4], np.nan)
 
 
+def _sweep_text(scans: Scans, params: Params, submaps: bool) -> str:
+    T, source = sweep_times(scans, params)
+    if not submaps or not np.any(T != 0.0):
+        return "at the scan's stamp; "
+    lo, hi = float(np.min(T)), float(np.max(T))
+    span = f"{abs(lo):.4g} s" if lo == hi else f"{abs(lo):.4g}–{abs(hi):.4g} s"
+    return (f"at its own time, within {span} {'after' if hi > 0 else 'before'} the scan's stamp ({source}), "
+            "every pose widened by the motion the odometry's bounds allow in that time; ")
+
+
 def _assumption(params: Params, scans: Scans, pred, submaps: bool, not_mapped: int, n_events: int) -> str:
     bounds = params.beams
     max_w = params.max_pose_width
@@ -105,9 +115,7 @@ def _assumption(params: Params, scans: Scans, pred, submaps: bool, not_mapped: i
         f"every valid return within ±(range_abs + range_rel·range) of the true distance to the nearest surface "
         f"in its beam's cone, within ±bearing of its nominal angle (bounds used: range_abs {bounds.range_abs:.6g}, "
         f"range_rel {bounds.range_rel:.6g}, bearing {bounds.bearing:.6g}) from the robot pose "
-        + ("at the scan's stamp; " if params.sweep == 0.0 or not submaps else
-           f"at its own time, within {abs(params.sweep):g} s {'after' if params.sweep > 0 else 'before'} the scan's "
-           "stamp (lidar.sweep); ")
+        + _sweep_text(scans, params, submaps)
         + "invalid beams prove nothing; "
         + ("scans whose beam step exceeds twice the bearing bound (gaps between cones): "
            + ("nothing pokes between two adjacent beams (lidar.fill_gaps); " if bounds.fill_gaps else

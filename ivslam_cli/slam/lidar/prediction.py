@@ -108,6 +108,22 @@ def known_pose_boxes(log: LogData, params: Params, scans: Scans) -> PosePredicti
                           interpolated=int((~exact).sum()))
 
 
+def sweep_times(scans: Scans, params: Params) -> tuple[np.ndarray, str]:
+    """Per scan, the time from its stamp to its last beam (negative: the stamp is the last
+    beam's), and where it comes from: the log's ``time_increment`` × (beams − 1) where it has
+    one and ``lidar.sweep_from_log``, else ``lidar.sweep``."""
+    T = np.full(len(scans), float(params.sweep))
+    ti = scans.time_increment
+    if params.sweep_from_log and ti is not None:
+        have = np.isfinite(ti) & (ti != 0.0)
+        if have.any():
+            n = np.diff(scans.offsets)
+            T[have] = ti[have] * (n[have] - 1)
+            return T, ("the log's time_increment × (beams − 1)" + ("" if have.all() else
+                                                                  ", lidar.sweep where it has none"))
+    return T, "lidar.sweep"
+
+
 def trajectory(log: LogData, params: Params, scans: Scans):
     """The motion steps over the scans within the odometry's span and the node boxes with only
     the initial one bounded: ``(used, dropped, MotionSteps, P, initial source, step events)``."""

@@ -48,7 +48,7 @@ from ivslam_cli.slam.lidar.loopsearch import PAVE_BUDGET, PAVE_LEAF, PAVE_LEAVES
 from ivslam_cli.slam.lidar.map_update import extent_limits
 from ivslam_cli.slam.lidar.matcher import hull
 from ivslam_cli.slam.lidar.params import Params
-from ivslam_cli.slam.lidar.prediction import PosePrediction, trajectory
+from ivslam_cli.slam.lidar.prediction import PosePrediction, sweep_times, trajectory
 from ivslam_cli.slam.lidar.submap_track import Track, reset_node, threads, width
 from ivslam_cli.slam.motion_kernel import (
     meet_node,
@@ -290,9 +290,10 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
     stats = np.zeros((len(scans), 6), np.int64)
     is_old = np.zeros(scans.ranges.shape[0], bool)
     sweep = np.zeros((len(scans), 2))
-    if params.sweep != 0.0:
+    T = sweep_times(scans, params)[0][used]
+    if np.any(T != 0.0):
         s_used = np.asarray(scans.stamp, float)[used]
-        sweep[used] = m.reach_between(s_used + min(params.sweep, 0.0), s_used + max(params.sweep, 0.0))
+        sweep[used] = m.reach_between(s_used + np.minimum(T, 0.0), s_used + np.maximum(T, 0.0))
     track = Track(params, scans, m, used, extent, path, threads(params), sweep)
     g = np.empty(6)
     met = np.empty(6)

@@ -11,6 +11,7 @@ from ivslam_cli.simulate import SimConfig, simulate
 from ivslam_cli.slam.lidar import Params as LidarParams
 from ivslam_cli.slam.lidar.matcher import swept_box
 from ivslam_cli.slam.lidar.pipeline import run
+from ivslam_cli.slam.lidar.prediction import sweep_times
 from tests.helpers.lidar_truth import containment
 
 SWEEP = 0.0667  # the URG-04LX: 683 of 1024 steps of a 100 ms turn
@@ -29,14 +30,19 @@ def test_a_swept_box_holds_the_box_and_rounds_outward():
 @pytest.mark.slow  # ~40 s
 def test_a_swept_log_keeps_the_truth_with_its_sweep_and_loses_it_without():
     log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=5, steps=200, sweep=SWEEP))
-    params = LidarParams.from_config(resolve_config(None, {"lidar.sweep": SWEEP}, log_bounds=log.bounds))
-    res = run(log, params)
+    res = run(log, LidarParams.from_config(resolve_config(None, {}, log_bounds=log.bounds)))
     c = containment(res)
     for kind in ("pose", "pose_relative", "map_free", "global_free"):
         assert c[kind][0] == c[kind][1] > 0, (kind, c)
-    assert "lidar.sweep" in res.consistency.assumption
+    assert "the log's time_increment" in res.consistency.assumption  # read from the log by default
     # every beam at the stamp: the model is wrong by the robot's motion during the scan
-    still = run(log, LidarParams.from_config(resolve_config(None, {}, log_bounds=log.bounds)))
+    off = {"lidar.sweep_from_log": False}
+    still = run(log, LidarParams.from_config(resolve_config(None, off, log_bounds=log.bounds)))
     c0 = containment(still)
     assert any(c0[kind][0] < c0[kind][1] for kind in ("pose", "pose_relative", "map_free")), c0
     assert "at the scan's stamp" in still.consistency.assumption
+    # the same sweep given by hand
+    by_hand = {"lidar.sweep_from_log": False, "lidar.sweep": SWEEP}
+    sweep_times_source = sweep_times(log.scans, LidarParams.from_config(resolve_config(None, by_hand,
+                                                                                      log_bounds=log.bounds)))
+    assert sweep_times_source[1] == "lidar.sweep" and np.allclose(sweep_times_source[0], SWEEP)
