@@ -265,8 +265,9 @@ class MotionSteps:
         """Upper bounds ``(d, a)`` (M, 2) of how far the robot moves and turns between the times
         ``t0`` and ``t1`` (each (M,), ``t0 <= t1``): with a twist, the largest speed and turn
         rate of each step met times the time spent in it, plus twice the lag; with pose
-        increments, the whole bound of each step met. Clipped to the odometry's span (the
-        first and last steps go on)."""
+        increments, the whole bound of each step met, the first one's twice (two poses within
+        one step's bound of its start may be twice that apart). Clipped to the odometry's span
+        (the first and last steps go on)."""
         ns = self.node_stamp
         n1 = ns.shape[0] - 1
         out = np.zeros((t0.shape[0], 2))
@@ -286,8 +287,9 @@ class MotionSteps:
                     d += self.rate[k, 0] * tau
                     a += self.rate[k, 1] * tau
                 else:
-                    d += travel[k]
-                    a += turn[k]
+                    twice = 2.0 if k == i0[e] else 1.0
+                    d += twice * travel[k]
+                    a += twice * turn[k]
             lag = self.lag[int(i0[e])] + self.lag[int(max(i0[e], i1[e])) + 1]
             out[e] = d + lag[0], a + lag[1]
         return np.nextafter(out * (1.0 + 1e-12), np.inf)
