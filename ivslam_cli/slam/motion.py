@@ -264,7 +264,7 @@ class MotionSteps:
     def reach_between(self, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
         """Upper bounds ``(d, a)`` (M, 2) of how far the robot moves and turns between the times
         ``t0`` and ``t1`` (each (M,), ``t0 <= t1``): with a twist, the largest speed and turn
-        rate of each step met times the time spent in it, plus twice the lag; with pose
+        rate of each step met times the time spent in it, plus the lag at both ends; with pose
         increments, the whole bound of each step met, the first one's twice (two poses within
         one step's bound of its start may be twice that apart). Clipped to the odometry's span
         (the first and last steps go on)."""
@@ -290,7 +290,10 @@ class MotionSteps:
                     twice = 2.0 if k == i0[e] else 1.0
                     d += twice * travel[k]
                     a += twice * turn[k]
-            lag = self.lag[int(i0[e])] + self.lag[int(max(i0[e], i1[e])) + 1]
+            # the true pose is within the lag of the driven path at both ends; within step k the
+            # lag is at most its end nodes' (their windows hold the commands before and in it)
+            k1 = int(max(i0[e], i1[e]))
+            lag = self.lag[int(i0[e])] + np.maximum(self.lag[k1], self.lag[k1 + 1])
             out[e] = d + lag[0], a + lag[1]
         return np.nextafter(out * (1.0 + 1e-12), np.inf)
 

@@ -267,8 +267,8 @@ class Track:
                         meet_node(s.P, k - s.k0, r, rp, rt)
             s.union_row = j
         if params.max_pose_width <= 0 or width(r) <= params.max_pose_width:
-            check_extent(r, self.used[j:j + 1], self.extent, self.path)
             all_boxes[scan] = swept_box(r, self.sweep[scan])
+            check_extent(all_boxes[scan], self.used[j:j + 1], self.extent, self.path)
             one[0] = scan
             out.res = update_map(s.tmap, self.scans, all_boxes, params.beams, order=one)
             if params.map_sets and s.union is not None and s.union_row == j and s.union.shape[0] > 1:
