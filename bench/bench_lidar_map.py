@@ -116,7 +116,8 @@ def _run(kernel, scans, sboxes, bounds, exact: bool):
     order = np.arange(len(scans), dtype=np.int64)
     args = (scans.ranges, scans.valid, scans.offsets, np.ascontiguousarray(scans.angle_min, dtype=np.float64),
             np.ascontiguousarray(scans.angle_increment, dtype=np.float64), sboxes, order, bounds.range_abs,
-            bounds.range_rel, bounds.bearing, EPS, exact, True, is_old, stats)
+            bounds.range_rel, bounds.bearing, EPS, exact, True, is_old, stats, True,
+            np.zeros(len(scans)))
     t0, c0 = time.perf_counter(), time.process_time()
     arrays = kernel(*tmap.arrays(), *args)
     dt, dc = time.perf_counter() - t0, time.process_time() - c0
@@ -194,7 +195,8 @@ def main(argv: list[str] | None = None) -> int:
                                    np.ascontiguousarray(scans.angle_increment, dtype=np.float64), sboxes[:3],
                                    np.arange(3, dtype=np.int64), bounds.range_abs, bounds.range_rel,
                                    bounds.bearing, EPS, exact, True, np.zeros(scans.ranges.shape[0], np.bool_),
-                                   np.zeros((len(scans), 6), np.int64))  # compile / cache load
+                                   np.zeros((len(scans), 6), np.int64), True,
+                                   np.zeros(len(scans)))  # compile / cache load
             ref = _run(K.update_log_reference, scans, sboxes, bounds, exact)
             same = _same(best, ref)
             print(f"  reference (cell by cell): {ref[0]:.3f} s = {scans.ranges.size / ref[0]:,.0f} beams/s "

@@ -24,6 +24,7 @@ range-bearing increment).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -56,6 +57,10 @@ class MotionBounds:
     odom_trans_rel: float = 0.0
     odom_rot_abs: float = 0.0
     odom_rot_rel: float = 0.0
+    speed_max: float = 0.0
+    turn_rate_max: float = 0.0
+    turn_accel_max: float = 0.0
+    accel_max: float = 0.0
 
     @classmethod
     def from_config(cls, cfg) -> MotionBounds:
@@ -248,7 +253,8 @@ class MotionSteps:
     event and ``reach`` (M, 2) the (position, heading) half-widths by which that node's box is
     widened to hold the pose at the event's own stamp; ``rate`` (N-1, 2) upper bounds of
     ``|v|`` and ``|ω|`` within each step (twist), NaN for pose increments (nothing is known
-    within a step but that the robot stays within its bound)."""
+    within a step but that the robot stays within its bound); ``speed_max``, ``turn_max`` the
+    robot's top speed and turn rate where the bounds state them, else inf."""
 
     motion: str
     node_stamp: np.ndarray
@@ -260,14 +266,22 @@ class MotionSteps:
     node: np.ndarray
     reach: np.ndarray
     rate: np.ndarray | None = None
+    speed_max: float = np.inf
+    turn_max: float = np.inf
+    turn_rate: np.ndarray | None = None  # (N-1, 2) the true turn rate's interval per step (twist)
+    turn_accel: float = np.inf  # the stated top angular acceleration (pose increments), else inf
+    speed: np.ndarray | None = None  # (N-1, 2) the true speed's interval per step (twist)
+    step_xy: np.ndarray | None = None  # (N-1, 3) pose increments: (Δx, Δy) in the step's first frame, ± per axis
+    accel: float = np.inf  # the stated top acceleration (pose increments), else inf
 
     def reach_between(self, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
         """Upper bounds ``(d, a)`` (M, 2) of how far the robot moves and turns between the times
         ``t0`` and ``t1`` (each (M,), ``t0 <= t1``): with a twist, the largest speed and turn
         rate of each step met times the time spent in it, plus the lag at both ends; with pose
         increments, the whole bound of each step met, the first one's twice (two poses within
-        one step's bound of its start may be twice that apart). Clipped to the odometry's span
-        (the first and last steps go on)."""
+        one step's bound of its start may be twice that apart); at most the top speed and turn
+        rate times the time where the bounds state them. Clipped to the odometry's span (the
+        first and last steps go on)."""
         ns = self.node_stamp
         n1 = ns.shape[0] - 1
         out = np.zeros((t0.shape[0], 2))
@@ -283,7 +297,8 @@ class MotionSteps:
                 if self.rate is not None and np.isfinite(self.rate[k, 0]):
                     lo = t0[e] if k == i0[e] else ns[k]
                     hi = t1[e] if k == i1[e] or k == n1 - 1 else ns[k + 1]
-                    tau = max(hi - lo, 0.0) * (1.0 + 1e-12)
+                    # + ulps: stamps near 1.7e9 s are 2.4e-7 s apart
+                    tau = max(hi - lo, 0.0) * (1.0 + 1e-12) + 4.0 * np.spacing(abs(hi) + abs(lo))
                     d += self.rate[k, 0] * tau
                     a += self.rate[k, 1] * tau
                 else:
@@ -295,7 +310,144 @@ class MotionSteps:
             k1 = int(max(i0[e], i1[e]))
             lag = self.lag[int(i0[e])] + np.maximum(self.lag[k1], self.lag[k1 + 1])
             out[e] = d + lag[0], a + lag[1]
-        return np.nextafter(out * (1.0 + 1e-12), np.inf)
+        return self._capped(np.nextafter(out * (1.0 + 1e-12), np.inf), t1 - t0 + 4.0 * np.spacing(np.abs(t0) + np.abs(t1)))
+
+    def _capped(self, out: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """``out`` (M, 2) at most ``(speed_max, turn_max) × tau`` (rounded up)."""
+        top = np.array([self.speed_max, self.turn_max])
+        stated = np.isfinite(top)
+        cap = np.nextafter(np.maximum(tau, 0.0)[:, None] * np.where(stated, top, 0.0) * (1.0 + 1e-12), np.inf)
+        return np.minimum(out, np.where(stated, cap, np.inf))
+
+    def _steps_met(self, t0: np.ndarray, t1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The first and last steps ``[t0, t1]`` meets (clipped to the odometry's), and 4 ulps of
+        its stamps (near 1.7e9 s they are 2.4e-7 s apart)."""
+        n1 = self.node_stamp.shape[0] - 1
+        i0 = np.clip(np.searchsorted(self.node_stamp, t0, side="right") - 1, 0, n1 - 1)
+        i1 = np.clip(np.searchsorted(self.node_stamp, t1, side="left") - 1, 0, n1 - 1)
+        return i0, i1, 4.0 * np.spacing(np.abs(t0) + np.abs(t1))
+
+    def turn_between(self, s: np.ndarray, t0: np.ndarray, t1: np.ndarray,
+                     n_beams: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """A nominal turn rate ``ω̂`` (M,) and bounds ``e``, ``η`` (M,): for every time ``t`` in
+        ``[t0, t1]`` (which holds ``s``), ``|θ(t) − θ(s) − ω̂ (t − s)| ≤ e``, and between two
+        consecutive of ``n_beams`` times evenly over ``[t0, t1]`` the turn strays from ``ω̂``
+        times their interval by at most ``η``. With a twist, ``ω̂`` is the
+        middle of the turn rates the steps met allow and ``e`` the rest of them times the time,
+        plus the lag at both; with pose increments and a stated top angular acceleration ``α``,
+        within one step ``[t_k, t_k + h]`` of increment ``Δθ ± ε``: ``ω̂ = Δθ / h``, ``e = |t −
+        s| ε / h + α h² / 8 + α (s − t_k)(t_k + h − s) / 2`` (a turn with ``|θ''| ≤ α`` strays
+        from the chord of its step by at most ``α (t − t_k)(t_k + h − t) / 2``). Otherwise ``ω̂ =
+        0``, ``e`` the reach (:meth:`reach_between`) and ``η`` the drift (:meth:`drift_between`).
+        A rate straying at most ``ρ`` from ``ω̂`` (twist: the rest of the steps' rates; pose
+        increments: ``ε / h + α h``) gives ``η = ρ × the interval`` (+ twice the lag)."""
+        w = np.zeros(t0.shape[0])
+        e = self.reach_between(t0, t1)[:, 1]
+        eta = self.drift_between(t0, t1, n_beams)[:, 1]
+        ns = self.node_stamp
+        n1 = ns.shape[0] - 1
+        if n1 < 1:
+            return w, e, eta
+        i0, i1, ulp = self._steps_met(t0, t1)
+        dt = (t1 - t0 + ulp) / np.maximum(np.asarray(n_beams, float) - 1.0, 1.0)
+        for k in range(t0.shape[0]):
+            k0, k1 = int(i0[k]), int(max(i0[k], i1[k]))
+            tau = max(t1[k] - s[k], s[k] - t0[k], 0.0) + ulp[k]
+            if self.turn_rate is not None:
+                W = self.turn_rate[k0:k1 + 1]
+                lo, hi = float(W[:, 0].min()), float(W[:, 1].max())
+                wc = 0.5 * (lo + hi)
+                r = max(hi - wc, wc - lo)
+                lag = 2.0 * float(np.max(self.lag[k0:k1 + 2, 1]))
+                ek = np.nextafter((r * tau + lag) * (1.0 + 1e-12) + 1e-12, np.inf)
+                rho, lag_eta = r, lag
+            elif np.isfinite(self.turn_accel) and k0 == k1 and ns[k0] <= t0[k] and t1[k] <= ns[k0 + 1]:
+                h = float(ns[k0 + 1] - ns[k0])
+                if not h > 0.0:
+                    continue
+                d = self.U[k0, 2]
+                wc = 0.5 * (d[0] + d[1]) / h
+                eps = 0.5 * (d[1] - d[0])
+                a = self.turn_accel
+                ek = np.nextafter((tau * eps / h + a * h * h / 8.0 + a * (s[k] - ns[k0]) * (ns[k0 + 1] - s[k]) / 2.0
+                                   + 2.0 * abs(wc) * ulp[k]) * (1.0 + 1e-12) + 1e-12, np.inf)
+                rho, lag_eta = eps / h + a * h, 0.0
+            else:
+                continue
+            if ek < e[k]:
+                w[k], e[k] = wc, ek
+                eta[k] = np.nextafter((rho * dt[k] + lag_eta) * (1.0 + 1e-12) + 1e-15, np.inf)
+        return w, e, eta
+
+    def move_between(self, s: np.ndarray, t0: np.ndarray, t1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A nominal velocity ``V`` (M, 2) in the robot frame at ``s`` and a bound ``E`` (M,): for
+        every ``t`` in ``[t0, t1]`` (which holds ``s``), ``|p(t) − p(s) − R(θ(s)) V (t − s)| ≤ E``.
+        With a twist, ``V = (v̂, 0)``, ``v̂`` the middle of the speeds the steps met allow: ``E =
+        Δv τ + |v̂| ω τ² / 2`` (the rest of the speeds, and the turn ``|φ| ≤ ω t`` of the
+        direction, ``ω`` the largest turn rate) ``+ 2 lag_xy + 2 |v̂| τ lag_th``; with pose
+        increments only under a stated top acceleration ``A``, for a scan stamped at an odometry
+        stamp and swept within that step (``h``, increment ``Δp ± ε`` per axis): ``V = Δp / h``,
+        ``E = τ √2 ε / h + A h² / 8`` (a path with ``|p''| ≤ A`` strays from its step's chord by
+        at most ``A (t − t_k)(t_k + h − t) / 2``). Otherwise ``V = 0`` and ``E`` the reach
+        (:meth:`reach_between`)."""
+        V = np.zeros((t0.shape[0], 2))
+        E = self.reach_between(t0, t1)[:, 0].copy()
+        ns = self.node_stamp
+        n1 = ns.shape[0] - 1
+        if n1 < 1:
+            return V, E
+        i0, i1, ulp = self._steps_met(t0, t1)
+        for k in range(t0.shape[0]):
+            k0, k1 = int(i0[k]), int(max(i0[k], i1[k]))
+            tau = max(t1[k] - s[k], s[k] - t0[k], 0.0) + ulp[k]
+            if self.speed is not None:
+                sp = self.speed[k0:k1 + 1]
+                lo, hi = float(sp[:, 0].min()), float(sp[:, 1].max())
+                vc = 0.5 * (lo + hi)
+                dv = max(hi - vc, vc - lo)
+                om = float(np.max(np.abs(self.turn_rate[k0:k1 + 1])))
+                lag = self.lag[k0:k1 + 2]
+                ek = (dv * tau + abs(vc) * om * tau * tau / 2.0 + 2.0 * float(np.max(lag[:, 0]))
+                      + 2.0 * abs(vc) * tau * float(np.max(lag[:, 1])))
+                v = (vc, 0.0)
+            elif (np.isfinite(self.accel) and self.step_xy is not None and k0 == k1 and s[k] == ns[k0]
+                  and t1[k] <= ns[k0 + 1] and t0[k] >= ns[k0]):
+                h = float(ns[k0 + 1] - ns[k0])
+                if not h > 0.0:
+                    continue
+                dx, dy, eps = self.step_xy[k0]
+                v = (dx / h, dy / h)
+                ek = tau * math.sqrt(2.0) * eps / h + self.accel * h * h / 8.0 + math.hypot(*v) * ulp[k]
+            else:
+                continue
+            ek = float(np.nextafter(ek * (1.0 + 1e-12) + 1e-12, np.inf))
+            if ek < E[k]:
+                V[k], E[k] = v, ek
+        return V, E
+
+    def drift_between(self, t0: np.ndarray, t1: np.ndarray, n_beams: np.ndarray) -> np.ndarray:
+        """Upper bounds ``(δ, η)`` (M, 2) of how far the robot moves and turns between two
+        consecutive beams of a scan taking its ``n_beams`` beams evenly over ``[t0, t1]``: with a
+        twist, the largest speed and turn rate of the steps met times the time between two
+        beams, plus the lag at both (the true pose is known only within the lag of the driven
+        path); with pose increments, the whole motion over ``[t0, t1]`` (:meth:`reach_between`:
+        nothing is known within a step). At most the top speed and turn rate times that time
+        where the bounds state them."""
+        # + ulps: ``t1`` is a stamp plus the sweep, rounded (2.4e-7 s near 1.7e9 s)
+        tau = (t1 - t0 + 4.0 * np.spacing(np.abs(t0) + np.abs(t1))) / np.maximum(np.asarray(n_beams, float) - 1.0, 1.0)
+        out = self.reach_between(t0, t1)
+        if self.rate is not None and self.node_stamp.shape[0] > 1:
+            ns = self.node_stamp
+            n1 = ns.shape[0] - 1
+            i0 = np.clip(np.searchsorted(ns, t0, side="right") - 1, 0, n1 - 1)
+            i1 = np.clip(np.searchsorted(ns, t1, side="left") - 1, 0, n1 - 1)
+            for e in range(t0.shape[0]):
+                k0, k1 = int(i0[e]), int(max(i0[e], i1[e]))
+                rate = self.rate[k0:k1 + 1]
+                if np.all(np.isfinite(rate)):
+                    lag = 2.0 * np.max(self.lag[k0:k1 + 2], axis=0)
+                    out[e] = np.nextafter((np.max(rate, axis=0) * tau[e] + lag) * (1.0 + 1e-12), np.inf)
+        return self._capped(out, tau)
 
 
 def motion_steps(odo, bounds: MotionBounds, s: np.ndarray, prefer: str = "twist", max_step: float = 0.0,
@@ -339,6 +491,9 @@ def motion_steps(odo, bounds: MotionBounds, s: np.ndarray, prefer: str = "twist"
         step_travel = U[:, 0, 1].copy()
         step_dth = iv.mul(W, dt)
         rate = np.column_stack([vmax, np.maximum(np.abs(W[:, 0]), np.abs(W[:, 1]))])
+        turn_rate = W
+        speed = V
+        step_xy = None
         node = np.searchsorted(node_stamp, s)
         # the true pose at an observation is within the lag of the modelled one
         reach = lag[node]
@@ -380,12 +535,23 @@ def motion_steps(odo, bounds: MotionBounds, s: np.ndarray, prefer: str = "twist"
         reach = np.column_stack([np.where(exact, 0.0, step_travel[k]), np.where(exact, 0.0, step_turn[k])])
         lag = np.zeros((n, 2))
         rate = np.full((n - 1, 2), np.nan)
+        turn_rate = None
+        speed = None
+        step_xy = np.column_stack([bx, by, half_t])
     else:
         raise IvslamError("the odometry has neither twist nor poses", path)
 
     return MotionSteps(motion=motion, node_stamp=node_stamp, kind=kind, U=np.ascontiguousarray(U),
                        step_travel=step_travel, step_dth=step_dth, lag=lag, node=node.astype(np.int64),
-                       reach=np.ascontiguousarray(reach, dtype=np.float64), rate=rate)
+                       reach=np.ascontiguousarray(reach, dtype=np.float64), rate=rate,
+                       speed_max=_top(bounds.speed_max), turn_max=_top(bounds.turn_rate_max),
+                       turn_rate=turn_rate, turn_accel=_top(bounds.turn_accel_max), speed=speed, step_xy=step_xy,
+                       accel=_top(bounds.accel_max))
+
+
+def _top(v: float) -> float:
+    """A stated top speed or turn rate (its decimal enclosed upward); 0: none stated (inf)."""
+    return _bound(v) if v > 0.0 else np.inf
 
 
 def choose_motion(log: LogData, want: str, bounds: MotionBounds) -> str:

@@ -15,11 +15,24 @@ from ivslam_cli.slam.motion import MotionBounds, motion_steps
 from tests.helpers.hyp import examples
 
 
-def _true_pose(tr, t: np.ndarray) -> np.ndarray:
-    """The true poses at times ``t``: the poses of the stamps interpolated (as a swept scan's)."""
+def _true_pose(tr, t: np.ndarray, t_ref: float = 0.0) -> np.ndarray:
+    """The true poses at times ``t_ref + t``: the poses of the stamps interpolated (as a swept
+    scan's); times relative to ``t_ref`` keep the microseconds between two beams (stamps near
+    1.7e9 s are 2.4e-7 s apart)."""
     th = np.unwrap(tr.pose[:, 2])
-    return np.column_stack([np.interp(t, tr.pose_stamp, tr.pose[:, 0]), np.interp(t, tr.pose_stamp, tr.pose[:, 1]),
-                            np.interp(t, tr.pose_stamp, th)])
+    ts = tr.pose_stamp - t_ref
+    return np.column_stack([np.interp(t, ts, tr.pose[:, 0]), np.interp(t, ts, tr.pose[:, 1]), np.interp(t, ts, th)])
+
+
+def _motion(seed: int, increments: bool, over: dict):
+    """A short simulated log and its motion steps: the twist odometry, or the true poses as pose
+    increments under the bounds ``over``."""
+    log = simulate(SimConfig(scenario="lidar", world="rooms", seed=seed, steps=30))
+    tr, odo = log.truth, log.odometry
+    if increments:
+        odo = Odometry(stamp=tr.pose_stamp.copy(), pose=tr.pose.copy(), twist=None)
+    bounds = MotionBounds.from_config(resolve_config(None, over if increments else {}, log_bounds=log.bounds))
+    return log, tr, motion_steps(odo, bounds, log.scans.stamp, prefer="pose" if increments else "twist")
 
 
 @given(st.integers(0, 2**31 - 1), st.booleans(), st.lists(st.tuples(st.floats(0, 1), st.floats(0, 0.25)),
@@ -40,3 +53,107 @@ def test_the_reach_between_two_times_holds_the_true_motion(seed, increments, spa
     assert np.all(np.hypot(p1[:, 0] - p0[:, 0], p1[:, 1] - p0[:, 1]) <= reach[:, 0])
     assert np.all(np.abs(p1[:, 2] - p0[:, 2]) <= reach[:, 1])
     assert np.all(reach >= 0.0)
+
+
+@given(st.integers(0, 2**31 - 1), st.booleans(), st.lists(st.tuples(st.floats(0, 1), st.floats(0, 0.25)),
+                                                          min_size=1, max_size=10), st.integers(2, 800))
+@settings(max_examples=examples(ci=25))
+def test_the_drift_between_two_beams_holds_the_true_motion(seed, increments, spans, n_beams):
+    """Between any two consecutive beams of a scan taking ``n_beams`` evenly over ``[t0, t1]``, the
+    true robot moves and turns within :meth:`MotionSteps.drift_between`; with pose increments
+    that is the whole sweep's reach unless the top speed and turn rate are stated."""
+    log = simulate(SimConfig(scenario="lidar", world="rooms", seed=seed, steps=30))
+    tr, odo = log.truth, log.odometry
+    if increments:
+        odo = Odometry(stamp=tr.pose_stamp.copy(), pose=tr.pose.copy(), twist=None)
+    cfg = resolve_config(None, {}, log_bounds=log.bounds)
+    bounds = MotionBounds.from_config(cfg)
+    m = motion_steps(odo, bounds, log.scans.stamp, prefer="pose" if increments else "twist")
+    t_lo, t_hi = float(tr.pose_stamp[0]), min(float(tr.pose_stamp[-1]), float(m.node_stamp[-1]))  # the odometry's span
+    t0 = np.array([t_lo + f * (t_hi - t_lo) for f, _ in spans])
+    t1 = np.minimum(t0 + np.array([tau for _, tau in spans]), t_hi)
+    n = np.full(t0.shape, n_beams)
+    drift = m.drift_between(t0, t1, n)
+    dt = (t1 - t0) / (n_beams - 1)
+    ref = float(tr.pose_stamp[0])
+    for e in range(t0.shape[0]):
+        p = _true_pose(tr, (t0[e] - ref) + dt[e] * np.arange(n_beams), ref)
+        assert np.all(np.hypot(np.diff(p[:, 0]), np.diff(p[:, 1])) <= drift[e, 0])
+        assert np.all(np.abs(np.diff(p[:, 2])) <= drift[e, 1])
+    if increments:
+        assert np.array_equal(drift, m.reach_between(t0, t1))
+    # the robot's limits (the simulated robot's speed and turn rate are within these)
+    v = np.hypot(np.diff(tr.pose[:, 0]), np.diff(tr.pose[:, 1])) / np.diff(tr.pose_stamp)
+    w = np.abs(np.diff(np.unwrap(tr.pose[:, 2]))) / np.diff(tr.pose_stamp)
+    top = MotionBounds.from_config(resolve_config(None, {"bounds.speed_max": 1.01 * v.max() + 1e-9,
+                                                         "bounds.turn_rate_max": 1.01 * w.max() + 1e-9},
+                                                  log_bounds=log.bounds))
+    mt = motion_steps(odo, top, log.scans.stamp, prefer="pose" if increments else "twist")
+    capped = mt.drift_between(t0, t1, n)
+    assert np.all(capped <= drift)
+    ulps = 4.0 * np.spacing(np.abs(t0) + np.abs(t1))  # the rounding of stamps near 1.7e9 s
+    assert np.all(capped[:, 0] <= (dt + ulps / (n_beams - 1)) * mt.speed_max * (1 + 1e-9))
+    assert np.all(mt.reach_between(t0, t1)[:, 1] <= (t1 - t0 + ulps) * mt.turn_max * (1 + 1e-9))
+    for e in range(t0.shape[0]):
+        p = _true_pose(tr, (t0[e] - ref) + dt[e] * np.arange(n_beams), ref)
+        assert np.all(np.hypot(np.diff(p[:, 0]), np.diff(p[:, 1])) <= capped[e, 0])
+        assert np.all(np.abs(np.diff(p[:, 2])) <= capped[e, 1])
+
+
+@given(st.integers(0, 2**31 - 1), st.booleans(), st.lists(st.tuples(st.floats(0, 1), st.floats(-0.2, 0.2)),
+                                                          min_size=1, max_size=10))
+@settings(max_examples=examples(ci=25))
+def test_the_nominal_turn_holds_the_true_heading_within_its_error(seed, increments, spans):
+    """A sweep from stamp ``s`` to ``s + T``: the true heading at every time of it is within ``e``
+    of ``θ(s) + ω̂ (t − s)`` (:meth:`MotionSteps.turn_between`), the nominal turn that deskews the
+    beams; with pose increments under a stated top angular acceleration (the simulated robot
+    turns at a constant rate within a step: any ``α`` holds) and within one step."""
+    log, tr, m = _motion(seed, increments, {"bounds.turn_accel_max": 3.0})
+    t_lo, t_hi = float(tr.pose_stamp[0]), min(float(tr.pose_stamp[-1]), float(m.node_stamp[-1]))
+    s = np.array([t_lo + f * (t_hi - t_lo) for f, _ in spans])
+    T = np.array([tau for _, tau in spans])
+    t0, t1 = np.maximum(s + np.minimum(T, 0.0), t_lo), np.minimum(s + np.maximum(T, 0.0), t_hi)
+    w, e, eta = m.turn_between(s, t0, t1, np.full(s.shape, 100))
+    ref = float(tr.pose_stamp[0])
+    for k in range(s.shape[0]):
+        ts = np.linspace(t0[k] - ref, t1[k] - ref, 100)
+        th = _true_pose(tr, ts, ref)[:, 2]
+        th_s = _true_pose(tr, np.array([s[k] - ref]), ref)[0, 2]
+        assert np.all(np.abs(th - th_s - w[k] * (ts - (s[k] - ref))) <= e[k] + 1e-12), (k, w[k], e[k])
+        assert np.all(np.abs(np.diff(th) - w[k] * np.diff(ts)) <= eta[k] + 1e-12)
+    reach = m.reach_between(t0, t1)[:, 1]
+    assert np.all(e <= reach)
+    if not increments:  # within one step of a twist, the nominal turn is much tighter than the reach
+        ns = m.node_stamp
+        one = np.searchsorted(ns, t0, side="right") == np.searchsorted(ns, t1, side="left")
+        turning = one & (np.abs(w) * (t1 - t0) > 0.01)
+        assert np.all(e[turning] < 0.5 * reach[turning])
+
+
+@given(st.integers(0, 2**31 - 1), st.booleans(), st.lists(st.tuples(st.integers(0, 28), st.floats(0.0, 1.0)),
+                                                          min_size=1, max_size=10))
+@settings(max_examples=examples(ci=25))
+def test_the_nominal_move_holds_the_true_position_within_its_error(seed, increments, spans):
+    """A sweep from stamp ``s`` (an odometry stamp) over part of the step after it: the true
+    position at every time of it is within ``E`` of ``p(s) + R(θ(s)) V (t − s)``
+    (:meth:`MotionSteps.move_between`), the nominal move the matcher takes each beam's sensor
+    from; with pose increments under a stated top acceleration (the simulated robot drives arcs
+    within a step: 0.5 m/s · its turn rate)."""
+    log, tr, m = _motion(seed, increments, {"bounds.accel_max": 2.0})
+    ps = tr.pose_stamp
+    k = np.array([min(i, len(ps) - 2) for i, _ in spans])
+    s = ps[k]
+    t1 = s + np.array([f for _, f in spans]) * (ps[k + 1] - ps[k])
+    V, E = m.move_between(s, s.copy(), t1)
+    ref = float(ps[0])
+    for j in range(s.shape[0]):
+        ts = np.linspace(0.0, t1[j] - s[j], 50)
+        p = _true_pose(tr, (s[j] - ref) + ts, ref)
+        p0 = _true_pose(tr, np.array([s[j] - ref]), ref)[0]
+        c, sn = np.cos(p0[2]), np.sin(p0[2])
+        nom = np.column_stack([p0[0] + (c * V[j, 0] - sn * V[j, 1]) * ts, p0[1] + (sn * V[j, 0] + c * V[j, 1]) * ts])
+        assert np.all(np.hypot(p[:, 0] - nom[:, 0], p[:, 1] - nom[:, 1]) <= E[j] + 1e-12), (j, V[j], E[j])
+    reach = m.reach_between(s, t1)[:, 0]
+    assert np.all(E <= reach)
+    moving = (t1 - s > 0.02) & (np.hypot(V[:, 0], V[:, 1]) > 0.1)
+    assert np.all(E[moving] < 0.5 * reach[moving])  # the nominal move is much tighter than the reach

@@ -69,10 +69,11 @@ def covered_free(f, a0, inc, ra, bl, bh, rho_h):
 
 
 @njit(cache=True, inline="always")
-def _seg_free(vx, vy, ux, uy, ah, ac, stl, sth, f, a0, inc, ra):
+def _seg_free(vx, vy, ux, uy, ah, ac, stl, sth, f, a0, inc, ra, smin):
     """True if every point ``v + s u + t u⊥`` (``|s| <= ah``, ``|t| <= ac``; ``v`` relative to a
     sensor whose heading is in ``[stl, sth]``) lies in the certain free space of that sensor's
-    scan (free ranges ``f``, beams at ``a0 + i·inc``, cones of half-width ``ra``)."""
+    scan (free ranges ``f``, beams at ``a0 + i·inc``, cones of half-width ``ra``), none nearer
+    than ``smin`` to the sensor (:func:`sweep_free_from`)."""
     dist = math.hypot(vx, vy)
     if not dist > 0.0:
         return False
@@ -82,7 +83,7 @@ def _seg_free(vx, vy, ux, uy, ah, ac, stl, sth, f, a0, inc, ra):
     along = upf(upf(ah * cb + ac * sb) * (1.0 + 1e-12)) + 1e-12  # extents along and across v
     lat = upf(upf(ah * sb + ac * cb) * (1.0 + 1e-12)) + 1e-12
     near = dn(dist * (1.0 - 1e-12)) - along
-    if not near > 2.0 * lat:
+    if not (near > 2.0 * lat and near >= smin):
         return False
     half = upf(upf(lat / near) * (1.0 + 1e-12)) + 1e-12  # >= atan(lat / near)
     bc = atan2_fast(vy, vx)
@@ -143,6 +144,35 @@ def _may_cover(px, py, cx, cy, c, f, a0, ii, ac, mi, ok, rr):
     for j in range(j0, j1 + 1):
         fm = max(fm, f[j])
     return fm > 0.0 and rho2 < fm * fm * (1.0 + 1e-9)
+
+
+def sweep_free_from(drift: np.ndarray, inc: np.ndarray, ra: float, fill: bool) -> np.ndarray:
+    """Per scan, the distance from its sensor below which its free cones prove nothing, its
+    beams taken one after another while the sensor moves at most ``δ`` and turns at most ``η``
+    between two consecutive beams (``drift`` (S, 2); beam step ``inc`` (S,), cones of
+    half-width ``ra``): 0 without motion, inf when the cones cannot overlap by the turn.
+
+    Why. A point ``x`` proven free lies, seen from every sensor pose of the (swept) box, at a
+    bearing in the window of beams ``i0..i1`` and nearer than their free ranges. Seen from beam
+    ``i``'s own pose, its bearing minus the beam's, ``g(i)``, is above ``−ra`` at ``i0`` and
+    below ``ra`` at ``i1`` (``2 ra ≥ inc``), and falls from one beam to the next by ``inc``
+    give or take ``η`` plus the angle the sensor's shift subtends at ``x``: at most ``(π/3)
+    δ/s`` at a distance ``s ≥ δ`` from both positions. A fall of at most ``2 ra`` cannot step
+    over ``[−ra, ra]``: some beam's own cone holds ``x`` where ``2 ra − inc − η ≥ (π/3) δ/s``,
+    i.e. from ``s = (π/3) δ / (2 ra − inc − η)``. Nearer, or when ``2 ra − inc ≤ η``, slivers
+    between cones are seen by no beam. Under ``fill`` the gap between two adjacent beams is
+    assumed free whatever their poses (0); cones that do not touch prove nothing anyway (0)."""
+    d = np.asarray(drift, float).reshape(-1, 2)
+    inc = np.broadcast_to(np.asarray(inc, float), (d.shape[0],))
+    out = np.zeros(d.shape[0])
+    if fill:
+        return out
+    moving = ((d[:, 0] > 0.0) | (d[:, 1] > 0.0)) & (ra >= 0.5 * inc)
+    margin = (2.0 * ra - inc - d[:, 1]) - 1e-12 * (2.0 * ra + inc + d[:, 1])  # rounded down
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(margin > 0.0, (math.pi / 3.0 + 1e-12) * d[:, 0] / margin * (1.0 + 1e-12), np.inf)
+    out[moving] = np.nextafter(np.maximum(s[moving], d[moving, 0]), np.inf)
+    return out
 
 
 def free_of(ranges, valid, r_abs: float, r_rel: float) -> np.ndarray:

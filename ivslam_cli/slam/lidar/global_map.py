@@ -41,10 +41,10 @@ class GlobalMap:
 
 
 def render_global(scans, used: np.ndarray, boxes: np.ndarray, bounds, eps: float, max_width: float,
-                  path=None) -> GlobalMap:
+                  path=None, smin=None) -> GlobalMap:
     """Map the used scans ``used`` (log order) whose global boxes ``boxes`` (one (6,) row per used
     scan) are finite and at most ``max_width`` wide (0: :data:`MAX_WIDTH_ANY`) into one map in the
-    result's frame."""
+    result's frame (``smin``, one per used scan: see :func:`~.map_update.update_map`)."""
     from ivslam_cli.slam.lidar.logodds import build_logodds
 
     w = position_width(boxes)
@@ -53,7 +53,10 @@ def render_global(scans, used: np.ndarray, boxes: np.ndarray, bounds, eps: float
     rows = np.flatnonzero(ok)
     tmap = TileMap(eps)
     if rows.size:
-        map_scans(tmap, scans, used[rows], boxes[rows], bounds, path)
+        all_smin = np.zeros(len(scans))
+        if smin is not None:
+            all_smin[used] = smin
+        map_scans(tmap, scans, used[rows], boxes[rows], bounds, path, smin=all_smin)
     grid = grid_of(tmap)
     lo = build_logodds(scans, used[rows], boxes[rows].reshape(-1, 3, 2), grid) if rows.size else None
     return GlobalMap(grid=grid, scans_mapped=int(rows.size), empty_cells=int(np.count_nonzero(grid.state == CELL_EMPTY)),

@@ -40,14 +40,16 @@ PAVE_LEAVES = 4096
 
 
 @njit(cache=True, nogil=True)
-def pave_kernel(prior, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_rel, r_alpha, cones, q, stride, W, n_w, S, m,
-                wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref, sw_d, sw_a, fine, reach,
+def pave_kernel(prior, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_rel, r_alpha, cones_from, q, stride, W, n_w, S, m,
+                wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref, sw_d, sw_a, sw_e, off, fine,
+                reach,
                 budget, leaves):
     """Pave ``prior`` (6,): the sub-boxes of at most ``fine`` (x, y and ``reach``·θ) not
     excluded, written to ``leaves``. Returns ``(n_leaves, tested, complete)``; ``complete`` is
     False when ``budget`` tests or the capacity of ``leaves`` ran out (the leaves are then not a
     cover of the kept poses)."""
-    beam_rl, beam_rh, beam_ca, beam_sa, free, n_beams = beam_table(ranges, valid, a0, inc, r_abs, r_rel, stride)
+    beam_rl, beam_rh, beam_ca, beam_sa, free, n_beams, beam_o = beam_table(ranges, valid, a0, inc, r_abs, r_rel,
+                                                                         stride, off)
     stack = np.empty((STACK, 6))
     b = np.empty(6)
     for e in range(6):
@@ -64,8 +66,8 @@ def pave_kernel(prior, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_rel, r_alp
             b[e] = stack[n, e]
         tested += 1
         if _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw, r_alpha,
-                      cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref,
-                      sw_d, sw_a):
+                      cones_from, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref,
+                      sw_d, sw_a, sw_e, beam_o):
             continue
         s = split_axis(b[1] - b[0], b[3] - b[2], (b[5] - b[4]) * reach, fine)
         if s < 0:

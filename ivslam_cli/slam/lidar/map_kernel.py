@@ -113,7 +113,7 @@ def _level_buffers():
 
 @njit(cache=True)
 def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps,
-             exact, lg, T, new, tl, blk, mblk, cand, cand_f, stats, WF, WI, fill=True):
+             exact, lg, T, new, tl, blk, mblk, cand, cand_f, stats, WF, WI, fill=True, smin=0.0):
     """P_EMPTY^k, P_OBSTACLE^k and the new beams of one scan (fast path; the same cells and
     beams as :func:`~.map_reference.traverse_reference`). ``T``: the scan's table
     (:func:`~.map_tables._fast_tables`); ``WF, WI``: work arrays (:func:`_level_buffers`). The
@@ -135,6 +135,9 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     hull test alone puts a cell in the output). ``new[i]`` is set for the beams whose
     P_OBSTACLE^{i,k} meets P_UNKNOWN. ``stats`` += [nodes, empty cells, beam tests, obstacle
     cells].
+
+    ``smin``: no cell nearer than this to the sensor box is proven empty
+    (:func:`~.free_cones.sweep_free_from`: the beams of a sweep are taken from poses apart).
 
     Returns ``(ok, n_tl, n_blk, n_mblk, n_cand, need)``; ``ok`` False: a buffer was too small
     (``need`` > 0: the work arrays, which need that many columns; ``new`` and ``stats`` are then
@@ -174,7 +177,7 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     n_tiles = (tx1 - tx0 + 1) * nty
     TT = np.empty(_CHUNK, dtype=np.int64)
     TS = np.empty(_CHUNK, dtype=np.int64)
-    sc = (eps, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, gmin_c, i0, j0, nty)
+    sc = (eps, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, gmin_c, i0, j0, nty, smin)
     rec = (tl, blk, mblk, cand, cand_f)
     G = (RL, RH, OL, OH, EL, EH, CV, SM, X0, X1, Y0, Y1, IL, IH, KL, KH)
     n_tl = 0
@@ -251,7 +254,7 @@ def _decide_blocks(lev, n_lev, q0, inner, exact, sc, LX, LY, NX, NY, G, T, lg, c
     :func:`traverse`), ``rec = (tl, blk, mblk, cand, cand_f)`` with ``n_rec = (n_tl, n_blk,
     n_mblk)`` records so far. Returns ``(ok, n_next, n_tl, n_blk, n_mblk, nodes, empty cells,
     obstacle cells)``; ``ok`` False: a record buffer is full."""
-    eps, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, gmin_c, i0, j0, nty = sc
+    eps, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, gmin_c, i0, j0, nty, smin = sc
     RL, RH, OL, OH, EL, EH, CV, SM, X0, X1, Y0, Y1, IL, IH, KL, KH = G
     tl, blk, mblk, cand, cand_f = rec
     n_tl, n_blk, n_mblk = n_rec
@@ -288,7 +291,7 @@ def _decide_blocks(lev, n_lev, q0, inner, exact, sc, LX, LY, NX, NY, G, T, lg, c
         lo_min, hi_max, f_min, f_max = _win(T, lg, o_lo, o_hi)
         if cover and (e_lo != o_lo or e_hi != o_hi):
             f_min = _win(T, lg, e_lo, e_hi)[2]
-        if cover and r_hi < f_min:
+        if cover and r_hi < f_min and r_lo >= smin:
             slot = _tile_slot(tl, n_tl, TS[q], ix >> TILE_SHIFT, iy >> TILE_SHIFT, 1)
             if slot < 0 or n_blk >= cap_blk:
                 return False, n_next, n_tl, n_blk, n_mblk, nodes, n_empty, n_obst
@@ -371,7 +374,7 @@ def _decide_cells(n_lev, q0, exact, sc, LX, LY, G, T, lg, cells, box, TT, TS, re
     passed (into ``cand``, the beams of unmeasured marked cells set new). ``n_rec = (n_tl, n_blk,
     n_cand)``. Returns ``(ok, n_tl, n_blk, n_cand, nodes, empty cells, obstacle cells)``; ``ok``
     False: a record buffer is full."""
-    eps, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, gmin_c, i0, j0, nty = sc
+    eps, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, gmin_c, i0, j0, nty, smin = sc
     RL, RH, OL, OH, EL, EH, CV, SM = G[0], G[1], G[2], G[3], G[4], G[5], G[6], G[7]
     tl, blk, mblk, cand, cand_f = rec
     n_tl, n_blk, n_cand = n_rec
@@ -395,7 +398,7 @@ def _decide_cells(n_lev, q0, exact, sc, LX, LY, G, T, lg, cells, box, TT, TS, re
         else:
             code, o_lo, o_hi, r_lo, r_hi = _cell(cx_, cy_, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge,
                                                  T, lg, stats)
-        if code == 0 or (code == 2 and exact):
+        if code == 0 or (code == 2 and exact) or (code == 1 and r_lo < smin):
             continue
         if code == 1:
             slot = _tile_slot(tl, n_tl, TS[q], cx_ >> TILE_SHIFT, cy_ >> TILE_SHIFT, 1)
@@ -466,7 +469,7 @@ def _grown(a):
 
 @njit(cache=True)
 def _traverse_grown(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, lg, T,
-                    new, tl, blk, mblk, cand, cand_f, st, WF, WI, fill):
+                    new, tl, blk, mblk, cand, cand_f, st, WF, WI, fill, smin):
     """:func:`traverse` of one scan, its record buffers and work arrays grown (and ``new``,
     ``st`` reset) until they hold the scan: ``(n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand,
     cand_f, WF, WI)``."""
@@ -476,7 +479,7 @@ def _traverse_grown(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_re
         st[:] = 0
         ok, n_tl, n_blk, n_mblk, n_cand, need = traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs,
                                                          r_rel, r_alpha, eps, exact, lg, T, new, tl, blk, mblk,
-                                                         cand, cand_f, st, WF, WI, fill)
+                                                         cand, cand_f, st, WF, WI, fill, smin)
         if ok:
             return n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f, WF, WI
         if need > 0:
@@ -496,8 +499,9 @@ def _traverse_grown(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_re
 
 @njit(cache=True, nogil=True)
 def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min, angle_inc,
-               boxes, order, r_abs, r_rel, r_alpha, eps, exact, write, is_old, scan_stats, fill=True):
-    """Process scans ``order`` (in that order) from sensor boxes ``boxes`` (S, 6): the same map,
+               boxes, order, r_abs, r_rel, r_alpha, eps, exact, write, is_old, scan_stats, fill, smin):
+    """Process scans ``order`` (in that order) from sensor boxes ``boxes`` (S, 6), no cell of scan
+    ``s`` nearer than ``smin[s]`` to its box proven empty (see :func:`traverse`): the same map,
     ``is_old`` and ``scan_stats`` columns 1-4 as :func:`update_log_reference` (columns 0 and 5,
     nodes visited and beam tests, count this path's own work). Returns the map arrays."""
     nbmax = 1
@@ -518,7 +522,7 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
             continue
         n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f, WF, WI = _traverse_grown(
             keys, slots, cells, ranges[b0:b1], valid[b0:b1], angle_min[s], angle_inc[s], boxes[s], r_abs, r_rel,
-            r_alpha, eps, exact, lg, T, new, tl, blk, mblk, cand, cand_f, st, WF, WI, fill)
+            r_alpha, eps, exact, lg, T, new, tl, blk, mblk, cand, cand_f, st, WF, WI, fill, smin[s])
         n_new = 0
         n_old = 0
         rmax = -INF
@@ -550,7 +554,7 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
 
 
 @njit(cache=True)
-def scan_cells(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, fill=True):
+def scan_cells(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, fill=True, smin=0.0):
     """P_EMPTY^k and P_OBSTACLE^k of one scan as cell index arrays (for tests and plots):
     ``(empty_ix, empty_iy, obst_ix, obst_iy)`` (the cells of :func:`scan_cells_reference`,
     in another order)."""
@@ -565,7 +569,7 @@ def scan_cells(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, f
     st = np.zeros(4, dtype=np.int64)
     n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f, WF, WI = _traverse_grown(
         keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, lg, T, new, tl, blk,
-        mblk, cand, cand_f, st, WF, WI, fill)
+        mblk, cand, cand_f, st, WF, WI, fill, smin)
     ex = np.empty(st[1], dtype=np.int64)
     ey = np.empty(st[1], dtype=np.int64)
     _block_cells(blk, n_blk, ex, ey, 0)

@@ -68,14 +68,14 @@ def _grow_i(a, need):
 # ---------------------------------------------------------------- one scan, pass 1
 @njit(cache=True)
 def traverse_reference(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps,
-             exact, lg, t_free, t_lo, t_hi, t_fmax, new, blk, cand, cand_f, stats, fill=True):
+             exact, lg, t_free, t_lo, t_hi, t_fmax, new, blk, cand, cand_f, stats, fill=True, smin=0.0):
     """P_EMPTY^k blocks, P_OBSTACLE^k cells and new beams of one scan from a sensor box.
 
     ``box`` = (xl, xh, yl, yh, θl, θh) of the sensor. The map (``keys, slots, cells``) is only
     read (P_UNKNOWN = cells without flags). ``new[i]`` is set for the beams whose
     P_OBSTACLE^{i,k} meets P_UNKNOWN. Output: ``blk[k] = (ix, iy, level)`` proven-empty blocks
     of ``2^level`` cells, ``cand[k] = (ix, iy, o_lo, o_hi)`` with ``cand_f[k] = (r_lo, r_hi)``
-    the P_OBSTACLE^k cells. Returns ``(n_blk, n_cand, blk, cand, cand_f)`` (buffers grown).
+    the P_OBSTACLE^k cells; no cell nearer than ``smin`` to the box is proven empty. Returns ``(n_blk, n_cand, blk, cand, cand_f)`` (buffers grown).
     ``stats`` += [nodes visited, empty cells].
     """
     nb = ranges.shape[0]
@@ -124,7 +124,7 @@ def traverse_reference(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r
                                                                 a0, inc, h, nb)
                 if o_lo > o_hi:
                     continue
-                if cover and r_hi < _qmin(t_free, lg, e_lo, e_hi):
+                if cover and r_hi < _qmin(t_free, lg, e_lo, e_hi) and r_lo >= smin:
                     blk = _grow_i(blk, n_blk + 1)
                     blk[n_blk, 0], blk[n_blk, 1], blk[n_blk, 2] = ix, iy, lev
                     n_blk += 1
@@ -200,8 +200,9 @@ def apply_reference(keys, slots, cells, coords, n, n_blk, blk, n_cand, cand, can
 # ---------------------------------------------------------------- a whole log
 @njit(cache=True)
 def update_log_reference(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min, angle_inc,
-               boxes, order, r_abs, r_rel, r_alpha, eps, exact, write, is_old, scan_stats, fill=True):
-    """Process scans ``order`` (in that order) from sensor boxes ``boxes`` (S, 6).
+               boxes, order, r_abs, r_rel, r_alpha, eps, exact, write, is_old, scan_stats, fill, smin):
+    """Process scans ``order`` (in that order) from sensor boxes ``boxes`` (S, 6), no cell of scan
+    ``s`` nearer than ``smin[s]`` to its box proven empty.
 
     ``is_old[b]`` is set for every valid beam found old (cheap form) against the map before
     its scan; with ``write`` the scan is then written into the map. ``scan_stats[s]`` =
@@ -231,7 +232,7 @@ def update_log_reference(keys, slots, cells, coords, n, ranges, valid, offsets, 
         n_blk, n_cand, blk, cand, cand_f = traverse_reference(
             keys, slots, cells, ranges[b0:b1], valid[b0:b1], angle_min[s], angle_inc[s],
             boxes[s], r_abs, r_rel, r_alpha, eps, exact, lg, t_free, t_lo, t_hi, t_fmax,
-            new, blk, cand, cand_f, st, fill)
+            new, blk, cand, cand_f, st, fill, smin[s])
         n_new = 0
         n_old = 0
         for i in range(nb):
@@ -255,7 +256,7 @@ def update_log_reference(keys, slots, cells, coords, n, ranges, valid, offsets, 
 
 
 @njit(cache=True)
-def scan_cells_reference(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, fill=True):
+def scan_cells_reference(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, fill=True, smin=0.0):
     """P_EMPTY^k and P_OBSTACLE^k of one scan as cell index arrays (for tests and plots):
     ``(empty_ix, empty_iy, obst_ix, obst_iy)``."""
     nb = ranges.shape[0]
@@ -275,7 +276,7 @@ def scan_cells_reference(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps
     st = np.zeros(3, dtype=np.int64)
     n_blk, n_cand, blk, cand, cand_f = traverse_reference(keys, slots, cells, ranges, valid, a0, inc, box,
                                                 r_abs, r_rel, r_alpha, eps, exact, lg, t_free,
-                                                t_lo, t_hi, t_fmax, new, blk, cand, cand_f, st, fill)
+                                                t_lo, t_hi, t_fmax, new, blk, cand, cand_f, st, fill, smin)
     ex = np.empty(st[1], dtype=np.int64)
     ey = np.empty(st[1], dtype=np.int64)
     _block_cells(blk, n_blk, ex, ey, 0)

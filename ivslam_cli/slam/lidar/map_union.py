@@ -28,13 +28,13 @@ from ivslam_cli.slam.lidar.map_tables import _cos_gap, _fast_buffers, _fast_tabl
 
 
 @njit(cache=True, nogil=True)
-def union_empty(keys, slots, cells, ranges, valid, a0, inc, boxes, r_abs, r_rel, r_alpha, eps, fill):
+def union_empty(keys, slots, cells, ranges, valid, a0, inc, boxes, r_abs, r_rel, r_alpha, eps, fill, smin):
     """The cells of ``∩_i P_EMPTY^k(boxes[i])`` (sensor boxes ``(m, 6)``, ``m ≥ 1``) that the map
     (``keys, slots, cells``, only read) does not hold as EMPTY yet: ``(ix, iy)``. Each is in
     :func:`~.map_kernel.scan_cells`' P_EMPTY^k of ``boxes[0]`` and passes the leaf test of every
-    other box."""
+    other box (no cell nearer than ``smin`` to a box: see :func:`~.map_kernel.traverse`)."""
     nb = ranges.shape[0]
-    ex, ey, _, _ = scan_cells(ranges, valid, a0, inc, boxes[0], r_abs, r_rel, r_alpha, eps, False, fill)
+    ex, ey, _, _ = scan_cells(ranges, valid, a0, inc, boxes[0], r_abs, r_rel, r_alpha, eps, False, fill, smin)
     lg, T = _fast_buffers(max(nb, 1))
     st = np.zeros(4, dtype=np.int64)
     rmax = _fast_tables(ranges, valid, r_abs, r_rel, _cos_gap(r_alpha, inc, fill), T)
@@ -49,8 +49,9 @@ def union_empty(keys, slots, cells, ranges, valid, a0, inc, boxes, r_abs, r_rel,
             continue
         ok = True
         for i in range(1, m):
-            if _cell(ex[j], ey[j], eps, boxes[i], a0, inc, h, nb, rmax, ang[i, 0], ang[i, 1], ang[i, 2], T, lg,
-                     st)[0] != 1:
+            code, _, _, r_lo, _ = _cell(ex[j], ey[j], eps, boxes[i], a0, inc, h, nb, rmax, ang[i, 0], ang[i, 1],
+                                        ang[i, 2], T, lg, st)
+            if code != 1 or r_lo < smin:
                 ok = False
                 break
         if ok:

@@ -107,12 +107,14 @@ def _check_scans(scans: Scans) -> None:
 
 
 def update_map(tmap: TileMap, scans: Scans, robot_boxes, bounds: LidarBounds, order=None,
-               exact: bool = True, write: bool = True) -> UpdateResult:
+               exact: bool = True, write: bool = True, smin=None) -> UpdateResult:
     """Old/new test and map update for scans ``order`` (default: all, in log order).
 
     ``robot_boxes`` (S, 6): robot pose box of every scan (the laser mount of ``scans`` is
     applied soundly). ``exact``: cell-level P_OBSTACLE test beam by beam (else the window's
-    hull, looser but still outer). ``write=False`` only classifies beams.
+    hull, looser but still outer). ``write=False`` only classifies beams. ``smin`` (S,): no
+    cell nearer than this to a scan's sensor box is proven empty (its beams taken from poses
+    apart: :func:`~.free_cones.sweep_free_from`; default 0, inf: none).
     """
     ensure_round_to_nearest()
     bounds.check()
@@ -126,11 +128,13 @@ def update_map(tmap: TileMap, scans: Scans, robot_boxes, bounds: LidarBounds, or
     boxes = _boxes(b, scans.mount, order)  # only the boxes of the scans processed
     is_old = np.zeros(scans.ranges.shape[0], dtype=np.bool_)
     stats = np.zeros((len(scans), len(STAT_FIELDS)), dtype=np.int64)
+    smin = np.zeros(len(scans)) if smin is None else np.ascontiguousarray(smin, dtype=np.float64)
     arrays = K.update_log(*tmap.arrays(), scans.ranges, scans.valid, scans.offsets,
                           np.ascontiguousarray(scans.angle_min, dtype=np.float64),
                           np.ascontiguousarray(scans.angle_increment, dtype=np.float64),
                           boxes, order, float(bounds.range_abs), float(bounds.range_rel),
-                          float(bounds.bearing), tmap.eps, exact, write, is_old, stats, bool(bounds.fill_gaps))
+                          float(bounds.bearing), tmap.eps, exact, write, is_old, stats, bool(bounds.fill_gaps),
+                          smin)
     tmap.set_arrays(*arrays)
     _check_cells(tmap)
     return UpdateResult(is_old, stats)
@@ -150,8 +154,9 @@ def _scan(scans: Scans, k: int):
 
 
 def scan_sets(scans: Scans, k: int, robot_box, bounds: LidarBounds, eps: float,
-              exact: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """P_EMPTY^k (inner) and P_OBSTACLE^k (outer) of scan ``k`` as cell indices ``(n, 2)``."""
+              exact: bool = True, smin: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """P_EMPTY^k (inner) and P_OBSTACLE^k (outer) of scan ``k`` as cell indices ``(n, 2)``
+    (``smin``: see :func:`update_map`)."""
     ensure_round_to_nearest()
     bounds.check()
     _check_scans(scans)
@@ -159,15 +164,16 @@ def scan_sets(scans: Scans, k: int, robot_box, bounds: LidarBounds, eps: float,
     r, v, a0, inc = _scan(scans, k)
     ex, ey, ox, oy = K.scan_cells(r, v, a0, inc, box, float(bounds.range_abs),
                                   float(bounds.range_rel), float(bounds.bearing), float(eps), exact,
-                                  bool(bounds.fill_gaps))
+                                  bool(bounds.fill_gaps), float(smin))
     return np.column_stack([ex, ey]), np.column_stack([ox, oy])
 
 
-def map_union_free(tmap: TileMap, scans: Scans, k: int, robot_boxes, bounds: LidarBounds) -> int:
+def map_union_free(tmap: TileMap, scans: Scans, k: int, robot_boxes, bounds: LidarBounds,
+                   smin: float = 0.0) -> int:
     """Scan ``k``'s pose lies in the union of ``robot_boxes`` (m, 6): mark as EMPTY the cells its
     P_EMPTY proves free from every box (:mod:`.map_union`); returns how many were not EMPTY
     before. Meant after :func:`update_map` with their hull, which wrote P_OBSTACLE^k and the
-    cells the hull proves free."""
+    cells the hull proves free (``smin``: see :func:`update_map`)."""
     from ivslam_cli.paving.tiles import EMPTY
     from ivslam_cli.slam.lidar.map_union import union_empty
 
@@ -176,7 +182,8 @@ def map_union_free(tmap: TileMap, scans: Scans, k: int, robot_boxes, bounds: Lid
     boxes = _boxes(robot_boxes, scans.mount)
     r, v, a0, inc = _scan(scans, k)
     ix, iy = union_empty(tmap.keys, tmap.slots, tmap.cells, r, v, a0, inc, boxes, float(bounds.range_abs),
-                         float(bounds.range_rel), float(bounds.bearing), float(tmap.eps), bool(bounds.fill_gaps))
+                         float(bounds.range_rel), float(bounds.bearing), float(tmap.eps), bool(bounds.fill_gaps),
+                         float(smin))
     if ix.size:
         tmap.set(ix, iy, EMPTY)
         _check_cells(tmap)
@@ -278,15 +285,15 @@ def _extent_suspects(b: np.ndarray, pad: float, span_max: float, origin_max: flo
         return np.flatnonzero(~(w + 2.0 * pad < span_max) | ~(far + pad < origin_max))
 
 
-def map_scans(tmap, scans: Scans, used: np.ndarray, boxes: np.ndarray, bounds, path=None):
+def map_scans(tmap, scans: Scans, used: np.ndarray, boxes: np.ndarray, bounds, path=None, smin=None):
     """Old/new test and map update for scans ``used`` (in that order) with robot boxes
-    ``boxes`` (one row per used scan)."""
+    ``boxes`` (one row per used scan; ``smin`` one per scan: see :func:`update_map`)."""
     from ivslam_cli.slam.lidar.map_update import update_map
 
     check_extent(boxes, used, extent_limits(scans, bounds, tmap.eps), path)
     all_boxes = np.zeros((len(scans), 6))
     all_boxes[used] = boxes
-    return update_map(tmap, scans, all_boxes, bounds, order=used)
+    return update_map(tmap, scans, all_boxes, bounds, order=used, smin=smin)
 
 
 def grid_of(tmap) -> MapGrid:

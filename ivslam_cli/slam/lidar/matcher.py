@@ -148,19 +148,29 @@ def witness_segments(ranges, valid, a0, inc, box, mx, my, myaw, r_abs, r_rel, r_
 
 @njit(cache=True)
 def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw, r_alpha,
-               cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref, sw_d,
-               sw_a):
+               cones_from, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref, sw_d,
+               sw_a, sw_e, beam_o):
     """True if the sub-box ``b`` (6,) is excluded: more than ``q`` beams break rule A (their end
     points in the submap's proven-free cells, or in the free space of a reference scan: row
     ``r`` of ``ref_*``, its sensor within ``ref_c[r, 2]`` of ``ref_c[r, :2]``, its heading in
-    ``ref_th[r]``), or more than ``q`` witnesses break rule B, for every pose of ``b``. The scan's
+    ``ref_th[r]``, its cones free from ``ref_c[r, 3]`` on), or more than ``q`` witnesses break
+    rule B (the scan's cones free from ``cones_from`` on; inf: no rule B), for every pose of
+    ``b``. The scan's
     beams are taken from poses within ``sw_d`` (x, y) and ``sw_a`` (θ) of the scan's pose (its
-    sweep): each is tested over ``b`` widened by as much."""
+    sweep): its free cones are tested over ``b`` widened by as much; beam ``j`` of the table is
+    taken from a sensor within ``sw_e`` of the sensor at the scan's pose moved by ``beam_o[j,
+    :2]`` (in its frame; ``beam_o[j, 2]`` its length), so rule A tests it over ``b`` widened by
+    ``sw_e`` and ``sw_a`` and moved by as much (the sweep's nominal move)."""
     bxl, bxh, byl, byh, btl, bth = b[0], b[1], b[2], b[3], b[4], b[5]
-    if sw_d > 0.0 or sw_a > 0.0:
-        bxl, bxh, byl, byh = dn(bxl - sw_d), upf(bxh + sw_d), dn(byl - sw_d), upf(byh + sw_d)
+    if sw_a > 0.0:
         btl, bth = dn(btl - sw_a), upf(bth + sw_a)
     ox, oxh, oy, oyh, stl, sth = sensor_offset(btl, bth, mx, my, myaw)
+    c = 0.5 * (stl + sth)
+    hw = upf(upf(0.5 * (sth - stl)) + 1e-15 * abs(c) + 1e-300)
+    d = upf(hw + r_alpha)
+    # rule A: the sensor at the scan's pose, within sw_e of each beam's nominal one
+    if sw_e > 0.0:
+        bxl, bxh, byl, byh = dn(bxl - sw_e), upf(bxh + sw_e), dn(byl - sw_e), upf(byh + sw_e)
     sxl = dn(bxl + ox)
     sxh = upf(bxh + oxh)
     syl = dn(byl + oy)
@@ -169,8 +179,6 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
     hsx = upf(upf(0.5 * (sxh - sxl)) + 1e-15 * abs(ccx))
     hsy = upf(upf(0.5 * (syh - syl)) + 1e-15 * abs(ccy))
     rs = upf(math.hypot(hsx, hsy)) + MARGIN_ABS
-    c = 0.5 * (stl + sth)
-    d = upf(upf(upf(0.5 * (sth - stl)) + 1e-15 * abs(c) + 1e-300) + r_alpha)
     if (use_grid or n_ref) and d < 1.0:
         cc = math.cos(c)
         sc = math.sin(c)
@@ -183,26 +191,40 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
             ref_q[r, 4] = 0.5 * (ref_th[r, 0] + ref_th[r, 1])
             ref_q[r, 5] = rr
         for i in range(n_beams):
-            cx, cy, ux, uy, ah, ac, hx, hy = _rotated_region(ccx, ccy, cc, sc, beam_ca[i], beam_sa[i], beam_rl[i],
-                                                             beam_rh[i], d)
+            # the beam's nominal move, turned with the sensor (its lever over the heading spread)
+            o_x = cc * beam_o[i, 0] - sc * beam_o[i, 1]
+            o_y = sc * beam_o[i, 0] + cc * beam_o[i, 1]
+            lev = upf(beam_o[i, 2] * (hw + 1e-15)) + 1e-15 * (abs(o_x) + abs(o_y))
+            cx, cy, ux, uy, ah, ac, hx, hy = _rotated_region(ccx + o_x, ccy + o_y, cc, sc, beam_ca[i], beam_sa[i],
+                                                             beam_rl[i], beam_rh[i], d)
+            hx, hy = upf(hx + lev), upf(hy + lev)
             hit = use_grid and _clear(S, m, wx0, wy0, nx, ny, eps, dn(cx - hx - hsx), upf(cx + hx + hsx),
                                       dn(cy - hy - hsy), upf(cy + hy + hsy))
             r = 0
             while not hit and r < n_ref:
-                extra = rs + ref_c[r, 2]
+                extra = upf(rs + lev) + ref_c[r, 2]
                 if not _may_cover(cx + (ah + extra) * ux, cy + (ah + extra) * uy, ref_c[r, 0], ref_c[r, 1],
                                   ref_q[r, 4], ref_f[r], ref_a0[r], ref_q[r, 0], ref_q[r, 1], ref_q[r, 2],
                                   ref_q[r, 3] > 0.0, ref_q[r, 5]):
                     r += 1
                     continue
                 hit = _seg_free(cx - ref_c[r, 0], cy - ref_c[r, 1], ux, uy, ah + extra, ac + extra, ref_th[r, 0],
-                                ref_th[r, 1], ref_f[r], ref_a0[r], ref_inc[r], r_alpha)
+                                ref_th[r, 1], ref_f[r], ref_a0[r], ref_inc[r], r_alpha, ref_c[r, 3])
                 r += 1
             if hit:
                 na += 1
                 if na > q:
                     return True
-    if cones:
+    if cones_from < math.inf:
+        if sw_d > sw_e:  # the scan's cones: its sensor anywhere the sweep takes it
+            sxl = dn(dn(b[0] - sw_d) + ox)
+            sxh = upf(upf(b[1] + sw_d) + oxh)
+            syl = dn(dn(b[2] - sw_d) + oy)
+            syh = upf(upf(b[3] + sw_d) + oyh)
+            ccx, ccy = 0.5 * (sxl + sxh), 0.5 * (syl + syh)
+            hsx = upf(upf(0.5 * (sxh - sxl)) + 1e-15 * abs(ccx))
+            hsy = upf(upf(0.5 * (syh - syl)) + 1e-15 * abs(ccy))
+            rs = upf(math.hypot(hsx, hsy)) + MARGIN_ABS
         nb = 0
         ii, acb, mi, ok, rr = _cover_setup(free.shape[0], a0, inc, r_alpha)
         for j in range(n_w):
@@ -211,7 +233,7 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
                               rr):
                 continue
             if _seg_free(W[j, 0] - ccx, W[j, 1] - ccy, W[j, 2], W[j, 3], W[j, 4] + rs, W[j, 5] + rs, stl, sth, free, a0,
-                         inc, r_alpha):
+                         inc, r_alpha, cones_from):
                 nb += 1
                 if nb > q:
                     return True
@@ -273,8 +295,8 @@ def split_axis(wx, wy, wt, fine):
 
 @njit(cache=True)
 def _search(box, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my,
-            myaw, r_alpha, cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th,
-            n_ref, sw_d, sw_a, fine, reach, budget, bx, keys, heap):
+            myaw, r_alpha, cones_from, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th,
+            n_ref, sw_d, sw_a, sw_e, beam_o, fine, reach, budget, bx, keys, heap):
     """The extreme of side ``side`` (0..5: x_lo, x_hi, y_lo, y_hi, θ_lo, θ_hi) over the poses of
     ``box`` not excluded (and in some root), by a best-first search: sub-boxes popped in the
     order of that side; excluded ones dropped, others split along the widest of x, y and
@@ -300,8 +322,8 @@ def _search(box, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_bea
             continue
         t += 1
         if _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw, r_alpha,
-                      cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref,
-                      sw_d, sw_a):
+                      cones_from, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref,
+                      sw_d, sw_a, sw_e, beam_o):
             continue
         s = split_axis(b[1] - b[0], b[3] - b[2], (b[5] - b[4]) * reach, fine)
         if s < 0:
@@ -322,16 +344,20 @@ def _search(box, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_bea
 
 
 @njit(cache=True)
-def beam_table(ranges, valid, a0, inc, r_abs, r_rel, stride):
+def beam_table(ranges, valid, a0, inc, r_abs, r_rel, stride, off):
     """The tested beams (every ``stride``-th valid one): true-distance bounds ``beam_rl``,
-    ``beam_rh`` and the cosine and sine of their angle; ``free[i]``: beam ``i``'s free range
-    (−1 invalid), for every beam. Returns ``(beam_rl, beam_rh, beam_ca, beam_sa, free,
-    n_beams)`` (the first four hold ``n_beams`` tested beams)."""
+    ``beam_rh``, the cosine and sine of their angle and ``beam_o`` their sensor's nominal move
+    (``off[i]``, x, y in the sensor frame at the stamp, and its length rounded up; ``off`` may
+    have no rows: none); ``free[i]``: beam ``i``'s free range (−1 invalid), for every beam.
+    Returns ``(beam_rl, beam_rh, beam_ca, beam_sa, free, n_beams, beam_o)`` (all but ``free``
+    hold ``n_beams`` tested beams)."""
     nb_all = ranges.shape[0]
     beam_rl = np.empty(nb_all)
     beam_rh = np.empty(nb_all)
     beam_ca = np.empty(nb_all)
     beam_sa = np.empty(nb_all)
+    beam_o = np.zeros((nb_all, 3))
+    moved = off.shape[0] == nb_all
     free = np.empty(nb_all)
     n_beams = 0
     for i in range(ranges.shape[0]):
@@ -344,15 +370,19 @@ def beam_table(ranges, valid, a0, inc, r_abs, r_rel, stride):
                 beam_rh[n_beams] = rh
                 beam_ca[n_beams] = math.cos(ang)
                 beam_sa[n_beams] = math.sin(ang)
+                if moved:
+                    beam_o[n_beams, 0], beam_o[n_beams, 1] = off[i, 0], off[i, 1]
+                    beam_o[n_beams, 2] = upf(math.hypot(off[i, 0], off[i, 1]) * (1.0 + 1e-12))
                 n_beams += 1
         else:
             free[i] = -1.0
-    return beam_rl, beam_rh, beam_ca, beam_sa, free, n_beams
+    return beam_rl, beam_rh, beam_ca, beam_sa, free, n_beams, beam_o
 
 
 @njit(cache=True, nogil=True)
-def bound_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_rel, r_alpha, cones, q, stride,
+def bound_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_rel, r_alpha, cones_from, q, stride,
                  W, n_w, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref, sw_d, sw_a,
+                 sw_e, off,
                  fine, reach, max_nodes, max_slices, kept, fine_th):
     """The poses of the prior ``roots[:n_roots]`` not excluded, as boxes per heading slice:
     first the heading's two bounds (best-first searches over the prior's hull, to leaves of
@@ -360,7 +390,8 @@ def bound_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_
     slice's x and y bounds (to leaves of ``fine``).
     Writes the slices to ``kept``; returns ``(n_slices, tested)`` (0 slices: every pose
     excluded)."""
-    beam_rl, beam_rh, beam_ca, beam_sa, free, n_beams = beam_table(ranges, valid, a0, inc, r_abs, r_rel, stride)
+    beam_rl, beam_rh, beam_ca, beam_sa, free, n_beams, beam_o = beam_table(ranges, valid, a0, inc, r_abs, r_rel,
+                                                                         stride, off)
     hull = np.empty(6)
     for e in range(6):
         hull[e] = roots[0, e]
@@ -376,8 +407,8 @@ def bound_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_
     tested = 0
     for side in (4, 5):
         v, t = _search(hull, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w,
-                       mx, my, myaw, r_alpha, cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc,
-                       ref_c, ref_th, n_ref, sw_d, sw_a, fine_th, reach, b_th, bx, keys, heap)
+                       mx, my, myaw, r_alpha, cones_from, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc,
+                       ref_c, ref_th, n_ref, sw_d, sw_a, sw_e, beam_o, fine_th, reach, b_th, bx, keys, heap)
         tested += t
         if math.isnan(v):
             return 0, tested
@@ -406,8 +437,8 @@ def bound_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_
         ok = True
         for side in range(4):
             v, t = _search(sl, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
-                           n_w, mx, my, myaw, r_alpha, cones, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0,
-                           ref_inc, ref_c, ref_th, n_ref, sw_d, sw_a, fine, reach, b_s, bx, keys, heap)
+                           n_w, mx, my, myaw, r_alpha, cones_from, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0,
+                           ref_inc, ref_c, ref_th, n_ref, sw_d, sw_a, sw_e, beam_o, fine, reach, b_s, bx, keys, heap)
             tested += t
             if math.isnan(v):
                 ok = False
@@ -486,10 +517,16 @@ class Matcher:
     with the submap, as boxes; ``kept_any`` False when none agrees (the data contradict the
     model beyond q: the caller keeps the prior and records it)."""
 
-    def __init__(self, params, scans, sweep: np.ndarray | None = None) -> None:
+    def __init__(self, params, scans, model=None) -> None:
         b = params.beams
-        # per scan, how far the robot may move and turn while its beams are taken (0: at once)
-        self.sweep = np.zeros((len(scans), 2)) if sweep is None else np.asarray(sweep, float)
+        # the sweep (prediction.SweepModel; None: every beam at the stamp): per scan, how far the
+        # robot may move and turn while its beams are taken, the distance from its sensor below
+        # which its cones prove nothing (sweep_free_from), each beam's nominal move and its error
+        S = len(scans)
+        self.sweep = np.zeros((S, 2)) if model is None else np.asarray(model.reach, float)
+        self.smin = np.zeros(S) if model is None else np.asarray(model.smin, float)
+        self.err = self.sweep[:, 0] if model is None else np.asarray(model.err, float)
+        self.off = np.zeros((0, 2)) if model is None else np.ascontiguousarray(model.offset, float)
         self.p = params
         self.scans = scans
         self.r_abs, self.r_rel, self.r_alpha = float(b.range_abs), float(b.range_rel), float(b.bearing)
@@ -516,7 +553,7 @@ class Matcher:
         ref_f = np.full((max(R, 1), nb), -1.0)
         ref_a0 = np.zeros(max(R, 1))
         ref_inc = np.ones(max(R, 1))
-        ref_c = np.zeros((max(R, 1), 3))
+        ref_c = np.zeros((max(R, 1), 4))
         ref_th = np.zeros((max(R, 1), 2))
         for t, (k, box) in enumerate(refs):
             r, v, a0, inc = self._scan(k)
@@ -525,11 +562,12 @@ class Matcher:
             box = swept_box(np.ascontiguousarray(box, float), self.sweep[k])
             n += witness_segments(r, v, a0, inc, box, mx, my, myaw, self.r_abs, self.r_rel, self.r_alpha,
                                int(self.p.match_stride if stride is None else stride), self.W[n:])
-            ref_f[t, : r.shape[0]] = free_of(r, v, self.r_abs, self.r_rel)
+            if self.smin[k] < math.inf:
+                ref_f[t, : r.shape[0]] = free_of(r, v, self.r_abs, self.r_rel)
             ref_a0[t], ref_inc[t] = a0, inc
             sb = sensor_box(*(float(x) for x in box), mx, my, myaw)
             ref_c[t] = (0.5 * (sb[0] + sb[1]), 0.5 * (sb[2] + sb[3]),
-                        np.nextafter(0.5 * math.hypot(sb[1] - sb[0], sb[3] - sb[2]), np.inf) + 1e-12)
+                        np.nextafter(0.5 * math.hypot(sb[1] - sb[0], sb[3] - sb[2]), np.inf) + 1e-12, self.smin[k])
             ref_th[t] = sb[4], sb[5]
         return n, ref_f, ref_a0, ref_inc, ref_c, ref_th, R
 
@@ -575,9 +613,11 @@ class Matcher:
             return None
         mx, my, myaw = self.mount
         q = int(self.p.q_beams if q is None else q)
-        rules = (mx, my, myaw, self.r_abs, self.r_rel, self.r_alpha, cones, q, stride, self.W, n_w,
+        cones_from = float(self.smin[k]) if cones else math.inf
+        rules = (mx, my, myaw, self.r_abs, self.r_rel, self.r_alpha, cones_from, q, stride, self.W, n_w,
                  self.S, m, wx0, wy0, nx, ny, float(tmap.eps), use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref,
-                 float(self.sweep[k, 0]), float(self.sweep[k, 1]))
+                 float(self.sweep[k, 0]), float(self.sweep[k, 1]), float(self.err[k]),
+                 self.off[int(self.scans.offsets[k]):int(self.scans.offsets[k + 1])] if self.off.shape[0] else self.off)
         return (r, v, a0, inc), rules, float(np.median(z))
 
     def match(self, k: int, roots: np.ndarray, tmap, refs, budget: int | None = None,

@@ -92,7 +92,28 @@ def _sweep_text(scans: Scans, params: Params, submaps: bool) -> str:
     lo, hi = float(np.min(T)), float(np.max(T))
     span = f"{abs(lo):.4g} s" if lo == hi else f"{abs(lo):.4g}–{abs(hi):.4g} s"
     return (f"at its own time, within {span} {'after' if hi > 0 else 'before'} the scan's stamp ({source}), "
-            "every pose widened by the motion the odometry's bounds allow in that time; ")
+            "each beam turned by the odometry's nominal turn to its time (twist; pose increments under "
+            "bounds.turn_accel_max), every pose widened by how far the robot moves and how far its turn may stray "
+            "from that in that time; ")
+
+
+def _sweep_free_text(tracking, params: Params) -> str:
+    """What the sweep leaves of the free cones (:func:`~.free_cones.sweep_free_from`)."""
+    smin = None if tracking is None else tracking.smin
+    if smin is None or not np.any(smin > 0.0):
+        return ""
+    none = int(np.count_nonzero(~np.isfinite(smin)))
+    fin = smin[np.isfinite(smin)]
+    text = ("; a scan's beams taken from poses apart, its free cones prove free space only where adjacent "
+            "cones overlap by the sensor's turn and shift from one beam to the next (bearing bound above half "
+            "the beam step plus half the turn)")
+    if fin.size:
+        text += f": from {float(np.median(fin)):.3g} m of the sensor on (median over scans)"
+    if none:
+        text += (f"; {none} scan(s) prove no free space: the turn between two beams the motion bounds allow "
+                 "exceeds the cones' overlap" + ("" if params.odometry.turn_rate_max > 0 else
+                                                 " (bounds.speed_max, turn_rate_max state the robot's limits)"))
+    return text
 
 
 def _assumption(params: Params, scans: Scans, pred, submaps: bool, not_mapped: int, n_events: int) -> str:
@@ -274,6 +295,7 @@ def solve(log: LogData, params: Params, progress=None) -> LidarOutput:
         assumption += (f"; {len(tracking.relocalised)} motion step(s) broke their bounds, or more than "
                        f"q_beams beams of their scans did (empty events motion_outlier): their scans were relocalised, assuming the true pose within "
                        f"±{params.relocalise[0]:g} m, ±{params.relocalise[1]:g} rad of the predicted box there")
+    assumption += _sweep_free_text(tracking, params)
     q = {"beams": int(params.q_beams)} if tracking is not None else {}
     consistency = Consistency(empty_events=events, q=q, widths={"pose": pose_hist}, assumption=assumption)
     duration = float(stamp[-1] - stamp[0]) if stamp.size > 1 else 0.0
@@ -305,6 +327,9 @@ def solve(log: LogData, params: Params, progress=None) -> LidarOutput:
             "scans_relocalised": int(len(tracking.relocalised)),
             "scans_q_relaxed": int(len(tracking.q_relaxed)),
             "scans_q_held": int(len(tracking.q_held)),
+            "sweep_free_from_median": _median(np.where(np.isfinite(tracking.smin), tracking.smin, np.nan))
+            if tracking.smin is not None else 0.0,
+            "scans_no_free": int(np.count_nonzero(~np.isfinite(tracking.smin))) if tracking.smin is not None else 0,
             "scans_contradicting": int(len({j for j, _, _ in tracking.contradicted})),
             "contraction_boxes_tested": int(tracking.tested),
             "pose_set_cells": int(tracking.set_cells),
@@ -336,7 +361,8 @@ def solve(log: LogData, params: Params, progress=None) -> LidarOutput:
         from ivslam_cli.slam.lidar.matcher import swept_box
 
         t3 = time.perf_counter()
-        gm = render_global(scans, used, swept_box(pred.boxes, tracking.sweep), bounds, eps, max_w, path)
+        gm = render_global(tracking.beams if tracking.beams is not None else scans, used,
+                           swept_box(pred.boxes, tracking.sweep), bounds, eps, max_w, path, tracking.smin)
         global_grid = gm.grid
         stats.update({
             "global_scans_mapped": gm.scans_mapped, "global_empty_cells": gm.empty_cells,

@@ -124,6 +124,97 @@ def sweep_times(scans: Scans, params: Params) -> tuple[np.ndarray, str]:
     return T, "lidar.sweep"
 
 
+def beam_times(scans: Scans, params: Params) -> tuple[np.ndarray, np.ndarray]:
+    """Per scan ``(b, c)``: beam ``i`` is taken at its stamp ``+ b + i·c`` (see
+    :func:`sweep_times`: the log's ``time_increment`` ``c`` from the stamp, or ``lidar.sweep`` T
+    spread evenly after the stamp, before it when negative)."""
+    T = sweep_times(scans, params)[0]
+    n = np.diff(scans.offsets)
+    c = np.where(n > 1, np.abs(T) / np.maximum(n - 1, 1), 0.0)
+    b = np.minimum(T, 0.0)
+    ti = scans.time_increment
+    if params.sweep_from_log and ti is not None:
+        have = np.isfinite(ti) & (ti != 0.0)
+        c = np.where(have, ti, c)
+        b = np.where(have, 0.0, b)
+    return b, c
+
+
+@dataclass
+class SweepModel:
+    """Each scan's sweep (its beams taken one after another while the robot moves), deskewed
+    by the odometry's nominal motion (:func:`sweep_motion`)."""
+
+    reach: np.ndarray  # (S, 2) (d, a): every pose the scan is mapped with, and its free cones, widened by this
+    smin: np.ndarray  # (S,) its free cones prove nothing nearer its sensor (free_cones.sweep_free_from)
+    beams: Scans  # the scans, each beam turned by the nominal turn to its time
+    offset: np.ndarray  # (B, 2) each beam's sensor moved from the stamp's by the nominal motion (sensor frame)
+    err: np.ndarray  # (S,) each beam's sensor within this of its nominal position (rule A's widening)
+    turn_lever: np.ndarray  # (S,) the mount's lever turned by the nominal turn moves the sensor at most this
+
+
+def sweep_motion(scans: Scans, params: Params, m, used: np.ndarray) -> SweepModel:
+    """The sweep of each scan from the motion steps ``m`` over the rows ``used``.
+
+    ``beams``: the scans with each beam turned by the nominal turn from the stamp to its time
+    (deskewed: :meth:`~ivslam_cli.slam.motion.MotionSteps.turn_between`; a constant turn rate
+    keeps the beams evenly spaced: ``angle_min + ω̂ b``, ``angle_increment + ω̂ c``, see
+    :func:`beam_times`). ``reach`` ``(d, a)``: how far the robot moves while the beams are
+    taken (plus the mount's lever turned by the nominal turn) and how far its heading strays
+    from the nominal turn. ``offset``: beam ``i``'s sensor moved by the nominal move ``V τ_i``
+    (:meth:`~ivslam_cli.slam.motion.MotionSteps.move_between`) and the mount's lever turned by
+    ``ω̂ τ_i``; ``err``: how far the move strays from ``V τ``. ``smin``: the distance from the
+    sensor below which the scan's free cones prove nothing (:func:`~.free_cones.sweep_free_from`,
+    with the deskewed step and what the turn and the sensor's move between two beams stray
+    from it)."""
+    from dataclasses import replace
+
+    from ivslam_cli.slam.lidar.free_cones import sweep_free_from
+
+    sweep = np.zeros((len(scans), 2))
+    smin = np.zeros(len(scans))
+    b, c = beam_times(scans, params)
+    b, c = b[used], c[used]
+    if not np.any(c != 0.0):
+        return SweepModel(sweep, smin, scans, np.zeros((0, 2)), np.zeros(len(scans)), np.zeros(len(scans)))
+    n = np.diff(scans.offsets)[used]
+    s = np.asarray(scans.stamp, float)[used]
+    last = b + (np.maximum(n, 1) - 1) * c
+    t0, t1 = s + np.minimum(b, last), s + np.maximum(b, last)
+    reach = m.reach_between(t0, t1)
+    drift = m.drift_between(t0, t1, n)
+    w, e, eta = m.turn_between(s, t0, t1, n)
+    lever = math.hypot(float(scans.mount[0]), float(scans.mount[1]))
+    tau = np.maximum(np.abs(b), np.abs(last))
+    turn_lever = np.zeros(len(scans))
+    turn_lever[used] = np.nextafter(np.minimum(np.abs(w) * tau, 2.0) * lever * (1.0 + 1e-12), np.inf)
+    sweep[used, 0] = np.nextafter((reach[:, 0] + turn_lever[used]) * (1.0 + 1e-12), np.inf)
+    sweep[used, 1] = e
+    # the sensor's move between two beams: the robot's, plus its whole turn times the lever
+    d_s = np.nextafter((drift[:, 0] + (np.abs(w * c) + eta) * lever) * (1.0 + 1e-12), np.inf)
+    a0 = np.asarray(scans.angle_min, float).copy()
+    inc = np.asarray(scans.angle_increment, float).copy()
+    a0[used] = a0[used] + w * b
+    inc[used] = inc[used] + w * c
+    smin[used] = sweep_free_from(np.column_stack([d_s, eta]), inc[used], float(params.beams.bearing),
+                                 bool(params.beams.fill_gaps))
+    # the nominal move of each beam's sensor, in the sensor frame at the stamp
+    V, E = m.move_between(s, t0, t1)
+    err = sweep[:, 0].copy()
+    err[used] = np.minimum(E, sweep[used, 0])
+    mx, my, myaw = (float(v) for v in scans.mount)
+    offset = np.zeros((scans.ranges.shape[0], 2))
+    ci, si = math.cos(-myaw), math.sin(-myaw)
+    for j, k in enumerate(used):
+        lo, hi = int(scans.offsets[k]), int(scans.offsets[k + 1])
+        tau = b[j] + c[j] * np.arange(hi - lo)
+        ox = V[j, 0] * tau + (np.cos(w[j] * tau) - 1.0) * mx - np.sin(w[j] * tau) * my
+        oy = V[j, 1] * tau + np.sin(w[j] * tau) * mx + (np.cos(w[j] * tau) - 1.0) * my
+        offset[lo:hi, 0] = ci * ox - si * oy
+        offset[lo:hi, 1] = si * ox + ci * oy
+    return SweepModel(sweep, smin, replace(scans, angle_min=a0, angle_increment=inc), offset, err, turn_lever)
+
+
 def trajectory(log: LogData, params: Params, scans: Scans):
     """The motion steps over the scans within the odometry's span and the node boxes with only
     the initial one bounded: ``(used, dropped, MotionSteps, P, initial source, step events)``."""

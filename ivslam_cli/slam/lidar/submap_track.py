@@ -29,9 +29,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ivslam_cli.logs.model import Scans
-from ivslam_cli.slam.lidar.map_update import check_extent, map_union_free, update_map
+from ivslam_cli.slam.lidar.map_update import UpdateResult, check_extent, map_union_free, update_map
 from ivslam_cli.slam.lidar.matcher import Matcher, hull, swept_box
 from ivslam_cli.slam.lidar.params import Params
+from ivslam_cli.slam.lidar.sweep_map import chunk_boxes, chunk_scans
 from ivslam_cli.slam.motion_kernel import meet_node, propagate, propagate_boxes, widen_boxes
 
 
@@ -105,10 +106,16 @@ class Track:
     and buffers."""
 
     def __init__(self, params: Params, scans: Scans, m, used: np.ndarray, extent, path, n_threads: int,
-                 sweep: np.ndarray | None = None) -> None:
+                 model=None) -> None:
         self.p, self.scans, self.m, self.used, self.extent, self.path = params, scans, m, used, extent, path
-        # per scan (d, a): how far the robot moves and turns while its beams are taken
-        self.sweep = np.zeros((len(scans), 2)) if sweep is None else sweep
+        # the sweep (prediction.SweepModel): per scan (d, a), how far the robot moves and turns
+        # while its beams are taken, and the distance from its sensor below which its free cones
+        # prove nothing (its beams taken from poses apart: free_cones.sweep_free_from)
+        self.model = model
+        self.sweep = np.zeros((len(scans), 2)) if model is None else model.reach
+        self.smin = np.zeros(len(scans)) if model is None else model.smin
+        # swept scans mapped in runs of beams, each from its nominal sensor position (sweep_map)
+        self.chunks = None if model is None else chunk_scans(scans, model.offset, model.smin)
         # scans q-relaxed somewhere: up to q_retry of their beams may be wrong, so every match of
         # one, or against one, allows as many
         self.relaxed = np.zeros(len(scans), bool)
@@ -123,8 +130,31 @@ class Track:
     def _buffers(self):
         b = getattr(self.local, "b", None)
         if b is None:
-            b = self.local.b = (Matcher(self.p, self.scans, self.sweep), np.zeros((len(self.scans), 6)), np.zeros(1, np.int64))
+            nc = 1 if self.chunks is None else len(self.chunks.scans)
+            b = self.local.b = (Matcher(self.p, self.scans, self.model), np.zeros((len(self.scans), 6)),
+                                np.zeros(1, np.int64), np.zeros((nc, 6)))
         return b
+
+    def map_scan(self, tmap, scan: int, r: np.ndarray) -> UpdateResult:
+        """Scan ``scan`` mapped into ``tmap`` from robot box ``r`` (6,) at its stamp: widened by
+        its sweep, or, when it moves, in runs of beams each from its nominal sensor position
+        (:mod:`.sweep_map`). The result is indexed by scan."""
+        _, all_boxes, one, cboxes = self._buffers()
+        ch = self.chunks
+        if ch is None or not ch.moves[scan]:
+            all_boxes[scan] = swept_box(r, self.sweep[scan])
+            check_extent(all_boxes[scan], np.array([scan]), self.extent, self.path)
+            one[0] = scan
+            return update_map(tmap, self.scans, all_boxes, self.p.beams, order=one, smin=self.smin)
+        j0, j1 = int(ch.first[scan]), int(ch.first[scan + 1])
+        cb = chunk_boxes(ch, scan, r, float(self.sweep[scan, 1]), float(self.model.err[scan]),
+                         float(self.model.turn_lever[scan]))
+        cboxes[j0:j1] = cb
+        check_extent(cb, np.full(j1 - j0, scan), self.extent, self.path)
+        res = update_map(tmap, ch.scans, cboxes, self.p.beams, order=np.arange(j0, j1), smin=ch.smin)
+        stats = np.zeros((len(self.scans), res.stats.shape[1]), res.stats.dtype)
+        stats[scan] = res.stats[j0:j1].sum(axis=0)
+        return UpdateResult(res.is_old, stats)
 
     def matcher(self) -> Matcher:
         """This thread's matcher."""
@@ -145,10 +175,7 @@ class Track:
 
     def map_anchor(self, s) -> None:
         """The anchor scan mapped into its own submap, at the frame's origin."""
-        _, all_boxes, one = self._buffers()
-        all_boxes[s.anchor_scan] = swept_box(np.zeros(6), self.sweep[s.anchor_scan])
-        one[0] = s.anchor_scan
-        update_map(s.tmap, self.scans, all_boxes, self.p.beams, order=one)
+        self.map_scan(s.tmap, s.anchor_scan, np.zeros(6))
 
     @staticmethod
     def settle(s) -> None:
@@ -247,7 +274,6 @@ class Track:
         box contracted, the scan mapped with its box; it becomes the submap's reference scan
         unless ``relaxed``. Returns ``(box, out)``."""
         params = self.p
-        _, all_boxes, one = self._buffers()
         r = out.r
         if out.matched:
             if not out.ok:
@@ -267,16 +293,13 @@ class Track:
                         meet_node(s.P, k - s.k0, r, rp, rt)
             s.union_row = j
         if params.max_pose_width <= 0 or width(r) <= params.max_pose_width:
-            all_boxes[scan] = swept_box(r, self.sweep[scan])
-            check_extent(all_boxes[scan], self.used[j:j + 1], self.extent, self.path)
-            one[0] = scan
-            out.res = update_map(s.tmap, self.scans, all_boxes, params.beams, order=one)
+            out.res = self.map_scan(s.tmap, scan, r)
             if params.map_sets and s.union is not None and s.union_row == j and s.union.shape[0] > 1:
                 # the cells every box of its pose set proves free, beyond the hull's
                 u = met_rows(s.union, r)
                 if u.shape[0] > 1:
                     u = swept_box(u, self.sweep[scan])
-                    out.set_cells = map_union_free(s.tmap, self.scans, scan, u, params.beams)
+                    out.set_cells = map_union_free(s.tmap, self.scans, scan, u, params.beams, self.smin[scan])
             s.mapped.append(j)
             if not relaxed:
                 # up to q_retry of a relaxed scan's beams may break the model: no reference

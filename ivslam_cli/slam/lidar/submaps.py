@@ -48,7 +48,7 @@ from ivslam_cli.slam.lidar.loopsearch import PAVE_BUDGET, PAVE_LEAF, PAVE_LEAVES
 from ivslam_cli.slam.lidar.map_update import extent_limits
 from ivslam_cli.slam.lidar.matcher import hull
 from ivslam_cli.slam.lidar.params import Params
-from ivslam_cli.slam.lidar.prediction import PosePrediction, sweep_times, trajectory
+from ivslam_cli.slam.lidar.prediction import PosePrediction, sweep_motion, trajectory
 from ivslam_cli.slam.lidar.submap_track import Track, reset_node, threads, width
 from ivslam_cli.slam.motion_kernel import (
     meet_node,
@@ -112,6 +112,8 @@ class SubmapTracking:
     q_rematched: list = field(default_factory=list)  # (row, submap) matched again with q_retry: relaxed elsewhere
     q_held: list = field(default_factory=list)  # rows matched with q_retry from the start (lidar.q_hold)
     sweep: np.ndarray | None = None  # (S', 2) per used row: motion bound (d, a) while its beams are taken
+    smin: np.ndarray | None = None  # (S',) per used row: no cell nearer its sensor proven free (sweep_free_from)
+    beams: Scans | None = None  # the scans as matched and mapped: each beam turned by the sweep's nominal turn
 
 
 def _centre(b: np.ndarray) -> tuple[float, float, float]:
@@ -289,12 +291,10 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
     broken_global = False
     stats = np.zeros((len(scans), 6), np.int64)
     is_old = np.zeros(scans.ranges.shape[0], bool)
-    sweep = np.zeros((len(scans), 2))
-    T = sweep_times(scans, params)[0][used]
-    if np.any(T != 0.0):
-        s_used = np.asarray(scans.stamp, float)[used]
-        sweep[used] = m.reach_between(s_used + np.minimum(T, 0.0), s_used + np.maximum(T, 0.0))
-    track = Track(params, scans, m, used, extent, path, threads(params), sweep)
+    # each beam turned by the nominal turn to its time (the sweep, deskewed)
+    model = sweep_motion(scans, params, m, used)
+    sweep, smin, beams = model.reach, model.smin, model.beams
+    track = Track(params, beams, m, used, extent, path, threads(params), model)
     g = np.empty(6)
     met = np.empty(6)
     tested = 0
@@ -488,4 +488,4 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                           node_stamp=m.node_stamp, dropped=dropped)
     return SubmapTracking(pred, submaps, home, relative, mapped, contracted, contradicted, compose_empty,
                           relocalised, q_relaxed, forward, predicted, tested, smoothed, stats, is_old, graph, open_loop,
-                          anchor_before, set_cells, q_rematched, q_held, sweep[used])
+                          anchor_before, set_cells, q_rematched, q_held, sweep[used], smin[used], beams)

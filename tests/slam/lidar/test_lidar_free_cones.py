@@ -59,7 +59,7 @@ def _case(draw):
 def test_the_quick_rejection_never_rejects_what_the_exact_test_certifies(case):
     f, a0, inc, ra, cx, cy, c, hw, vx, vy, ux, uy, ah, ac = case
     stl, sth = c - hw, c + hw
-    if not _seg_free(vx, vy, ux, uy, ah, ac, stl, sth, f, a0, inc, ra):
+    if not _seg_free(vx, vy, ux, uy, ah, ac, stl, sth, f, a0, inc, ra, 0.0):
         return
     ii, acn, mi, ok, rr = _cover_setup(f.shape[0], a0, inc, ra)
     mid = 0.5 * (stl + sth)
@@ -141,3 +141,102 @@ def test_covered_free_needs_only_the_cone_that_holds_a_narrow_window():
     # gaps assumed free (narrower cones): the two beams around the window
     assert not covered_free(f, 0.0, inc, 0.25 * inc, a1 + 0.1 * inc, a1 + 0.4 * inc, 1.5)
     assert covered_free(f, 0.0, inc, 0.25 * inc, 0.1 * inc, 0.4 * inc, 1.5)
+
+
+# ---------------------------------------------------------------- beams taken from poses apart
+def _cones_hold(x, y, o, th, a0, inc, ra, f, tol=1e-9):
+    """The beams whose own cone (from their own sensor pose ``o[i]``, heading ``th[i]``) holds
+    the point, nearer than their free range."""
+    d = np.hypot(x - o[:, 0], y - o[:, 1])
+    b = np.arctan2(y - o[:, 1], x - o[:, 0]) - th
+    off = b - (a0 + inc * np.arange(f.size))
+    off = (off + math.pi) % (2 * math.pi) - math.pi
+    return (np.abs(off) <= ra + tol) & (d < f)
+
+
+def _certified(x, y, box, f, a0, inc, ra, smin):
+    """The map kernels' decision for a point: its bearings over the sensor box in the window of
+    cones free beyond its largest distance (covered_free), and no nearer than ``smin``."""
+    from ivslam_cli.slam.lidar.free_cones import covered_free
+    from ivslam_cli.slam.lidar.geometry import box_bearings, box_ranges
+
+    xl, xh, yl, yh, thl, thh = box
+    dxl, dxh, dyl, dyh = x - xh, x - xl, y - yh, y - yl
+    r_lo, r_hi = box_ranges(dxl, dxh, dyl, dyh)
+    bl, bh, full = box_bearings(dxl, dxh, dyl, dyh)
+    return (not full) and r_lo >= smin and covered_free(f, a0, inc, ra, bl - thh, bh - thl, r_hi)
+
+
+@st.composite
+def _swept_scan(draw):
+    """A scan whose beams are taken one after another from poses that move at most ``δ`` and
+    turn at most ``η`` from one beam to the next (often the worst: turning with the sweep,
+    which spreads the cones apart, and moving across the beams)."""
+    nb = draw(st.integers(20, 300))
+    inc = draw(st.floats(0.003, 0.02))
+    ra = inc * draw(st.sampled_from([0.5, 0.52, 0.6, 0.75, 1.0]))
+    eta = inc * draw(st.sampled_from([0.0, 0.01, 0.05, 0.2, 0.5])) * draw(st.floats(0.0, 1.0))
+    delta = draw(st.sampled_from([0.0, 1e-4, 1e-3, 5e-3])) * draw(st.floats(0.0, 1.0))
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    worst = draw(st.booleans())
+    th = np.zeros(nb)
+    o = np.zeros((nb, 2))
+    for i in range(1, nb):
+        th[i] = th[i - 1] + (eta if worst else eta * rng.uniform(-1.0, 1.0))
+        a = th[i] + inc * i + (math.pi / 2 if worst else rng.uniform(-math.pi, math.pi))
+        step = delta if worst else delta * rng.random()
+        o[i] = o[i - 1] + step * np.array([math.cos(a), math.sin(a)])
+    f = rng.uniform(0.5, 6.0, nb) if draw(st.booleans()) else np.full(nb, 6.0)
+    a0 = -0.5 * (nb - 1) * inc
+    return nb, inc, ra, eta, delta, o, th, f, a0, rng
+
+
+@settings(max_examples=examples(ci=400))
+@given(_swept_scan())
+def test_swept_cones_prove_free_only_what_some_beam_saw(case):
+    """The sweep: beams taken from poses apart leave slivers between their cones that no beam
+    saw. Every point the kernels' rule certifies free — its window of cones over the sensor box
+    that holds every beam's pose, and no nearer than :func:`sweep_free_from` — lies in the cone
+    of some beam seen from that beam's own pose, nearer than its free range."""
+    from ivslam_cli.slam.lidar.free_cones import sweep_free_from
+
+    nb, inc, ra, eta, delta, o, th, f, a0, rng = case
+    smin = float(sweep_free_from(np.array([[delta, eta]]), np.array([inc]), ra, False)[0])
+    box = (o[:, 0].min(), o[:, 0].max(), o[:, 1].min(), o[:, 1].max(), th.min(), th.max())
+    if not math.isfinite(smin):
+        assert 2 * ra - inc <= eta * (1 + 1e-9)  # the cones cannot overlap by the turn: nothing
+        return
+    n_cert = 0
+    for _ in range(300):
+        s = rng.uniform(min(max(smin, 1e-3), 6.0), 6.0) if rng.random() < 0.8 else rng.uniform(0.0, 0.2)
+        b = rng.uniform(a0, a0 + (nb - 1) * inc) + rng.uniform(th.min(), th.max())
+        x, y = o[:, 0].mean() + s * math.cos(b), o[:, 1].mean() + s * math.sin(b)
+        if _certified(x, y, box, f, a0, inc, ra, smin):
+            n_cert += 1
+            assert _cones_hold(x, y, o, th, a0, inc, ra, f).any(), (x, y, smin)
+
+
+def test_a_turn_with_the_sweep_opens_slivers_no_beam_saw():
+    """A test that can fail: cones that only touch (bearing bound = half the step), the sensor
+    turning by ``η`` from each beam to the next in the sweep's direction. Between beams ``i`` and
+    ``i+1`` a sliver of ``η`` is in neither cone, yet every pose of the box sees it within the
+    window of cones: one pose for the whole scan would call it free. The sweep's rule proves
+    nothing from such a scan (inf), and with cones overlapping by more than the turn, from 0."""
+    from ivslam_cli.slam.lidar.free_cones import sweep_free_from
+
+    nb, inc, eta = 100, 0.01, 0.002
+    ra = 0.5 * inc
+    a0 = -0.5 * (nb - 1) * inc
+    th = eta * np.arange(nb)
+    o = np.zeros((nb, 2))
+    f = np.full(nb, 6.0)
+    box = (0.0, 0.0, 0.0, 0.0, th[0], th[-1])
+    i = 50
+    b = a0 + i * inc + ra + th[i] + 0.5 * eta  # between cone i's upper edge and cone i+1's lower one
+    x, y = 3.0 * math.cos(b), 3.0 * math.sin(b)
+    assert not _cones_hold(x, y, o, th, a0, inc, ra, f, tol=0.0).any()
+    assert _certified(x, y, box, f, a0, inc, ra, 0.0)  # one pose per scan: unsound
+    assert sweep_free_from(np.array([[0.0, eta]]), np.array([inc]), ra, False)[0] == math.inf
+    assert not _certified(x, y, box, f, a0, inc, ra, math.inf)
+    assert sweep_free_from(np.array([[0.0, eta]]), np.array([inc]), 0.5 * inc + eta, False)[0] < 1e-300
+    assert sweep_free_from(np.array([[0.0, eta]]), np.array([inc]), ra, True)[0] == 0.0  # fill_gaps: assumed

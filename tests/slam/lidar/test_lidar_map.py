@@ -199,6 +199,25 @@ def test_no_return_beams_prove_nothing():
     assert empty.shape[0] == 0 and obst.shape[0] == 0
 
 
+@pytest.mark.parametrize("smin", [0.3, 1.0, 2.5])
+def test_near_cells_not_empty_below_smin(smin):
+    """``smin``: P_EMPTY^k loses exactly the cells nearer than it to the sensor box (the beams of
+    a sweep, taken from poses apart, leave slivers there: free_cones.sweep_free_from)."""
+    eps = 0.05
+    segs, pose, box, bounds, scans, hits, mask = _case(7, 0.05, 0.01, 0.75, eps)
+    full = set(map(tuple, scan_sets(scans, 0, box, bounds, eps)[0].tolist()))
+    cut = set(map(tuple, scan_sets(scans, 0, box, bounds, eps, smin=smin)[0].tolist()))
+    assert cut <= full and len(cut) > 0
+    sb = sensor_box(*box, *scans.mount)
+    for ix, iy in full:
+        r_lo = box_ranges(ix * eps - sb[1], (ix + 1) * eps - sb[0], iy * eps - sb[3], (iy + 1) * eps - sb[2])[0]
+        if (ix, iy) in cut:
+            assert r_lo >= smin - 1e-9
+        else:
+            assert r_lo < smin + 1e-9
+    assert not scan_sets(scans, 0, box, bounds, eps, smin=math.inf)[0].size
+
+
 # a seed only, but not explicit seeds: assume() (below) makes Hypothesis draw until 12 worlds
 # have an oracle requiring >= 50 cells
 @given(st.integers(0, 2**32 - 1))
@@ -429,12 +448,13 @@ def test_fast_scan_cells_equal_reference(seed):
         assert _cellset(new[2], new[3]) == _cellset(ref[2], ref[3])
 
 
-def _run_log(fn, tmap, scans, boxes, bounds, order, exact, write):
+def _run_log(fn, tmap, scans, boxes, bounds, order, exact, write, smin=None):
     is_old = np.zeros(scans.ranges.shape[0], dtype=np.bool_)
     stats = np.zeros((len(scans), 6), dtype=np.int64)
+    smin = np.zeros(len(scans)) if smin is None else np.asarray(smin, float)
     arrays = fn(*tmap.arrays(), scans.ranges, scans.valid, scans.offsets, scans.angle_min, scans.angle_increment,
                 sensor_boxes(boxes, scans.mount), np.asarray(order, np.int64), bounds.range_abs,
-                bounds.range_rel, bounds.bearing, tmap.eps, exact, write, is_old, stats)
+                bounds.range_rel, bounds.bearing, tmap.eps, exact, write, is_old, stats, True, smin)
     tmap.set_arrays(*arrays)
     return is_old, stats
 
@@ -466,9 +486,11 @@ def test_fast_update_log_equal_reference(seed):
         new, ref = TileMap(eps), TileMap(eps)
         runs = [(np.arange(len(scans)), True), (rng.permutation(len(scans)), True),
                 (rng.permutation(len(scans))[:3], False)]
+        # no cell nearer than smin to the sensor box proven empty (a sweep's beams apart)
+        smin = rng.choice([0.0, 0.0, 0.4, 1.5, np.inf], size=len(scans))
         for order, write in runs:
-            a = _run_log(K.update_log, new, scans, boxes, bounds, order, exact, write)
-            b = _run_log(K.update_log_reference, ref, scans, boxes, bounds, order, exact, write)
+            a = _run_log(K.update_log, new, scans, boxes, bounds, order, exact, write, smin)
+            b = _run_log(K.update_log_reference, ref, scans, boxes, bounds, order, exact, write, smin)
             _same_maps(new, ref)
             assert np.array_equal(a[0], b[0])  # old beams
             assert np.array_equal(a[1][:, 1:5], b[1][:, 1:5])  # empty, obstacle, new, old counts
@@ -501,7 +523,7 @@ def test_fast_path_grows_its_buffers():
                    np.zeros(4, np.int64), wf, wi)
     assert not r[0] and r[5] > 4
     r = K._traverse_grown(keys, slots, cells, *args[:9], True, lg, T, np.zeros(nb, np.bool_),
-                          *K._record_buffers(), np.zeros(4, np.int64), wf, wi, True)
+                          *K._record_buffers(), np.zeros(4, np.int64), wf, wi, True, 0.0)
     assert r[10].shape[1] > 4
     tx0, tx1, ty0, ty1 = K._tile_range(*sb[:4], float(T[0, :nb, 1].max()), 0.011)
     assert (tx1 - tx0 + 1) * (ty1 - ty0 + 1) > 2 * K._CHUNK  # several chunks of tiles

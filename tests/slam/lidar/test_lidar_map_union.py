@@ -42,7 +42,7 @@ def _cells(a: np.ndarray) -> set:
 def _union_empty(tmap, scans, union, bounds):
     r, v, a0, inc = _scan(scans, 0)
     ix, iy = union_empty(tmap.keys, tmap.slots, tmap.cells, r, v, a0, inc, sensor_boxes(union, scans.mount),
-                         bounds.range_abs, bounds.range_rel, bounds.bearing, EPS, bounds.fill_gaps)
+                         bounds.range_abs, bounds.range_rel, bounds.bearing, EPS, bounds.fill_gaps, 0.0)
     return np.column_stack([ix, iy])
 
 

@@ -29,12 +29,16 @@ def test_a_swept_box_holds_the_box_and_rounds_outward():
 
 @pytest.mark.slow  # ~40 s
 def test_a_swept_log_keeps_the_truth_with_its_sweep_and_loses_it_without():
-    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=5, steps=200, sweep=SWEEP))
+    # cones that overlap by more than the turn between two beams (0.0035 rad against half a step,
+    # 0.00307): the free space they prove holds although each beam is taken from its own pose
+    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=5, steps=200, sweep=SWEEP,
+                             bounds={"beam_angle": 0.0035}))
     res = run(log, LidarParams.from_config(resolve_config(None, {}, log_bounds=log.bounds)))
     c = containment(res)
     for kind in ("pose", "pose_relative", "map_free", "global_free"):
         assert c[kind][0] == c[kind][1] > 0, (kind, c)
     assert "the log's time_increment" in res.consistency.assumption  # read from the log by default
+    assert 0.0 < res.stats["sweep_free_from_median"] < 0.2 and res.stats["scans_no_free"] == 0
     # every beam at the stamp: the model is wrong by the robot's motion during the scan
     off = {"lidar.sweep_from_log": False}
     still = run(log, LidarParams.from_config(resolve_config(None, off, log_bounds=log.bounds)))
@@ -46,3 +50,53 @@ def test_a_swept_log_keeps_the_truth_with_its_sweep_and_loses_it_without():
     sweep_times_source = sweep_times(log.scans, LidarParams.from_config(resolve_config(None, by_hand,
                                                                                       log_bounds=log.bounds)))
     assert sweep_times_source[1] == "lidar.sweep" and np.allclose(sweep_times_source[0], SWEEP)
+
+
+@pytest.mark.parametrize("seed", [1, 4])
+def test_every_beam_is_taken_from_within_its_chunks_box(seed):
+    """The sweep deskewed (prediction.sweep_motion) and mapped in runs of beams (sweep_map):
+    from the true pose at a scan's stamp, every beam's true sensor (the simulated robot's pose at
+    the beam's own time, the laser on its mount) lies in its chunk's sensor box, and its true
+    direction is the chunk's deskewed beam angle turned by a heading of the chunk's box."""
+    from ivslam_cli.slam.lidar.map_update import sensor_boxes
+    from ivslam_cli.slam.lidar.prediction import beam_times, sweep_motion, trajectory
+    from ivslam_cli.slam.lidar.sweep_map import chunk_boxes, chunk_scans
+
+    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=seed, steps=40, sweep=SWEEP,
+                             bounds={"beam_angle": 0.0035}))
+    params = LidarParams.from_config(resolve_config(None, {}, log_bounds=log.bounds))
+    scans, tr = log.scans, log.truth
+    used, _, m, _, _, _ = trajectory(log, params, scans)
+    model = sweep_motion(scans, params, m, used)
+    ch = chunk_scans(model.beams, model.offset, model.smin)
+    assert ch is not None and ch.moves[used].all()
+    b, c = beam_times(scans, params)
+    ref = float(tr.pose_stamp[0])
+    ts = tr.pose_stamp - ref
+    th_u = np.unwrap(tr.pose[:, 2])
+    mx, my, myaw = scans.mount
+    worst = 0.0
+    for k in used[1:-2]:
+        t_k = float(scans.stamp[k]) - ref
+        p = [np.interp(t_k, ts, tr.pose[:, 0]), np.interp(t_k, ts, tr.pose[:, 1]), np.interp(t_k, ts, th_u)]
+        box = np.array([p[0], p[0], p[1], p[1], p[2], p[2]])
+        cb = chunk_boxes(ch, k, box, float(model.reach[k, 1]), float(model.err[k]), float(model.turn_lever[k]))
+        sb = sensor_boxes(cb, scans.mount)
+        for j in range(ch.first[k], ch.first[k + 1]):
+            lo, hi = int(ch.scans.offsets[j]), int(ch.scans.offsets[j + 1])
+            i = np.arange(lo, hi) - int(scans.offsets[k])
+            t_i = t_k + b[k] + c[k] * i
+            x, y, th = (np.interp(t_i, ts, tr.pose[:, 0]), np.interp(t_i, ts, tr.pose[:, 1]),
+                        np.interp(t_i, ts, th_u))
+            sx = x + np.cos(th) * mx - np.sin(th) * my
+            sy = y + np.sin(th) * mx + np.cos(th) * my
+            box_j = sb[j - ch.first[k]]
+            assert np.all((box_j[0] <= sx) & (sx <= box_j[1]) & (box_j[2] <= sy) & (sy <= box_j[3])), (k, j)
+            # the true direction of beam i: heading th + mount + a_i; the chunk's: its heading + a'_i
+            a_true = scans.angle_min[k] + i * scans.angle_increment[k]
+            a_desk = ch.scans.angle_min[j] + (np.arange(hi - lo)) * ch.scans.angle_increment[j]
+            head = th + myaw + a_true - a_desk
+            assert np.all((box_j[4] - 1e-12 <= head) & (head <= box_j[5] + 1e-12)), (k, j)
+            worst = max(worst, float(np.max(box_j[[1, 3]] - box_j[[0, 2]])))
+    # the chunks' boxes are far narrower than the whole sweep's move (3.7 cm either side)
+    assert worst < 0.5 * 2 * float(np.median(model.reach[used, 0]))
