@@ -437,10 +437,7 @@ class MotionSteps:
         tau = (t1 - t0 + 4.0 * np.spacing(np.abs(t0) + np.abs(t1))) / np.maximum(np.asarray(n_beams, float) - 1.0, 1.0)
         out = self.reach_between(t0, t1)
         if self.rate is not None and self.node_stamp.shape[0] > 1:
-            ns = self.node_stamp
-            n1 = ns.shape[0] - 1
-            i0 = np.clip(np.searchsorted(ns, t0, side="right") - 1, 0, n1 - 1)
-            i1 = np.clip(np.searchsorted(ns, t1, side="left") - 1, 0, n1 - 1)
+            i0, i1, _ = self._steps_met(t0, t1)
             for e in range(t0.shape[0]):
                 k0, k1 = int(i0[e]), int(max(i0[e], i1[e]))
                 rate = self.rate[k0:k1 + 1]
