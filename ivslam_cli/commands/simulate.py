@@ -12,7 +12,8 @@ _BOUND_OPTIONS = sorted({k for b in DEFAULT_BOUNDS.values() for k in b})
 _BOUND_HELP = {
     "beam_angle": "lidar bearing bound [rad], stated in the log (the pipelines read it as 'bearing'): the cone "
                   "half-width of --beam-model cone [default: half the sensor's beam step, the smallest value "
-                  "whose adjacent cones touch: urg-04lx 0.0030680, sick 0.0087266; a smaller value is refused]; "
+                  "whose adjacent cones touch: urg-04lx 0.0030680, sick 0.0087266; with --sweep, wider so that they "
+                  "overlap by the turn between two beams; a value below half a step is refused]; "
                   "with ray, only stated (rays are exact) [default: 0].",
 }
 
@@ -55,7 +56,9 @@ def _options(f):
 @click.option("--speed", type=float, default=0.5, show_default=True, help="Nominal speed [m/s].")
 @click.option("--sweep", type=float, default=0.0, show_default=True,
               help="LiDAR: seconds from a scan's stamp (its first beam) to its last beam; each beam is "
-                   "taken from the robot pose at its own time (a URG-04LX: 0.067). 0: every beam at the stamp.")
+                   "taken from the robot pose at its own time (a URG-04LX: 0.067); the default --beam-angle then "
+                   "widens so that adjacent cones overlap by the turn between two beams (free space from "
+                   "0.1 m on). 0: every beam at the stamp.")
 @click.option("--noise", type=click.Choice(NOISES), default="uniform", show_default=True,
               help="In-bound error distribution (edges = at the bound).")
 @click.option("--outlier-rate", type=float, default=0.0, show_default=True,

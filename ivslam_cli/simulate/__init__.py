@@ -33,7 +33,9 @@ the error ``e = z - g(truth)`` of an in-bound measurement satisfies ``|e| <= bou
 ``odom_w_rel``  ... proportional to distance travelled [rad/m]:
                 ``|z_w - w| <= odom_w + odom_w_rel * |v|``
 ``beam_angle``  LiDAR bearing bound [rad] (read as ``bearing`` by the pipelines): the
-                cone half-width ``h`` of the cone model (default: half the beam step);
+                cone half-width ``h`` of the cone model (default: half the beam step;
+                with a sweep, wide enough that adjacent cones overlap by the turn
+                between two beams: ``config.swept_half_width``);
                 with the ray model only stated, rays being exact (default 0)
 ==============  =====================================================================
 

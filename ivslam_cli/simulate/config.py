@@ -26,9 +26,31 @@ DEFAULT_BOUNDS: dict[str, dict[str, float]] = {
     },
 }
 
+#: The simulated robot's top turn rate [rad/s] (the lidar scenario's wanderer).
+TURN_RATE_MAX = 1.0
+#: A swept simulated scan proves free space from this far of its sensor on, by default [m].
+SWEEP_FREE_FROM = 0.1
+
 #: Default (steps, rate [Hz]) per scenario.
 DEFAULT_STEPS = {"pairs": 200, "landmarks": 500, "lidar": 300}
 DEFAULT_RATE = {"pairs": 5.0, "landmarks": 10.0, "lidar": None}  # lidar: the sensor's rate
+
+
+def swept_half_width(prof, sweep: float, speed: float) -> float:
+    """The cone half-width ``h`` a swept scan needs to prove free space from ``SWEEP_FREE_FROM``.
+
+    Between two beams (``c = sweep / (beams - 1)`` apart) the sensor turns by at most
+    ``eta = TURN_RATE_MAX c`` and moves by at most ``delta = (speed + TURN_RATE_MAX |mount|) c``;
+    adjacent cones then certify free space from ``(pi/3) delta / (2h - step - eta)`` of the
+    sensor on (``free_cones.sweep_free_from``). The least ``h`` with that distance at most
+    ``SWEEP_FREE_FROM``, rounded up; half the beam step is too narrow: its cones only touch.
+    """
+    c = sweep / (prof.beams - 1)
+    eta = TURN_RATE_MAX * c
+    delta = (speed + TURN_RATE_MAX * math.hypot(prof.mount[0], prof.mount[1])) * c
+    h = prof.half_step() + 0.5 * (eta + (math.pi / 3.0) * delta / SWEEP_FREE_FROM)
+    up = math.ceil(h * 1e5) / 1e5  # a readable value, at least h
+    return up if up >= h else math.nextafter(h, math.inf)
 
 
 @dataclass
@@ -68,7 +90,9 @@ class SimConfig:
         if self.scenario == "lidar" and self.beam_model == "cone" and self.bounds.get("beam_angle") is None:
             from ivslam_cli.simulate.sensors import get_profile
 
-            out["beam_angle"] = get_profile(self.sensor).half_step()
+            prof = get_profile(self.sensor)
+            out["beam_angle"] = (prof.half_step() if self.sweep <= 0.0
+                                 else swept_half_width(prof, self.sweep, self.speed))
         return out
 
     def resolved_rate(self, sensor_rate: float | None = None) -> float:

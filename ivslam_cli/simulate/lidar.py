@@ -16,7 +16,7 @@ from ivslam_cli.logs.model import GroundTruth, LogData, Provenance, Scans
 from ivslam_cli.simulate import noise
 from ivslam_cli.simulate.common import base_meta
 from ivslam_cli.simulate.conecast import cone_cast, swept_cone_scans
-from ivslam_cli.simulate.config import SimConfig
+from ivslam_cli.simulate.config import TURN_RATE_MAX, SimConfig
 from ivslam_cli.simulate.motion import T0, make_stamps, step_scalar
 from ivslam_cli.simulate.odometry import measure_twist
 from ivslam_cli.simulate.raycast import cast
@@ -39,7 +39,7 @@ def wander(rng: np.random.Generator, world: World, stamp: np.ndarray, speed: flo
     pose, twist = np.empty((n, 3)), np.empty((n, 2))
     segs = world.segments
     x, y, th = world.start
-    w_rand, turn, w_max = 0.0, 0, 1.0
+    w_rand, turn, w_max = 0.0, 0, TURN_RATE_MAX
     for k in range(n):
         pose[k] = x, y, th
         probe = cast(np.array([x, y, th]), _PROBES, segs)[0]

@@ -220,6 +220,30 @@ def test_swept_cone_beams_satisfy_their_bounds_from_their_own_poses(seed, world,
     assert not np.array_equal(log.scans.ranges, still.scans.ranges)
 
 
+@pytest.mark.parametrize("sensor,sweep,speed", [("urg-04lx", 0.0667, 0.5), ("sick", 0.2, 1.0)])
+def test_a_swept_logs_default_cones_overlap_by_its_turn_between_beams(sensor, sweep, speed):
+    """By default a swept log's cones are wide enough that its true motion between two beams
+    leaves free space proven from ``SWEEP_FREE_FROM`` on (half a step: nowhere)."""
+    from ivslam_cli.simulate.config import SWEEP_FREE_FROM
+    from ivslam_cli.slam.lidar.free_cones import sweep_free_from
+
+    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor=sensor, seed=2, steps=80, sweep=sweep,
+                             speed=speed))
+    prof = get_profile(sensor)
+    h, inc = log.bounds["beam_angle"], prof.angle_increment
+    assert prof.half_step() < h < 2.0 * prof.half_step()
+    check_cone_log(log)
+    p, dt = log.truth.pose, np.diff(log.truth.pose_stamp)
+    turn = np.abs(np.diff(np.unwrap(p[:, 2]))) / dt
+    move = np.hypot(*np.diff(p[:, :2], axis=0).T) / dt + turn * math.hypot(*prof.mount[:2])
+    c = sweep / (prof.beams - 1)
+    drift = np.column_stack([move, turn]) * c
+    assert turn.max() > 0.5 and move.max() > 0.5 * speed  # it turned and drove
+    s = sweep_free_from(drift, np.full(len(dt), inc), h, False)
+    assert np.all(s <= SWEEP_FREE_FROM), s.max()
+    assert np.all(np.isinf(sweep_free_from(drift[turn > 0.5], inc, prof.half_step(), False)))
+
+
 def test_a_wider_stated_cone_is_simulated_and_a_narrower_one_refused():
     from ivslam_cli.errors import ConfigError
 

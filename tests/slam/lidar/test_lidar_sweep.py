@@ -29,10 +29,10 @@ def test_a_swept_box_holds_the_box_and_rounds_outward():
 
 @pytest.mark.slow  # ~40 s
 def test_a_swept_log_keeps_the_truth_with_its_sweep_and_loses_it_without():
-    # cones that overlap by more than the turn between two beams (0.0035 rad against half a step,
-    # 0.00307): the free space they prove holds although each beam is taken from its own pose
-    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=5, steps=200, sweep=SWEEP,
-                             bounds={"beam_angle": 0.0035}))
+    # the default cones of a swept log overlap by more than the turn between two beams (0.00343
+    # rad against half a step, 0.00307): the free space they prove holds although each beam is
+    # taken from its own pose
+    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=5, steps=200, sweep=SWEEP))
     res = run(log, LidarParams.from_config(resolve_config(None, {}, log_bounds=log.bounds)))
     c = containment(res)
     for kind in ("pose", "pose_relative", "map_free", "global_free"):
@@ -62,8 +62,7 @@ def test_every_beam_is_taken_from_within_its_chunks_box(seed):
     from ivslam_cli.slam.lidar.prediction import beam_times, sweep_motion, trajectory
     from ivslam_cli.slam.lidar.sweep_map import chunk_boxes, chunk_scans
 
-    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=seed, steps=40, sweep=SWEEP,
-                             bounds={"beam_angle": 0.0035}))
+    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=seed, steps=40, sweep=SWEEP))
     params = LidarParams.from_config(resolve_config(None, {}, log_bounds=log.bounds))
     scans, tr = log.scans, log.truth
     used, _, m, _, _, _ = trajectory(log, params, scans)
