@@ -304,6 +304,31 @@ def range_bounds(z, r_abs, r_rel):
     return max(lo, 0.0), hi
 
 
-__all__ = ["ATAN_ERR", "FIN_MAX", "INF", "atan2_fast", "beam_offset", "beam_window", "box_bearings",
-           "box_bearings_fast", "box_ranges", "box_ranges_fin", "dn", "range_bounds", "sensor_box",
+#: absolute and relative (to the beam's range) error bound of a rotated endpoint region
+MARGIN_ABS = 1e-9
+MARGIN_REL = 1e-12
+
+
+@njit(cache=True, inline="always")
+def beam_region(ccx, ccy, cc, sc, ca, sa, rl, rh, d):
+    """A beam at angle ``α`` (``ca``, ``sa``: its cosine and sine) with true distance in
+    ``[rl, rh]``, from a sensor at ``(ccx, ccy)`` whose heading is within ``d`` (the bearing
+    error included) of ``c`` (``cc``, ``sc``): its end point lies in the rectangle of centre
+    ``(cx, cy)``, axis ``u`` (the beam's mid direction), half-length ``ah`` along ``u`` and
+    half-width ``ac`` across; ``hx``, ``hy``: the rectangle's half extents in x, y. Floating
+    point, widened by the error bound (:data:`MARGIN_ABS`, :data:`MARGIN_REL`)."""
+    ux = cc * ca - sc * sa
+    uy = sc * ca + cc * sa
+    al = rl * (1.0 - upf(0.5 * upf(d * d)))  # r cos t >= r (1 - t²/2)
+    am = 0.5 * (al + rh)
+    marg = MARGIN_ABS + MARGIN_REL * rh
+    ah = 0.5 * (rh - al) + marg
+    ac = rh * d + marg  # |r sin t| <= r |t|
+    hx = ah * abs(ux) + ac * abs(uy)
+    hy = ah * abs(uy) + ac * abs(ux)
+    return ccx + am * ux, ccy + am * uy, ux, uy, ah, ac, hx, hy
+
+
+__all__ = ["ATAN_ERR", "FIN_MAX", "INF", "MARGIN_ABS", "MARGIN_REL", "atan2_fast", "beam_offset", "beam_region",
+           "beam_window", "box_bearings", "box_bearings_fast", "box_ranges", "box_ranges_fin", "dn", "range_bounds", "sensor_box",
            "sensor_boxes_of", "sensor_offset", "upf", "window_in_branch"]

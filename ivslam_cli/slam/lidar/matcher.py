@@ -49,12 +49,11 @@ import numpy as np
 from numba import njit
 
 from ivslam_cli.paving.tiles import EMPTY, TILE
-from ivslam_cli.slam.lidar.free_cones import _cover_setup, _may_cover, _seg_free, free_of
-from ivslam_cli.slam.lidar.geometry import dn, range_bounds, sensor_box, sensor_offset, upf
+from ivslam_cli.slam.lidar.free_cones import _cover_setup, _may_cover, _seg_free
+from ivslam_cli.slam.lidar.geometry import MARGIN_ABS, beam_region, dn, range_bounds, sensor_offset, upf
+from ivslam_cli.slam.lidar.references import (C_AC, C_II, C_MI, C_OK, C_RAD, C_RR, C_RUNS, C_SMIN, C_TH, C_X, C_Y,
+                                              reference_rows, runs_may_cover, scan_runs)
 
-#: absolute and relative (to the beam's range) error bound of a rotated endpoint region
-MARGIN_ABS = 1e-9
-MARGIN_REL = 1e-12
 #: windows of the summed-area table are at most this many cells (beyond: rule A is not used)
 MAX_WINDOW_CELLS = 1 << 24
 
@@ -100,60 +99,14 @@ def _clear(S, m, wx0, wy0, nx, ny, eps, xl, xh, yl, yh):
     return S[ix1 * m + iy1] - S[ix0 * m + iy1] - S[ix1 * m + iy0] + S[ix0 * m + iy0] == 0
 
 
-@njit(cache=True, inline="always")
-def _rotated_region(ccx, ccy, cc, sc, ca, sa, rl, rh, d):
-    """A beam at angle ``α`` (``ca``, ``sa``: its cosine and sine) with true distance in
-    ``[rl, rh]``, from a sensor at ``(ccx, ccy)`` whose heading is within ``d`` (the bearing
-    error included) of ``c`` (``cc``, ``sc``): its end point lies in the rectangle of centre
-    ``(cx, cy)``, axis ``u`` (the beam's mid direction), half-length ``ah`` along ``u`` and
-    half-width ``ac`` across; ``hx``, ``hy``: the rectangle's half extents in x, y. Floating
-    point, widened by the error bound (:data:`MARGIN_ABS`, :data:`MARGIN_REL`)."""
-    ux = cc * ca - sc * sa
-    uy = sc * ca + cc * sa
-    al = rl * (1.0 - upf(0.5 * upf(d * d)))  # r cos t >= r (1 - t²/2)
-    am = 0.5 * (al + rh)
-    marg = MARGIN_ABS + MARGIN_REL * rh
-    ah = 0.5 * (rh - al) + marg
-    ac = rh * d + marg  # |r sin t| <= r |t|
-    hx = ah * abs(ux) + ac * abs(uy)
-    hy = ah * abs(uy) + ac * abs(ux)
-    return ccx + am * ux, ccy + am * uy, ux, uy, ah, ac, hx, hy
-
-
-@njit(cache=True, nogil=True)
-def witness_segments(ranges, valid, a0, inc, box, mx, my, myaw, r_abs, r_rel, r_alpha, stride, out):
-    """Rectangles ``out`` (k, 6: centre x, y, axis x, y, half-length, half-width) holding the end
-    points of the valid beams (every ``stride``-th) of a scan taken from robot box ``box`` (6,)
-    in the frame: each holds a surface point. Returns k."""
-    sxl, sxh, syl, syh, stl, sth = sensor_box(box[0], box[1], box[2], box[3], box[4], box[5], mx, my, myaw)
-    c = 0.5 * (stl + sth)
-    d = upf(upf(upf(0.5 * (sth - stl)) + 1e-15 * abs(c) + 1e-300) + r_alpha)
-    if not d < 1.0:
-        return 0
-    cc, sc = math.cos(c), math.sin(c)
-    ccx, ccy = 0.5 * (sxl + sxh), 0.5 * (syl + syh)
-    rs = upf(0.5 * upf(math.hypot(sxh - sxl, syh - syl))) + MARGIN_ABS
-    k = 0
-    for i in range(0, ranges.shape[0], stride):
-        if not valid[i]:
-            continue
-        rl, rh = range_bounds(float(ranges[i]), r_abs, r_rel)
-        ang = a0 + i * inc
-        cx, cy, ux, uy, ah, ac, _, _ = _rotated_region(ccx, ccy, cc, sc, math.cos(ang), math.sin(ang), rl, rh, d)
-        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = cx, cy, ux, uy
-        out[k, 4], out[k, 5] = upf(ah + rs), upf(ac + rs)
-        k += 1
-    return k
-
-
 @njit(cache=True)
 def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw, r_alpha,
                cones_from, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref, sw_d,
                sw_a, sw_e, beam_o):
     """True if the sub-box ``b`` (6,) is excluded: more than ``q`` beams break rule A (their end
     points in the submap's proven-free cells, or in the free space of a reference scan: row
-    ``r`` of ``ref_*``, its sensor within ``ref_c[r, 2]`` of ``ref_c[r, :2]``, its heading in
-    ``ref_th[r]``, its cones free from ``ref_c[r, 3]`` on), or more than ``q`` witnesses break
+    ``r`` of ``ref_*`` (:mod:`.references`), its sensor within its radius of its centre, its
+    heading in ``ref_th[r]``, its cones free from its ``smin`` on), or more than ``q`` witnesses break
     rule B (the scan's cones free from ``cones_from`` on; inf: no rule B), for every pose of
     ``b``. The scan's
     beams are taken from poses within ``sw_d`` (x, y) and ``sw_a`` (θ) of the scan's pose (its
@@ -183,34 +136,36 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
         cc = math.cos(c)
         sc = math.sin(c)
         na = 0
-        # per sub-box, not per call: an extra array argument to this function costs more (measured)
-        ref_q = np.empty((max(n_ref, 1), 6))
-        for r in range(n_ref):
-            ii, acr, mi, ok, rr = _cover_setup(ref_f.shape[1], ref_a0[r], ref_inc[r], r_alpha)
-            ref_q[r, 0], ref_q[r, 1], ref_q[r, 2], ref_q[r, 3] = ii, acr, mi, 1.0 if ok else 0.0
-            ref_q[r, 4] = 0.5 * (ref_th[r, 0] + ref_th[r, 1])
-            ref_q[r, 5] = rr
         for i in range(n_beams):
             # the beam's nominal move, turned with the sensor (its lever over the heading spread)
             o_x = cc * beam_o[i, 0] - sc * beam_o[i, 1]
             o_y = sc * beam_o[i, 0] + cc * beam_o[i, 1]
             lev = upf(beam_o[i, 2] * (hw + 1e-15)) + 1e-15 * (abs(o_x) + abs(o_y))
-            cx, cy, ux, uy, ah, ac, hx, hy = _rotated_region(ccx + o_x, ccy + o_y, cc, sc, beam_ca[i], beam_sa[i],
-                                                             beam_rl[i], beam_rh[i], d)
+            cx, cy, ux, uy, ah, ac, hx, hy = beam_region(ccx + o_x, ccy + o_y, cc, sc, beam_ca[i], beam_sa[i],
+                                                         beam_rl[i], beam_rh[i], d)
             hx, hy = upf(hx + lev), upf(hy + lev)
             hit = use_grid and _clear(S, m, wx0, wy0, nx, ny, eps, dn(cx - hx - hsx), upf(cx + hx + hsx),
                                       dn(cy - hy - hsy), upf(cy + hy + hsy))
             r = 0
-            while not hit and r < n_ref:
-                extra = upf(rs + lev) + ref_c[r, 2]
-                if not _may_cover(cx + (ah + extra) * ux, cy + (ah + extra) * uy, ref_c[r, 0], ref_c[r, 1],
-                                  ref_q[r, 4], ref_f[r], ref_a0[r], ref_q[r, 0], ref_q[r, 1], ref_q[r, 2],
-                                  ref_q[r, 3] > 0.0, ref_q[r, 5]):
-                    r += 1
-                    continue
-                hit = _seg_free(cx - ref_c[r, 0], cy - ref_c[r, 1], ux, uy, ah + extra, ac + extra, ref_th[r, 0],
-                                ref_th[r, 1], ref_f[r], ref_a0[r], ref_inc[r], r_alpha, ref_c[r, 3])
-                r += 1
+            while not hit and r < n_ref:  # reference scans, each in rows of runs (references.py)
+                n_runs = int(ref_c[r, C_RUNS])
+                lev_r = upf(rs + lev)
+                if n_runs > 1:
+                    t0, t1 = runs_may_cover(cx, cy, ux, uy, ah + lev_r, ref_c, ref_f, ref_a0, r)
+                else:
+                    t0, t1 = 0, 0
+                for t in range(r + t0, r + t1 + 1):
+                    rc = ref_c[t]
+                    extra = lev_r + rc[C_RAD]
+                    if n_runs == 1 and not _may_cover(cx + (ah + extra) * ux, cy + (ah + extra) * uy, rc[C_X], rc[C_Y],
+                                                      rc[C_TH], ref_f[t], ref_a0[t], rc[C_II], rc[C_AC], rc[C_MI],
+                                                      rc[C_OK] > 0.0, rc[C_RR]):
+                        continue
+                    hit = _seg_free(cx - rc[C_X], cy - rc[C_Y], ux, uy, ah + extra, ac + extra, ref_th[t, 0],
+                                    ref_th[t, 1], ref_f[t], ref_a0[t], ref_inc[t], r_alpha, rc[C_SMIN])
+                    if hit:
+                        break
+                r += n_runs
             if hit:
                 na += 1
                 if na > q:
@@ -489,21 +444,6 @@ def slices(kept: np.ndarray, max_boxes: int) -> np.ndarray:
     return np.array(boxes).reshape(-1, 6)
 
 
-def swept_box(box: np.ndarray, sweep) -> np.ndarray:
-    """Robot boxes (..., 6) widened by ``sweep`` (..., 2) ``= (d, a)`` (how far the robot moves
-    and turns while a scan's beams are taken), rounded outward; ``box`` itself when there is
-    no sweep."""
-    sw = np.asarray(sweep, float)
-    if not np.any(sw > 0.0):
-        return box
-    d, a = sw[..., 0], sw[..., 1]
-    w = np.stack([-d, d, -d, d, -a, a], axis=-1)
-    out = np.asarray(box, float) + w
-    out[..., 0::2] = np.where(w[..., 0::2] != 0.0, np.nextafter(out[..., 0::2], -np.inf), out[..., 0::2])
-    out[..., 1::2] = np.where(w[..., 1::2] != 0.0, np.nextafter(out[..., 1::2], np.inf), out[..., 1::2])
-    return out
-
-
 def hull(boxes: np.ndarray) -> np.ndarray:
     """The hull (6,) of boxes (n, 6)."""
     return np.array([boxes[:, 0].min(), boxes[:, 1].max(), boxes[:, 2].min(), boxes[:, 3].max(),
@@ -517,7 +457,7 @@ class Matcher:
     with the submap, as boxes; ``kept_any`` False when none agrees (the data contradict the
     model beyond q: the caller keeps the prior and records it)."""
 
-    def __init__(self, params, scans, model=None) -> None:
+    def __init__(self, params, scans, model=None, chunks=None) -> None:
         b = params.beams
         # the sweep (prediction.SweepModel; None: every beam at the stamp): per scan, how far the
         # robot may move and turn while its beams are taken, the distance from its sensor below
@@ -527,6 +467,9 @@ class Matcher:
         self.smin = np.zeros(S) if model is None else np.asarray(model.smin, float)
         self.err = self.sweep[:, 0] if model is None else np.asarray(model.err, float)
         self.off = np.zeros((0, 2)) if model is None else np.ascontiguousarray(model.offset, float)
+        self.lever = np.zeros(S) if model is None else np.asarray(model.turn_lever, float)
+        # a swept reference scan in runs of beams, each from its nominal sensor (sweep_map.Chunks)
+        self.chunks = chunks
         self.p = params
         self.scans = scans
         self.r_abs, self.r_rel, self.r_alpha = float(b.range_abs), float(b.range_rel), float(b.bearing)
@@ -545,31 +488,15 @@ class Matcher:
 
     def references(self, refs, stride: int | None = None):
         """Witness disks (rule B) and the reference scans' free spaces (rule A) of ``refs``:
-        (scan index, robot box (6,)) pairs."""
-        n = 0
-        mx, my, myaw = self.mount
-        nb = max(int(self.scans.offsets[k + 1] - self.scans.offsets[k]) for k, _ in refs) if refs else 1
-        R = len(refs)
-        ref_f = np.full((max(R, 1), nb), -1.0)
-        ref_a0 = np.zeros(max(R, 1))
-        ref_inc = np.ones(max(R, 1))
-        ref_c = np.zeros((max(R, 1), 4))
-        ref_th = np.zeros((max(R, 1), 2))
-        for t, (k, box) in enumerate(refs):
-            r, v, a0, inc = self._scan(k)
-            if r.shape[0] + n > self.W.shape[0]:
-                self.W = np.concatenate([self.W, np.empty((r.shape[0] + n, 6))])
-            box = swept_box(np.ascontiguousarray(box, float), self.sweep[k])
-            n += witness_segments(r, v, a0, inc, box, mx, my, myaw, self.r_abs, self.r_rel, self.r_alpha,
-                               int(self.p.match_stride if stride is None else stride), self.W[n:])
-            if self.smin[k] < math.inf:
-                ref_f[t, : r.shape[0]] = free_of(r, v, self.r_abs, self.r_rel)
-            ref_a0[t], ref_inc[t] = a0, inc
-            sb = sensor_box(*(float(x) for x in box), mx, my, myaw)
-            ref_c[t] = (0.5 * (sb[0] + sb[1]), 0.5 * (sb[2] + sb[3]),
-                        np.nextafter(0.5 * math.hypot(sb[1] - sb[0], sb[3] - sb[2]), np.inf) + 1e-12, self.smin[k])
-            ref_th[t] = sb[4], sb[5]
-        return n, ref_f, ref_a0, ref_inc, ref_c, ref_th, R
+        (scan index, robot box (6,)) pairs; a swept reference in runs of beams
+        (:mod:`.references`)."""
+        sc = self.scans
+        runs = [scan_runs(k, box, int(sc.offsets[k + 1] - sc.offsets[k]), self.chunks, self.sweep[k],
+                          float(self.err[k]), float(self.lever[k])) for k, box in refs]
+        out = reference_rows(sc, refs, runs, self.mount, self.r_abs, self.r_rel, self.r_alpha, self.smin,
+                             int(self.p.match_stride if stride is None else stride), self.W)
+        self.W = out[-1]
+        return out[:-1]
 
     def window(self, tmap, roots: np.ndarray, reach: float):
         """The summed-area table over the cells the scan's endpoints can reach from ``roots``

@@ -358,7 +358,7 @@ def solve(log: LogData, params: Params, progress=None) -> LidarOutput:
             "loop_pave_incomplete": int(tracking.graph.pave_incomplete),
         })
         from ivslam_cli.slam.lidar.global_map import render_global
-        from ivslam_cli.slam.lidar.matcher import swept_box
+        from ivslam_cli.slam.lidar.sweep_map import swept_box
 
         t3 = time.perf_counter()
         gm = render_global(tracking.beams if tracking.beams is not None else scans, used,

@@ -30,9 +30,9 @@ import numpy as np
 
 from ivslam_cli.logs.model import Scans
 from ivslam_cli.slam.lidar.map_update import UpdateResult, check_extent, map_union_free, update_map
-from ivslam_cli.slam.lidar.matcher import Matcher, hull, swept_box
+from ivslam_cli.slam.lidar.matcher import Matcher, hull
 from ivslam_cli.slam.lidar.params import Params
-from ivslam_cli.slam.lidar.sweep_map import chunk_boxes, chunk_scans
+from ivslam_cli.slam.lidar.sweep_map import chunk_boxes, chunk_scans, swept_box
 from ivslam_cli.slam.motion_kernel import meet_node, propagate, propagate_boxes, widen_boxes
 
 
@@ -131,7 +131,7 @@ class Track:
         b = getattr(self.local, "b", None)
         if b is None:
             nc = 1 if self.chunks is None else len(self.chunks.scans)
-            b = self.local.b = (Matcher(self.p, self.scans, self.model), np.zeros((len(self.scans), 6)),
+            b = self.local.b = (Matcher(self.p, self.scans, self.model, self.chunks), np.zeros((len(self.scans), 6)),
                                 np.zeros(1, np.int64), np.zeros((nc, 6)))
         return b
 

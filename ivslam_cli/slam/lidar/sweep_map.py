@@ -103,3 +103,18 @@ def chunk_boxes(ch: Chunks, k: int, box: np.ndarray, a: float, err: float, lever
     out[:, 4] = np.nextafter(tl, -np.inf)
     out[:, 5] = np.nextafter(th, np.inf)
     return out
+
+
+def swept_box(box: np.ndarray, sweep) -> np.ndarray:
+    """Robot boxes (..., 6) widened by ``sweep`` (..., 2) ``= (d, a)`` (how far the robot moves
+    and turns while a scan's beams are taken), rounded outward; ``box`` itself when there is
+    no sweep."""
+    sw = np.asarray(sweep, float)
+    if not np.any(sw > 0.0):
+        return box
+    d, a = sw[..., 0], sw[..., 1]
+    w = np.stack([-d, d, -d, d, -a, a], axis=-1)
+    out = np.asarray(box, float) + w
+    out[..., 0::2] = np.where(w[..., 0::2] != 0.0, np.nextafter(out[..., 0::2], -np.inf), out[..., 0::2])
+    out[..., 1::2] = np.where(w[..., 1::2] != 0.0, np.nextafter(out[..., 1::2], np.inf), out[..., 1::2])
+    return out

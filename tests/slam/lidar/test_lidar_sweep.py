@@ -9,7 +9,7 @@ import pytest
 from ivslam_cli.config import resolve_config
 from ivslam_cli.simulate import SimConfig, simulate
 from ivslam_cli.slam.lidar import Params as LidarParams
-from ivslam_cli.slam.lidar.matcher import swept_box
+from ivslam_cli.slam.lidar.sweep_map import swept_box
 from ivslam_cli.slam.lidar.pipeline import run
 from ivslam_cli.slam.lidar.prediction import sweep_times
 from tests.helpers.lidar_truth import containment

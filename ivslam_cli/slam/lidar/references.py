@@ -1,0 +1,178 @@
+"""Reference scans for the matcher (:mod:`.matcher`): rows of free cones (rule A) and witness
+rectangles (rule B).
+
+A reference scan (the submap's anchor, the last scan mapped into it) proves free space with its
+cones, and a surface point in the end-point region of each of its beams. A swept reference (its
+beams taken one after another while the robot moves, :class:`~.prediction.SweepModel`) is cut
+into the runs of beams :mod:`.sweep_map` maps it in, each from its own robot box (moved by its
+beams' nominal move, widened by their spread and the move's error; not by the whole sweep's
+move): one row per run, free ranges for its own beams only (a run proves free only the bearings
+its own cones cover), and witnesses from the run's box.
+
+A beam of the matched scan is tested against every reference scan; its runs share the bearing
+of a point but for their sensors' offsets, so :func:`runs_may_cover` takes one arctangent per
+scan and keeps the runs whose free ranges near that bearing may hold the point. Dropping a run
+only drops evidence against a pose (fewer beams break rule A): it can widen the kept set, never
+lose the truth.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from ivslam_cli.slam.lidar.free_cones import _QUICK_COORD, _cover_setup, free_of
+from ivslam_cli.slam.lidar.geometry import MARGIN_ABS, atan2_fast, beam_region, range_bounds, sensor_box, upf
+from ivslam_cli.slam.lidar.sweep_map import chunk_boxes, swept_box
+
+#: columns of a reference row (``ref_c``): the sensor's centre, its radius, where its cones
+#: start proving (``smin``), the row's first beam in its scan and its beams,
+#: :func:`~.free_cones._cover_setup`'s constants (1/inc, centre angle, index margin, usable,
+#: cone half-width / inc) and the heading's centre; in a scan's first row also: its runs, its
+#: beams, its centre angle, whether it spans less than a turn, and how far (the slack) its runs'
+#: sensors (and radii) and headings' centres are from its middle run's
+(C_X, C_Y, C_RAD, C_SMIN, C_I0, C_N, C_II, C_AC, C_MI, C_OK, C_RR, C_TH, C_RUNS, C_NB, C_SAC, C_SOK, C_SLACK,
+ C_DTH) = range(18)
+N_COLS = 18
+
+
+@njit(cache=True, nogil=True)
+def witness_segments(ranges, valid, a0, inc, box, mx, my, myaw, r_abs, r_rel, r_alpha, stride, out):
+    """Rectangles ``out`` (k, 6: centre x, y, axis x, y, half-length, half-width) holding the end
+    points of the valid beams (every ``stride``-th) of a scan taken from robot box ``box`` (6,)
+    in the frame: each holds a surface point. Returns k."""
+    sxl, sxh, syl, syh, stl, sth = sensor_box(box[0], box[1], box[2], box[3], box[4], box[5], mx, my, myaw)
+    c = 0.5 * (stl + sth)
+    d = upf(upf(upf(0.5 * (sth - stl)) + 1e-15 * abs(c) + 1e-300) + r_alpha)
+    if not d < 1.0:
+        return 0
+    cc, sc = math.cos(c), math.sin(c)
+    ccx, ccy = 0.5 * (sxl + sxh), 0.5 * (syl + syh)
+    rs = upf(0.5 * upf(math.hypot(sxh - sxl, syh - syl))) + MARGIN_ABS
+    k = 0
+    for i in range(0, ranges.shape[0], stride):
+        if not valid[i]:
+            continue
+        rl, rh = range_bounds(float(ranges[i]), r_abs, r_rel)
+        ang = a0 + i * inc
+        cx, cy, ux, uy, ah, ac, _, _ = beam_region(ccx, ccy, cc, sc, math.cos(ang), math.sin(ang), rl, rh, d)
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = cx, cy, ux, uy
+        out[k, 4], out[k, 5] = upf(ah + rs), upf(ac + rs)
+        k += 1
+    return k
+
+
+@njit(cache=True, inline="always")
+def runs_may_cover(cx, cy, ux, uy, base, ref_c, ref_f, ref_a0, g):
+    """The rows ``g + t0 .. g + t1`` of reference scan ``g``'s runs that may prove free the point
+    ``(cx, cy) + (base + radius) u`` (``radius`` the run's sensor radius), as
+    :func:`~.free_cones._may_cover` decides for one row (a beam whose cone may hold the point's
+    bearing is free beyond its distance), from one arctangent for the scan: its runs' sensors
+    are within the scan's slack of its middle run's. ``(0, −1)`` when none may; every run when
+    there is no shortcut. A necessary condition, cheap: :func:`~.free_cones._seg_free` decides."""
+    c = ref_c[g]
+    P = int(c[C_RUNS])
+    o = ref_c[g + P // 2]  # the bearings from the middle run's sensor
+    e = base + o[C_RAD]
+    px, py = cx + e * ux, cy + e * uy
+    if not (c[C_SOK] > 0.0 and abs(px) + abs(py) + abs(o[C_X]) + abs(o[C_Y]) < _QUICK_COORD):
+        return 0, P - 1
+    dx = px - o[C_X]
+    dy = py - o[C_Y]
+    rho = math.hypot(dx, dy)
+    shift = c[C_SLACK]
+    if not (rho > 1e-3 and shift < 0.5 * rho):
+        return 0, P - 1
+    b = atan2_fast(dy, dx) - o[C_TH]
+    sac = c[C_SAC]
+    if not abs(b - sac) < 64.0:
+        return 0, P - 1
+    while b - sac >= math.pi:
+        b -= 2.0 * math.pi
+    while b - sac < -math.pi:
+        b += 2.0 * math.pi
+    j = (b - ref_a0[g]) * c[C_II]
+    m = (0.5 * math.pi * shift / rho + c[C_DTH]) * c[C_II] + c[C_MI] + c[C_RR] + 1.0
+    i_lo = max(math.ceil(j - m), 0)
+    i_hi = min(math.floor(j + m), int(c[C_NB]) - 1)
+    t0, t1 = P, -1
+    t = 0
+    while t < P and i_lo <= i_hi:
+        r0, n = int(ref_c[g + t, C_I0]), int(ref_c[g + t, C_N])
+        if i_lo < r0 + n:
+            fm = -1.0
+            for i in range(i_lo, min(i_hi, r0 + n - 1) + 1):
+                fm = max(fm, ref_f[g + t, i - r0])
+            if fm > 0.0:
+                e = base + ref_c[g + t, C_RAD]
+                qx = cx + e * ux - ref_c[g + t, C_X]
+                qy = cy + e * uy - ref_c[g + t, C_Y]
+                if qx * qx + qy * qy < fm * fm * (1.0 + 1e-9):
+                    t0, t1 = min(t0, t), t
+            i_lo = r0 + n
+        t += 1
+    return (t0, t1) if t1 >= 0 else (0, -1)
+
+
+def scan_runs(k: int, box: np.ndarray, nb: int, chunks, sweep, err: float, lever: float):
+    """Scan ``k`` (``nb`` beams) from robot box ``box`` as runs of beams: ``(robot boxes (m, 6),
+    beam bounds (m + 1,))``, the runs of :mod:`.sweep_map` when it moves (``chunks``), else the
+    whole scan from its box widened by ``sweep`` ``(d, a)``."""
+    box = np.ascontiguousarray(box, float)
+    if chunks is None or not chunks.moves[k]:
+        return swept_box(box, sweep)[None, :], np.array([0, nb])
+    j0, j1 = int(chunks.first[k]), int(chunks.first[k + 1])
+    boxes = chunk_boxes(chunks, k, box, float(sweep[1]), err, lever)
+    return boxes, chunks.scans.offsets[j0:j1 + 1] - chunks.scans.offsets[j0]
+
+
+def reference_rows(scans, refs, runs, mount, r_abs: float, r_rel: float, r_alpha: float, smin, stride: int, W):
+    """The rows of the reference scans ``refs`` ((scan, robot box) pairs) cut into ``runs``
+    (:func:`scan_runs` of each): ``(n_w, ref_f, ref_a0, ref_inc, ref_c, ref_th, R, W)`` with the
+    witnesses written to ``W`` (grown as needed) and ``ref_c`` of :data:`N_COLS` columns."""
+    n = 0
+    mx, my, myaw = mount
+    nb = max((int(np.max(np.diff(cut))) for _, cut in runs), default=1)
+    R = sum(b.shape[0] for b, _ in runs)
+    ref_f = np.full((max(R, 1), nb), -1.0)
+    ref_a0 = np.zeros(max(R, 1))
+    ref_inc = np.ones(max(R, 1))
+    ref_c = np.zeros((max(R, 1), N_COLS))
+    ref_th = np.zeros((max(R, 1), 2))
+    t = 0
+    for (k, _), (boxes, cut) in zip(refs, runs):
+        b0, b1 = int(scans.offsets[k]), int(scans.offsets[k + 1])
+        r, v = scans.ranges[b0:b1], scans.valid[b0:b1]
+        a0, inc = float(scans.angle_min[k]), float(scans.angle_increment[k])
+        if r.shape[0] + n > W.shape[0]:
+            W = np.concatenate([W, np.empty((r.shape[0] + n, 6))])
+        f = free_of(r, v, r_abs, r_rel) if smin[k] < math.inf else None
+        first = t
+        for j in range(boxes.shape[0]):
+            i0, i1 = int(cut[j]), int(cut[j + 1])
+            a0j = a0 + i0 * inc
+            n += witness_segments(r[i0:i1], v[i0:i1], a0j, inc, boxes[j], mx, my, myaw, r_abs, r_rel, r_alpha, stride,
+                                  W[n:])
+            if f is not None:
+                ref_f[t, : i1 - i0] = f[i0:i1]
+            ref_a0[t], ref_inc[t] = a0j, inc
+            sb = sensor_box(*(float(x) for x in boxes[j]), mx, my, myaw)
+            c = ref_c[t]
+            c[C_X], c[C_Y] = 0.5 * (sb[0] + sb[1]), 0.5 * (sb[2] + sb[3])
+            c[C_RAD] = np.nextafter(0.5 * math.hypot(sb[1] - sb[0], sb[3] - sb[2]), np.inf) + 1e-12
+            c[C_SMIN] = smin[k]
+            c[C_II], c[C_AC], c[C_MI], ok, c[C_RR] = _cover_setup(nb, a0j, inc, r_alpha)
+            c[C_OK] = 1.0 if ok else 0.0
+            c[C_TH] = 0.5 * (sb[4] + sb[5])
+            ref_th[t] = sb[4], sb[5]
+            c[C_I0], c[C_N] = i0, i1 - i0
+            t += 1
+        g, o = ref_c[first], ref_c[first + boxes.shape[0] // 2]
+        rows = ref_c[first:t]
+        g[C_SLACK] = np.max(np.hypot(rows[:, C_X] - o[C_X], rows[:, C_Y] - o[C_Y]) + np.abs(rows[:, C_RAD] - o[C_RAD]))
+        g[C_DTH] = np.max(np.abs(rows[:, C_TH] - o[C_TH]))
+        g[C_RUNS], g[C_NB], g[C_SAC] = boxes.shape[0], r.shape[0], a0 + 0.5 * (r.shape[0] - 1) * inc
+        g[C_SOK] = 1.0 if inc >= 1e-5 and (r.shape[0] - 1) * inc < 2.0 * math.pi - 1e-3 else 0.0
+    return n, ref_f, ref_a0, ref_inc, ref_c, ref_th, R, W

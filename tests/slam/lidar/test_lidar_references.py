@@ -1,0 +1,132 @@
+"""Reference scans in runs of beams (`slam/lidar/references.py`): the free space of a swept
+reference as the matcher's rule A reads it, one row per run of beams, each from its own box.
+
+Soundness: from the true pose at its stamp, no row of a swept reference certifies free a point
+of a true wall. Tightness: a run's sensor is narrower than the whole sweep's, and the quick
+selection of runs keeps every run the per-row quick test keeps.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ivslam_cli.config import resolve_config
+from ivslam_cli.simulate import SimConfig, simulate
+from ivslam_cli.slam.lidar import Params as LidarParams
+from ivslam_cli.slam.lidar.free_cones import _may_cover, _seg_free
+from ivslam_cli.slam.lidar.matcher import Matcher
+from ivslam_cli.slam.lidar.prediction import sweep_motion, trajectory
+from ivslam_cli.slam.lidar.references import (C_AC, C_I0, C_II, C_MI, C_N, C_OK, C_RAD, C_RR, C_RUNS, C_SMIN, C_TH,
+                                              C_X, C_Y, runs_may_cover)
+from ivslam_cli.slam.lidar.sweep_map import chunk_scans
+
+SWEEP = 0.0667
+
+
+def _swept(seed: int, steps: int = 30, **kw):
+    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=seed, steps=steps, sweep=SWEEP,
+                             **kw))
+    params = LidarParams.from_config(resolve_config(None, {}, log_bounds=log.bounds))
+    used, _, m, _, _, _ = trajectory(log, params, log.scans)
+    model = sweep_motion(log.scans, params, m, used)
+    return log, params, used, model, chunk_scans(model.beams, model.offset, model.smin)
+
+
+def _truth_at(log, t):
+    tr = log.truth
+    th = np.unwrap(tr.pose[:, 2])
+    return (np.interp(t, tr.pose_stamp, tr.pose[:, 0]), np.interp(t, tr.pose_stamp, tr.pose[:, 1]),
+            np.interp(t, tr.pose_stamp, th))
+
+
+def _true_box(log, k: int) -> np.ndarray:
+    x, y, a = _truth_at(log, float(log.scans.stamp[k]))
+    return np.array([x, x, y, y, a, a])
+
+
+def _beam_walls(log, k: int, stride: int = 2) -> np.ndarray:
+    """The wall points the beams of scan ``k`` point at, each from its true sensor at its own
+    time along its nominal direction: true surface points inside the beams' cones."""
+    from ivslam_cli.simulate.raycast import cast
+
+    sc = log.scans
+    i = np.arange(0, int(sc.offsets[k + 1] - sc.offsets[k]), stride)
+    t = float(sc.stamp[k]) + SWEEP * i / (int(sc.offsets[k + 1] - sc.offsets[k]) - 1)
+    x, y, th = _truth_at(log, t)
+    mx, my, myaw = sc.mount
+    sx, sy = x + np.cos(th) * mx - np.sin(th) * my, y + np.sin(th) * mx + np.cos(th) * my
+    a = th + myaw + float(sc.angle_min[k]) + i * float(sc.angle_increment[k])
+    d = np.array([cast(np.array([sx[j], sy[j], a[j]]), np.zeros(1), np.asarray(log.truth.world, float))[0, 0]
+                  for j in range(i.shape[0])])
+    ok = np.isfinite(d) & (d < 5.5)
+    return np.column_stack([sx + d * np.cos(a), sy + d * np.sin(a)])[ok]
+
+
+@pytest.mark.parametrize("seed", [3, 8])
+def test_no_run_of_a_swept_reference_certifies_a_true_wall_free(seed):
+    """At 1 m/s with errors at the bound (the worst case), the points the reference's own beams
+    hit, each from its true pose, are never in a row's certified free space."""
+    log, params, used, model, ch = _swept(seed, speed=1.0, noise="edges")
+    assert ch is not None
+    runs = Matcher(params, model.beams, model, ch)
+    whole = Matcher(params, model.beams, model, None)
+    r_alpha = float(params.beams.bearing)
+    n_cert = 0
+    for k in used[1:-2]:
+        box = _true_box(log, k)
+        for mt, rows in ((runs, 8), (whole, 1)):
+            _, ref_f, ref_a0, ref_inc, ref_c, ref_th, R = mt.references([(int(k), box)])
+            assert R == rows and ref_c[0, C_RUNS] == rows
+            pts = _beam_walls(log, int(k))
+            for t in range(R):
+                c = ref_c[t]
+                e = c[C_RAD] + 1e-9  # the point seen from every sensor of the run (as the matcher widens)
+                for x, y in pts:
+                    assert not _seg_free(x - c[C_X], y - c[C_Y], 1.0, 0.0, e, e, ref_th[t, 0], ref_th[t, 1],
+                                         ref_f[t], ref_a0[t], ref_inc[t], r_alpha, c[C_SMIN]), (k, t, x, y)
+                # the certified free space is not empty: points short of the walls are
+                for x, y in pts[::10]:
+                    v = np.array([x - c[C_X], y - c[C_Y]])
+                    q = 0.7 * v
+                    n_cert += _seg_free(q[0], q[1], 1.0, 0.0, e, e, ref_th[t, 0], ref_th[t, 1], ref_f[t],
+                                        ref_a0[t], ref_inc[t], r_alpha, c[C_SMIN])
+        # a run's sensor is much narrower than the whole sweep's
+        rr = runs.references([(int(k), box)])[4][:, C_RAD]
+        rw = whole.references([(int(k), box)])[4][0, C_RAD]
+        assert np.all(rr < rw) and np.median(rr) < 0.5 * rw, (rr, rw)
+    assert n_cert > 100
+
+
+def test_the_selection_of_runs_keeps_every_run_the_quick_test_keeps():
+    """:func:`runs_may_cover` (one arctangent per reference scan) against :func:`_may_cover` run
+    by run: every run the latter may let prove a point free lies in the selected range."""
+    log, params, used, model, ch = _swept(5, 20)
+    rng = np.random.default_rng(5)
+    mt = Matcher(params, model.beams, model, ch)
+    n_kept = 0
+    for k in used[1:-2]:
+        box = _true_box(log, k)
+        _, ref_f, ref_a0, _, ref_c, _, R = mt.references([(int(k), box)])
+        assert R == 8
+        c0 = ref_c[0]
+        for _ in range(400):
+            d = rng.uniform(0.05, 6.0)
+            b = rng.uniform(-2.3, 2.3) + c0[C_TH]
+            cx, cy = c0[C_X] + d * math.cos(b), c0[C_Y] + d * math.sin(b)
+            phi = rng.uniform(-math.pi, math.pi)
+            ux, uy = math.cos(phi), math.sin(phi)
+            base = rng.uniform(0.0, 0.1)
+            t0, t1 = runs_may_cover(cx, cy, ux, uy, base, ref_c, ref_f, ref_a0, 0)
+            for t in range(R):
+                c = ref_c[t]
+                e = base + c[C_RAD]
+                if _may_cover(cx + e * ux, cy + e * uy, c[C_X], c[C_Y], c[C_TH], ref_f[t], ref_a0[t], c[C_II], c[C_AC],
+                              c[C_MI], c[C_OK] > 0.0, c[C_RR]):
+                    n_kept += 1
+                    assert t0 <= t <= t1, (k, t, t0, t1)
+        # runs partition the scan's beams
+        assert ref_c[0, C_I0] == 0 and np.all(ref_c[1:R, C_I0] == ref_c[:R - 1, C_I0] + ref_c[:R - 1, C_N])
+    assert n_kept > 100
