@@ -117,7 +117,9 @@ def _may_cover(px, py, cx, cy, c, f, a0, ii, ac, mi, ok, rr):
     :func:`_cover_setup`) from a sensor at ``(cx, cy)`` with heading ``c``: a certified point
     at sensor bearing ``β`` is nearer than ``f[j]`` for a beam ``j`` in every window holding
     ``β`` — one whose cone holds ``β`` (cones that touch, ``rr ≥ 1/2``), or
-    ``j = ⌊(β − a0) / inc⌋`` (gaps assumed free). A cheap necessary condition, so
+    ``j = ⌊(β − a0) / inc⌋`` (gaps assumed free) — and, with cones that touch, than every beam
+    whose cone surely holds ``β`` (such beams are in every window holding ``β``, and a window is
+    certified only if all its beams are free beyond the point). A cheap necessary condition, so
     :func:`_seg_free` runs only where it may succeed."""
     if not ok or not (abs(px) + abs(py) + abs(cx) + abs(cy) < _QUICK_COORD):
         return True
@@ -135,6 +137,17 @@ def _may_cover(px, py, cx, cy, c, f, a0, ii, ac, mi, ok, rr):
         b += TWO_PI
     jc = (b - a0) * ii
     if rr >= 0.5:
+        # the beams whose cones surely hold β are in every window holding it: all free beyond
+        s0 = math.ceil(jc - rr + mi)
+        s1 = math.floor(jc + rr - mi)
+        if s0 <= s1:
+            if s0 < 0 or s1 > f.shape[0] - 1:
+                return False
+            fs = f[s0]
+            for j in range(s0 + 1, s1 + 1):
+                fs = min(fs, f[j])
+            if not (fs > 0.0 and rho2 < fs * fs * (1.0 + 1e-9)):
+                return False
         j0 = max(math.ceil(jc - rr - mi), 0)
         j1 = min(math.floor(jc + rr + mi), f.shape[0] - 1)
     else:

@@ -27,6 +27,8 @@ import numpy as np
 from numba import njit
 
 from ivslam_cli.slam.lidar.matcher import _node_test, beam_table, split_axis
+from ivslam_cli.slam.lidar.references import own_runs
+from ivslam_cli.slam.lidar.sweep_map import CHUNKS
 
 #: the bisection's stack: one entry per level (x, y and θ halvings from the prior to a leaf)
 STACK = 192
@@ -50,6 +52,7 @@ def pave_kernel(prior, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_rel, r_alp
     cover of the kept poses)."""
     beam_rl, beam_rh, beam_ca, beam_sa, free, n_beams, beam_o = beam_table(ranges, valid, a0, inc, r_abs, r_rel,
                                                                          stride, off)
+    own_c, own_f = own_runs(free, off, a0, inc, r_alpha, cones_from, CHUNKS)
     stack = np.empty((STACK, 6))
     b = np.empty(6)
     for e in range(6):
@@ -67,7 +70,7 @@ def pave_kernel(prior, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_rel, r_alp
         tested += 1
         if _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw, r_alpha,
                       cones_from, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref,
-                      sw_d, sw_a, sw_e, beam_o):
+                      sw_d, sw_a, sw_e, beam_o, own_c, own_f):
             continue
         s = split_axis(b[1] - b[0], b[3] - b[2], (b[5] - b[4]) * reach, fine)
         if s < 0:

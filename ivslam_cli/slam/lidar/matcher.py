@@ -51,8 +51,9 @@ from numba import njit
 from ivslam_cli.paving.tiles import EMPTY, TILE
 from ivslam_cli.slam.lidar.free_cones import _cover_setup, _may_cover, _seg_free
 from ivslam_cli.slam.lidar.geometry import MARGIN_ABS, beam_region, dn, range_bounds, sensor_offset, upf
-from ivslam_cli.slam.lidar.references import (C_AC, C_II, C_MI, C_OK, C_RAD, C_RR, C_RUNS, C_SMIN, C_TH, C_X, C_Y,
-                                              reference_rows, runs_may_cover, scan_runs)
+from ivslam_cli.slam.lidar.references import (C_A0, C_AC, C_II, C_MI, C_OK, C_RAD, C_RR, C_RUNS, C_SMIN, C_TH, C_X,
+                                              C_Y, own_runs, own_runs_at, reference_rows, runs_may_cover, scan_runs)
+from ivslam_cli.slam.lidar.sweep_map import CHUNKS
 
 #: windows of the summed-area table are at most this many cells (beyond: rule A is not used)
 MAX_WINDOW_CELLS = 1 << 24
@@ -102,7 +103,7 @@ def _clear(S, m, wx0, wy0, nx, ny, eps, xl, xh, yl, yh):
 @njit(cache=True)
 def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw, r_alpha,
                cones_from, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref, sw_d,
-               sw_a, sw_e, beam_o):
+               sw_a, sw_e, beam_o, own_c, own_f):
     """True if the sub-box ``b`` (6,) is excluded: more than ``q`` beams break rule A (their end
     points in the submap's proven-free cells, or in the free space of a reference scan: row
     ``r`` of ``ref_*`` (:mod:`.references`), its sensor within its radius of its centre, its
@@ -113,7 +114,9 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
     sweep): its free cones are tested over ``b`` widened by as much; beam ``j`` of the table is
     taken from a sensor within ``sw_e`` of the sensor at the scan's pose moved by ``beam_o[j,
     :2]`` (in its frame; ``beam_o[j, 2]`` its length), so rule A tests it over ``b`` widened by
-    ``sw_e`` and ``sw_a`` and moved by as much (the sweep's nominal move)."""
+    ``sw_e`` and ``sw_a`` and moved by as much (the sweep's nominal move). Rule B takes the
+    scan's cones in the runs ``own_c``, ``own_f`` (:func:`~.references.own_runs`), each from its
+    sensor so moved and widened by its spread; with no runs, from ``b`` widened by ``sw_d``."""
     bxl, bxh, byl, byh, btl, bth = b[0], b[1], b[2], b[3], b[4], b[5]
     if sw_a > 0.0:
         btl, bth = dn(btl - sw_a), upf(bth + sw_a)
@@ -151,15 +154,14 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
                 n_runs = int(ref_c[r, C_RUNS])
                 lev_r = upf(rs + lev)
                 if n_runs > 1:
-                    t0, t1 = runs_may_cover(cx, cy, ux, uy, ah + lev_r, ref_c, ref_f, ref_a0, r)
+                    t0, t1 = runs_may_cover(cx, cy, ux, uy, ah + lev_r, ref_c, r)
                 else:
                     t0, t1 = 0, 0
                 for t in range(r + t0, r + t1 + 1):
                     rc = ref_c[t]
                     extra = lev_r + rc[C_RAD]
-                    if n_runs == 1 and not _may_cover(cx + (ah + extra) * ux, cy + (ah + extra) * uy, rc[C_X], rc[C_Y],
-                                                      rc[C_TH], ref_f[t], ref_a0[t], rc[C_II], rc[C_AC], rc[C_MI],
-                                                      rc[C_OK] > 0.0, rc[C_RR]):
+                    if not _may_cover(cx + (ah + extra) * ux, cy + (ah + extra) * uy, rc[C_X], rc[C_Y], rc[C_TH], ref_f[t],
+                                      ref_a0[t], rc[C_II], rc[C_AC], rc[C_MI], rc[C_OK] > 0.0, rc[C_RR]):
                         continue
                     hit = _seg_free(cx - rc[C_X], cy - rc[C_Y], ux, uy, ah + extra, ac + extra, ref_th[t, 0],
                                     ref_th[t, 1], ref_f[t], ref_a0[t], ref_inc[t], r_alpha, rc[C_SMIN])
@@ -170,7 +172,24 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
                 na += 1
                 if na > q:
                     return True
-    if cones_from < math.inf:
+    if cones_from < math.inf and own_c.shape[0] > 0:  # the scan's cones in runs of beams
+        own_runs_at(own_c, ccx, ccy, math.cos(c), math.sin(c), c, rs, hw)
+        nb = 0
+        for j in range(n_w):
+            t0, t1 = runs_may_cover(W[j, 0], W[j, 1], W[j, 2], W[j, 3], W[j, 4], own_c, 0)
+            for t in range(t0, t1 + 1):
+                rc = own_c[t]
+                e = W[j, 4] + rc[C_RAD]
+                if not _may_cover(W[j, 0] + e * W[j, 2], W[j, 1] + e * W[j, 3], rc[C_X], rc[C_Y], c, own_f[t], rc[C_A0],
+                                  rc[C_II], rc[C_AC], rc[C_MI], rc[C_OK] > 0.0, rc[C_RR]):
+                    continue
+                if _seg_free(W[j, 0] - rc[C_X], W[j, 1] - rc[C_Y], W[j, 2], W[j, 3], W[j, 4] + rc[C_RAD],
+                             W[j, 5] + rc[C_RAD], stl, sth, own_f[t], rc[C_A0], inc, r_alpha, cones_from):
+                    nb += 1
+                    break
+            if nb > q:
+                return True
+    elif cones_from < math.inf:
         if sw_d > sw_e:  # the scan's cones: its sensor anywhere the sweep takes it
             sxl = dn(dn(b[0] - sw_d) + ox)
             sxh = upf(upf(b[1] + sw_d) + oxh)
@@ -251,7 +270,7 @@ def split_axis(wx, wy, wt, fine):
 @njit(cache=True)
 def _search(box, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my,
             myaw, r_alpha, cones_from, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th,
-            n_ref, sw_d, sw_a, sw_e, beam_o, fine, reach, budget, bx, keys, heap):
+            n_ref, sw_d, sw_a, sw_e, beam_o, own_c, own_f, fine, reach, budget, bx, keys, heap):
     """The extreme of side ``side`` (0..5: x_lo, x_hi, y_lo, y_hi, θ_lo, θ_hi) over the poses of
     ``box`` not excluded (and in some root), by a best-first search: sub-boxes popped in the
     order of that side; excluded ones dropped, others split along the widest of x, y and
@@ -278,7 +297,7 @@ def _search(box, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_bea
         t += 1
         if _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w, mx, my, myaw, r_alpha,
                       cones_from, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc, ref_c, ref_th, n_ref,
-                      sw_d, sw_a, sw_e, beam_o):
+                      sw_d, sw_a, sw_e, beam_o, own_c, own_f):
             continue
         s = split_axis(b[1] - b[0], b[3] - b[2], (b[5] - b[4]) * reach, fine)
         if s < 0:
@@ -347,6 +366,7 @@ def bound_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_
     excluded)."""
     beam_rl, beam_rh, beam_ca, beam_sa, free, n_beams, beam_o = beam_table(ranges, valid, a0, inc, r_abs, r_rel,
                                                                          stride, off)
+    own_c, own_f = own_runs(free, off, a0, inc, r_alpha, cones_from, CHUNKS)
     hull = np.empty(6)
     for e in range(6):
         hull[e] = roots[0, e]
@@ -363,7 +383,8 @@ def bound_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_
     for side in (4, 5):
         v, t = _search(hull, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W, n_w,
                        mx, my, myaw, r_alpha, cones_from, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0, ref_inc,
-                       ref_c, ref_th, n_ref, sw_d, sw_a, sw_e, beam_o, fine_th, reach, b_th, bx, keys, heap)
+                       ref_c, ref_th, n_ref, sw_d, sw_a, sw_e, beam_o, own_c, own_f, fine_th, reach, b_th, bx, keys,
+                       heap)
         tested += t
         if math.isnan(v):
             return 0, tested
@@ -393,7 +414,8 @@ def bound_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_
         for side in range(4):
             v, t = _search(sl, side, roots, n_roots, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
                            n_w, mx, my, myaw, r_alpha, cones_from, q, S, m, wx0, wy0, nx, ny, eps, use_grid, ref_f, ref_a0,
-                           ref_inc, ref_c, ref_th, n_ref, sw_d, sw_a, sw_e, beam_o, fine, reach, b_s, bx, keys, heap)
+                           ref_inc, ref_c, ref_th, n_ref, sw_d, sw_a, sw_e, beam_o, own_c, own_f, fine, reach, b_s, bx,
+                           keys, heap)
             tested += t
             if math.isnan(v):
                 ok = False

@@ -33,9 +33,11 @@ from ivslam_cli.slam.lidar.sweep_map import chunk_boxes, swept_box
 #: cone half-width / inc) and the heading's centre; in a scan's first row also: its runs, its
 #: beams, its centre angle, whether it spans less than a turn, and how far (the slack) its runs'
 #: sensors (and radii) and headings' centres are from its middle run's
+#: the run's first beam's angle; for the matched scan's own runs (:func:`own_runs`), their
+#: nominal move (sensor frame), its length and the spread of their beams' moves about it
 (C_X, C_Y, C_RAD, C_SMIN, C_I0, C_N, C_II, C_AC, C_MI, C_OK, C_RR, C_TH, C_RUNS, C_NB, C_SAC, C_SOK, C_SLACK,
- C_DTH) = range(18)
-N_COLS = 18
+ C_DTH, C_A0, C_OX, C_OY, C_OL, C_SPREAD) = range(23)
+N_COLS = 23
 
 
 @njit(cache=True, nogil=True)
@@ -65,13 +67,12 @@ def witness_segments(ranges, valid, a0, inc, box, mx, my, myaw, r_abs, r_rel, r_
 
 
 @njit(cache=True, inline="always")
-def runs_may_cover(cx, cy, ux, uy, base, ref_c, ref_f, ref_a0, g):
-    """The rows ``g + t0 .. g + t1`` of reference scan ``g``'s runs that may prove free the point
-    ``(cx, cy) + (base + radius) u`` (``radius`` the run's sensor radius), as
-    :func:`~.free_cones._may_cover` decides for one row (a beam whose cone may hold the point's
-    bearing is free beyond its distance), from one arctangent for the scan: its runs' sensors
-    are within the scan's slack of its middle run's. ``(0, −1)`` when none may; every run when
-    there is no shortcut. A necessary condition, cheap: :func:`~.free_cones._seg_free` decides."""
+def runs_may_cover(cx, cy, ux, uy, base, ref_c, g):
+    """The rows ``g + t0 .. g + t1`` of reference scan ``g``'s runs whose beams the point ``(cx,
+    cy) + (base + radius) u`` (``radius`` the run's sensor radius) may fall among, from one
+    arctangent for the scan: its runs' sensors are within the scan's slack of its middle run's.
+    ``(0, −1)`` when none; every run when there is no shortcut. The caller then tests each with
+    :func:`~.free_cones._may_cover` and :func:`~.free_cones._seg_free`."""
     c = ref_c[g]
     P = int(c[C_RUNS])
     o = ref_c[g + P // 2]  # the bearings from the middle run's sensor
@@ -93,27 +94,83 @@ def runs_may_cover(cx, cy, ux, uy, base, ref_c, ref_f, ref_a0, g):
         b -= 2.0 * math.pi
     while b - sac < -math.pi:
         b += 2.0 * math.pi
-    j = (b - ref_a0[g]) * c[C_II]
+    j = (b - c[C_A0]) * c[C_II]
     m = (0.5 * math.pi * shift / rho + c[C_DTH]) * c[C_II] + c[C_MI] + c[C_RR] + 1.0
     i_lo = max(math.ceil(j - m), 0)
     i_hi = min(math.floor(j + m), int(c[C_NB]) - 1)
-    t0, t1 = P, -1
-    t = 0
-    while t < P and i_lo <= i_hi:
-        r0, n = int(ref_c[g + t, C_I0]), int(ref_c[g + t, C_N])
-        if i_lo < r0 + n:
-            fm = -1.0
-            for i in range(i_lo, min(i_hi, r0 + n - 1) + 1):
-                fm = max(fm, ref_f[g + t, i - r0])
-            if fm > 0.0:
-                e = base + ref_c[g + t, C_RAD]
-                qx = cx + e * ux - ref_c[g + t, C_X]
-                qy = cy + e * uy - ref_c[g + t, C_Y]
-                if qx * qx + qy * qy < fm * fm * (1.0 + 1e-9):
-                    t0, t1 = min(t0, t), t
-            i_lo = r0 + n
-        t += 1
-    return (t0, t1) if t1 >= 0 else (0, -1)
+    if i_lo > i_hi:
+        return 0, -1
+    t0 = 0
+    while t0 < P - 1 and i_lo >= ref_c[g + t0, C_I0] + ref_c[g + t0, C_N]:
+        t0 += 1
+    t1 = t0
+    while t1 < P - 1 and i_hi >= ref_c[g + t1 + 1, C_I0]:
+        t1 += 1
+    return t0, t1
+
+
+@njit(cache=True)
+def own_runs(free, off, a0, inc, r_alpha, smin, n_runs):
+    """The matched scan's own free cones (rule B) in ``n_runs`` runs of beams (as
+    :mod:`.sweep_map` cuts them), each beam's sensor moved by ``off`` (B, 2, sensor frame):
+    rows (``own_c`` of :data:`N_COLS` columns, ``own_f`` their free ranges), each run's nominal
+    move the middle of its beams' and its spread their farthest from it (rounded up). No rows
+    when no beam moves (the scan's cones from its box widened by the whole sweep)."""
+    nb = free.shape[0]
+    moves = off.shape[0] == nb and nb > 0
+    if moves:
+        moves = False
+        for i in range(nb):
+            if off[i, 0] != 0.0 or off[i, 1] != 0.0:
+                moves = True
+    P = min(n_runs, nb) if moves else 0
+    width = 1
+    for p in range(P):
+        width = max(width, (p + 1) * nb // P - p * nb // P)
+    own_c = np.zeros((P, N_COLS))
+    own_f = np.full((max(P, 1), width), -1.0)
+    for p in range(P):
+        i0, i1 = p * nb // P, (p + 1) * nb // P
+        c = own_c[p]
+        lx, hx, ly, hy = off[i0, 0], off[i0, 0], off[i0, 1], off[i0, 1]
+        for i in range(i0, i1):
+            lx, hx, ly, hy = min(lx, off[i, 0]), max(hx, off[i, 0]), min(ly, off[i, 1]), max(hy, off[i, 1])
+            own_f[p, i - i0] = free[i]
+        c[C_OX], c[C_OY] = 0.5 * (lx + hx), 0.5 * (ly + hy)
+        c[C_OL] = upf(math.hypot(c[C_OX], c[C_OY]) * (1.0 + 1e-12))
+        sp = 0.0
+        for i in range(i0, i1):
+            sp = max(sp, math.hypot(off[i, 0] - c[C_OX], off[i, 1] - c[C_OY]))
+        c[C_SPREAD] = upf(sp * (1.0 + 1e-12) + 1e-15)
+        c[C_I0], c[C_N], c[C_A0], c[C_SMIN] = i0, i1 - i0, a0 + i0 * inc, smin
+        c[C_II], c[C_AC], c[C_MI], ok, c[C_RR] = _cover_setup(width, a0 + i0 * inc, inc, r_alpha)
+        c[C_OK] = 1.0 if ok else 0.0
+    if P > 0:
+        g = own_c[0]
+        g[C_RUNS], g[C_NB], g[C_SAC] = P, nb, a0 + 0.5 * (nb - 1) * inc
+        g[C_SOK] = 1.0 if inc >= 1e-5 and (nb - 1) * inc < 2.0 * math.pi - 1e-3 else 0.0
+    return own_c, own_f
+
+
+@njit(cache=True, inline="always")
+def own_runs_at(own_c, ccx, ccy, cc, sc, c, rs, hw):
+    """The own runs' sensors for a sub-box whose sensor (at the scan's pose) is within ``rs`` of
+    ``(ccx, ccy)``, its heading within ``hw`` of ``c`` (``cc``, ``sc`` its cosine and sine): each
+    run's moved by its nominal move turned with the heading, widened by the move's lever over
+    ``hw`` and the run's spread; and the runs' slack about the middle one."""
+    P = own_c.shape[0]
+    for p in range(P):
+        o = own_c[p]
+        ox = cc * o[C_OX] - sc * o[C_OY]
+        oy = sc * o[C_OX] + cc * o[C_OY]
+        o[C_X], o[C_Y], o[C_TH] = ccx + ox, ccy + oy, c
+        o[C_RAD] = upf(upf(rs + upf(o[C_OL] * (hw + 1e-15))) + o[C_SPREAD]) + 1e-15 * (abs(ox) + abs(oy))
+    m = own_c[P // 2]
+    sl = 0.0
+    for p in range(P):
+        o = own_c[p]
+        sl = max(sl, math.hypot(o[C_X] - m[C_X], o[C_Y] - m[C_Y]) + abs(o[C_RAD] - m[C_RAD]))
+    own_c[0, C_SLACK] = sl
 
 
 def scan_runs(k: int, box: np.ndarray, nb: int, chunks, sweep, err: float, lever: float):
@@ -158,6 +215,7 @@ def reference_rows(scans, refs, runs, mount, r_abs: float, r_rel: float, r_alpha
             if f is not None:
                 ref_f[t, : i1 - i0] = f[i0:i1]
             ref_a0[t], ref_inc[t] = a0j, inc
+            ref_c[t, C_A0] = a0j
             sb = sensor_box(*(float(x) for x in boxes[j]), mx, my, myaw)
             c = ref_c[t]
             c[C_X], c[C_Y] = 0.5 * (sb[0] + sb[1]), 0.5 * (sb[2] + sb[3])

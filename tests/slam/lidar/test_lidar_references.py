@@ -119,7 +119,7 @@ def test_the_selection_of_runs_keeps_every_run_the_quick_test_keeps():
             phi = rng.uniform(-math.pi, math.pi)
             ux, uy = math.cos(phi), math.sin(phi)
             base = rng.uniform(0.0, 0.1)
-            t0, t1 = runs_may_cover(cx, cy, ux, uy, base, ref_c, ref_f, ref_a0, 0)
+            t0, t1 = runs_may_cover(cx, cy, ux, uy, base, ref_c, 0)
             for t in range(R):
                 c = ref_c[t]
                 e = base + c[C_RAD]
@@ -130,3 +130,41 @@ def test_the_selection_of_runs_keeps_every_run_the_quick_test_keeps():
         # runs partition the scan's beams
         assert ref_c[0, C_I0] == 0 and np.all(ref_c[1:R, C_I0] == ref_c[:R - 1, C_I0] + ref_c[:R - 1, C_N])
     assert n_kept > 100
+
+
+@pytest.mark.parametrize("seed", [2, 6])
+def test_every_beams_true_sensor_lies_in_its_own_runs_circle(seed):
+    """Rule B in runs (:func:`own_runs`, :func:`own_runs_at`): from the sensor region of the
+    true pose at the stamp (widened as the matcher widens it: the move's error, the turn's), each
+    beam's true sensor at its own time lies in its run's circle."""
+    from ivslam_cli.slam.lidar.free_cones import free_of
+    from ivslam_cli.slam.lidar.geometry import sensor_box
+    from ivslam_cli.slam.lidar.references import C_RAD, own_runs, own_runs_at
+
+    log, params, used, model, ch = _swept(seed, speed=1.0)
+    sc, beams = log.scans, model.beams
+    mx, my, myaw = sc.mount
+    worst = 0.0
+    for k in used[1:-2]:
+        b0, b1 = int(sc.offsets[k]), int(sc.offsets[k + 1])
+        f = free_of(beams.ranges[b0:b1], beams.valid[b0:b1], 0.03, 0.01)
+        own_c, _ = own_runs(f, np.ascontiguousarray(model.offset[b0:b1]), float(beams.angle_min[k]),
+                            float(beams.angle_increment[k]), 0.0034, 0.0, 8)
+        assert own_c.shape[0] == 8
+        box = _true_box(log, k)
+        e, a = float(model.err[k]), float(model.reach[k, 1])
+        sb = sensor_box(box[0] - e, box[1] + e, box[2] - e, box[3] + e, box[4] - a, box[5] + a, mx, my, myaw)
+        ccx, ccy, c = 0.5 * (sb[0] + sb[1]), 0.5 * (sb[2] + sb[3]), 0.5 * (sb[4] + sb[5])
+        rs = math.hypot(0.5 * (sb[1] - sb[0]), 0.5 * (sb[3] - sb[2])) * (1 + 1e-12) + 1e-9
+        own_runs_at(own_c, ccx, ccy, math.cos(c), math.sin(c), c, rs, 0.5 * (sb[5] - sb[4]) * (1 + 1e-12))
+        i = np.arange(b1 - b0)
+        x, y, th = _truth_at(log, float(sc.stamp[k]) + SWEEP * i / (b1 - b0 - 1))
+        sx, sy = x + np.cos(th) * mx - np.sin(th) * my, y + np.sin(th) * mx + np.cos(th) * my
+        for p in range(8):
+            j = slice(int(own_c[p, C_I0]), int(own_c[p, C_I0] + own_c[p, C_N]))
+            d = np.hypot(sx[j] - own_c[p, C_X], sy[j] - own_c[p, C_Y])
+            assert np.all(d <= own_c[p, C_RAD]), (k, p, d.max(), own_c[p, C_RAD])
+            worst = max(worst, float(np.max(d / own_c[p, C_RAD])))
+        # much narrower than the whole sweep's region
+        assert np.median(own_c[:, C_RAD]) < 0.5 * (rs + float(model.reach[k, 0]))
+    assert worst > 0.05  # the circles are not loose everywhere
