@@ -11,9 +11,10 @@ its own cones cover), and witnesses from the run's box.
 
 A beam of the matched scan is tested against every reference scan; its runs share the bearing
 of a point but for their sensors' offsets, so :func:`runs_may_cover` takes one arctangent per
-scan and keeps the runs whose free ranges near that bearing may hold the point. Dropping a run
-only drops evidence against a pose (fewer beams break rule A): it can widen the kept set, never
-lose the truth.
+scan and keeps the runs whose beams that bearing may fall among; each is then tested alone.
+The matched scan's own cones (rule B) come in runs the same way (:func:`own_runs`). Dropping a
+run only drops evidence against a pose (fewer beams break a rule): it can widen the kept set,
+never lose the truth.
 """
 
 from __future__ import annotations
@@ -27,14 +28,14 @@ from ivslam_cli.slam.lidar.free_cones import _QUICK_COORD, _cover_setup, free_of
 from ivslam_cli.slam.lidar.geometry import MARGIN_ABS, atan2_fast, beam_region, range_bounds, sensor_box, upf
 from ivslam_cli.slam.lidar.sweep_map import chunk_boxes, swept_box
 
-#: columns of a reference row (``ref_c``): the sensor's centre, its radius, where its cones
-#: start proving (``smin``), the row's first beam in its scan and its beams,
-#: :func:`~.free_cones._cover_setup`'s constants (1/inc, centre angle, index margin, usable,
-#: cone half-width / inc) and the heading's centre; in a scan's first row also: its runs, its
-#: beams, its centre angle, whether it spans less than a turn, and how far (the slack) its runs'
-#: sensors (and radii) and headings' centres are from its middle run's
-#: the run's first beam's angle; for the matched scan's own runs (:func:`own_runs`), their
-#: nominal move (sensor frame), its length and the spread of their beams' moves about it
+#: columns of a row (``ref_c``, and ``own_c`` of :func:`own_runs`): the sensor's centre, its
+#: radius, where its cones start proving (``smin``), the row's first beam in its scan and its
+#: beams, :func:`~.free_cones._cover_setup`'s constants (1/inc, centre angle, index margin,
+#: usable, cone half-width / inc), the heading's centre; in a scan's first row also its runs,
+#: its beams, its centre angle, whether it spans less than a turn, and how far (the slack) its
+#: runs' sensors (and radii) and headings' centres are from its middle run's; the row's first
+#: beam's angle; for the matched scan's own runs, their nominal move (sensor frame), its length
+#: and the spread of their beams' moves about it
 (C_X, C_Y, C_RAD, C_SMIN, C_I0, C_N, C_II, C_AC, C_MI, C_OK, C_RR, C_TH, C_RUNS, C_NB, C_SAC, C_SOK, C_SLACK,
  C_DTH, C_A0, C_OX, C_OY, C_OL, C_SPREAD) = range(23)
 N_COLS = 23
