@@ -23,6 +23,8 @@ from ivslam_cli.slam.lidar.geometry import ATAN_ERR, atan2_fast, dn, range_bound
 TWO_PI = 2.0 * math.pi
 #: margin on bearings shifted by whole turns (2π·n in floating point, |n| small)
 SHIFT_MARGIN = 1e-12
+#: a cone's ends ``a0 + i·inc ± ra`` as computed are within this of the true ones (|angles| < 64)
+CONE_MARGIN = 1e-13
 #: bearings from :func:`box_bearings_fast` are within ATAN_ERR (+ an ulp) of the true ones
 _BEAR_MARGIN = ATAN_ERR + 1e-12
 
@@ -39,13 +41,18 @@ def free_ranges(ranges, valid, r_abs, r_rel, out):
 
 
 @njit(cache=True)
-def covered_free(f, a0, inc, ra, bl, bh, rho_h):
+def covered_free(f, a0, inc, ra, bl, bh, rho_h, one_pose):
     """True if every point at bearing in ``[bl, bh]`` (sensor frame) and distance ≤ ``rho_h``
     is proven free by a scan with free ranges ``f`` (beams at ``a0 + i·inc``, each cone of
-    half-width ``ra``). Cones that touch (``ra ≥ inc / 2``): every beam whose cone meets the
-    window is valid with free range > ``rho_h`` (a bearing lies in some cone, and that cone is
-    free to ``rho_h``); gaps assumed free (``ra < inc / 2``, ``fill_gaps``): every beam from the
-    one at or before ``bl`` to the one at or after ``bh``."""
+    half-width ``ra``). Cones that touch (``ra ≥ inc / 2``), every beam taken from one pose
+    (``one_pose``): the cones of the beams free beyond ``rho_h`` cover the window (each bearing
+    lies in one of them: consecutive cones touch, others must meet, each shrunk by
+    :data:`CONE_MARGIN`), as a point in a cone nearer than its free range is free whatever the
+    other cones holding it saw. Cones that touch, beams taken from poses apart (a sweep): every
+    beam whose cone meets the window is free beyond ``rho_h`` (so that, seen from each beam's
+    own pose, one of them holds the point: :func:`sweep_free_from`). Gaps assumed free (``ra <
+    inc / 2``, ``fill_gaps``): every beam from the one at or before ``bl`` to the one at or
+    after ``bh``."""
     nb = f.shape[0]
     if not (bh - bl < TWO_PI):
         return False
@@ -57,9 +64,29 @@ def covered_free(f, a0, inc, ra, bl, bh, rho_h):
     if ra >= 0.5 * inc:  # the beams i with a0 + i·inc ± ra meeting [bl, bh]; more, never fewer
         i0 = math.ceil(down(down(down(bl - a0) - ra) / inc))
         i1 = math.floor(up(up(up(bh - a0) + ra) / inc))
-    else:
-        i0 = math.floor(down(down(bl - a0) / inc))
-        i1 = math.ceil(up(up(bh - a0) / inc))
+        if not one_pose:
+            if i0 < 0 or i1 > nb - 1:
+                return False
+            for i in range(i0, i1 + 1):
+                if not (rho_h < f[i]):
+                    return False
+            return True
+        reach = bl  # [bl, reach] is covered
+        last = -2
+        for i in range(max(i0, 0), min(i1, nb - 1) + 1):
+            if not (rho_h < f[i]):
+                continue
+            c = a0 + i * inc
+            # consecutive cones touch (2 ra ≥ inc); past a gap, cone i must start by reach
+            if i != last + 1 and up(c - ra) + CONE_MARGIN > reach:
+                return False  # a bearing no cone free beyond rho_h holds: later cones start later
+            reach = max(reach, down(c + ra) - CONE_MARGIN)
+            last = i
+            if reach >= bh:
+                return True
+        return False
+    i0 = math.floor(down(down(bl - a0) / inc))
+    i1 = math.ceil(up(up(bh - a0) / inc))
     if i0 < 0 or i1 > nb - 1:
         return False
     for i in range(i0, i1 + 1):
@@ -73,7 +100,8 @@ def _seg_free(vx, vy, ux, uy, ah, ac, stl, sth, f, a0, inc, ra, smin):
     """True if every point ``v + s u + t u⊥`` (``|s| <= ah``, ``|t| <= ac``; ``v`` relative to a
     sensor whose heading is in ``[stl, sth]``) lies in the certain free space of that sensor's
     scan (free ranges ``f``, beams at ``a0 + i·inc``, cones of half-width ``ra``), none nearer
-    than ``smin`` to the sensor (:func:`sweep_free_from`)."""
+    than ``smin`` to the sensor (:func:`sweep_free_from`: 0 exactly when every beam is taken
+    from one pose, so :func:`covered_free` may take each bearing from any cone that holds it)."""
     dist = math.hypot(vx, vy)
     if not dist > 0.0:
         return False
@@ -89,7 +117,8 @@ def _seg_free(vx, vy, ux, uy, ah, ac, stl, sth, f, a0, inc, ra, smin):
     bc = atan2_fast(vy, vx)
     far = upf(dist * (1.0 + 1e-12)) + along
     rho_h = upf(upf(math.hypot(far, lat)) * (1.0 + 1e-12))
-    return covered_free(f, a0, inc, ra, bc - half - _BEAR_MARGIN - sth, bc + half + _BEAR_MARGIN - stl, rho_h)
+    return covered_free(f, a0, inc, ra, bc - half - _BEAR_MARGIN - sth, bc + half + _BEAR_MARGIN - stl, rho_h,
+                        not (smin > 0.0))
 
 
 #: angle error of :func:`_may_cover`'s bearings: atan2_fast's plus what coordinates below
@@ -111,16 +140,16 @@ def _cover_setup(nb, a0, inc, ra):
 
 
 @njit(cache=True, inline="always")
-def _may_cover(px, py, cx, cy, c, f, a0, ii, ac, mi, ok, rr):
+def _may_cover(px, py, cx, cy, c, f, a0, ii, ac, mi, ok, rr, one_pose):
     """False only if the point ``(px, py)`` cannot be in what :func:`covered_free` certifies
     free for a scan (free ranges ``f``, beams at ``a0 + i·inc``; ``ii, ac, mi, ok, rr`` from
     :func:`_cover_setup`) from a sensor at ``(cx, cy)`` with heading ``c``: a certified point
-    at sensor bearing ``β`` is nearer than ``f[j]`` for a beam ``j`` in every window holding
-    ``β`` — one whose cone holds ``β`` (cones that touch, ``rr ≥ 1/2``), or
-    ``j = ⌊(β − a0) / inc⌋`` (gaps assumed free) — and, with cones that touch, than every beam
-    whose cone surely holds ``β`` (such beams are in every window holding ``β``, and a window is
-    certified only if all its beams are free beyond the point). A cheap necessary condition, so
-    :func:`_seg_free` runs only where it may succeed."""
+    at sensor bearing ``β`` is nearer than ``f[j]`` for a beam ``j`` whose cone holds ``β``
+    (cones that touch, ``rr ≥ 1/2``), or ``j = ⌊(β − a0) / inc⌋`` (gaps assumed free) — and,
+    with cones that touch and beams taken from poses apart (not ``one_pose``), than every beam
+    whose cone surely holds ``β`` (such beams are in every window holding ``β``, and such a
+    window is certified only if all its beams are free beyond the point). A cheap necessary
+    condition, so :func:`_seg_free` runs only where it may succeed."""
     if not ok or not (abs(px) + abs(py) + abs(cx) + abs(cy) < _QUICK_COORD):
         return True
     dx = px - cx
@@ -137,17 +166,18 @@ def _may_cover(px, py, cx, cy, c, f, a0, ii, ac, mi, ok, rr):
         b += TWO_PI
     jc = (b - a0) * ii
     if rr >= 0.5:
-        # the beams whose cones surely hold β are in every window holding it: all free beyond
-        s0 = math.ceil(jc - rr + mi)
-        s1 = math.floor(jc + rr - mi)
-        if s0 <= s1:
-            if s0 < 0 or s1 > f.shape[0] - 1:
-                return False
-            fs = f[s0]
-            for j in range(s0 + 1, s1 + 1):
-                fs = min(fs, f[j])
-            if not (fs > 0.0 and rho2 < fs * fs * (1.0 + 1e-9)):
-                return False
+        if not one_pose:
+            # the beams whose cones surely hold β are in every window holding it: all free beyond
+            s0 = math.ceil(jc - rr + mi)
+            s1 = math.floor(jc + rr - mi)
+            if s0 <= s1:
+                if s0 < 0 or s1 > f.shape[0] - 1:
+                    return False
+                fs = f[s0]
+                for j in range(s0 + 1, s1 + 1):
+                    fs = min(fs, f[j])
+                if not (fs > 0.0 and rho2 < fs * fs * (1.0 + 1e-9)):
+                    return False
         j0 = max(math.ceil(jc - rr - mi), 0)
         j1 = min(math.floor(jc + rr + mi), f.shape[0] - 1)
     else:
@@ -163,7 +193,8 @@ def sweep_free_from(drift: np.ndarray, inc: np.ndarray, ra: float, fill: bool) -
     """Per scan, the distance from its sensor below which its free cones prove nothing, its
     beams taken one after another while the sensor moves at most ``δ`` and turns at most ``η``
     between two consecutive beams (``drift`` (S, 2); beam step ``inc`` (S,), cones of
-    half-width ``ra``): 0 without motion, inf when the cones cannot overlap by the turn.
+    half-width ``ra``): 0 exactly without motion (every beam from one pose), inf when the cones
+    cannot overlap by the turn.
 
     Why. A point ``x`` proven free lies, seen from every sensor pose of the (swept) box, at a
     bearing in the window of beams ``i0..i1`` and nearer than their free ranges. Seen from beam
@@ -178,7 +209,8 @@ def sweep_free_from(drift: np.ndarray, inc: np.ndarray, ra: float, fill: bool) -
     d = np.asarray(drift, float).reshape(-1, 2)
     inc = np.broadcast_to(np.asarray(inc, float), (d.shape[0],))
     out = np.zeros(d.shape[0])
-    if fill:
+    if fill:  # from the sensor on; a moving scan's least distance is not 0 (0: one pose)
+        out[(d[:, 0] > 0.0) | (d[:, 1] > 0.0)] = np.nextafter(0.0, 1.0)
         return out
     moving = ((d[:, 0] > 0.0) | (d[:, 1] > 0.0)) & (ra >= 0.5 * inc)
     margin = (2.0 * ra - inc - d[:, 1]) - 1e-12 * (2.0 * ra + inc + d[:, 1])  # rounded down

@@ -161,7 +161,8 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
                     rc = ref_c[t]
                     extra = lev_r + rc[C_RAD]
                     if not _may_cover(cx + (ah + extra) * ux, cy + (ah + extra) * uy, rc[C_X], rc[C_Y], rc[C_TH], ref_f[t],
-                                      ref_a0[t], rc[C_II], rc[C_AC], rc[C_MI], rc[C_OK] > 0.0, rc[C_RR]):
+                                      ref_a0[t], rc[C_II], rc[C_AC], rc[C_MI], rc[C_OK] > 0.0, rc[C_RR],
+                                      not (rc[C_SMIN] > 0.0)):
                         continue
                     hit = _seg_free(cx - rc[C_X], cy - rc[C_Y], ux, uy, ah + extra, ac + extra, ref_th[t, 0],
                                     ref_th[t, 1], ref_f[t], ref_a0[t], ref_inc[t], r_alpha, rc[C_SMIN])
@@ -181,7 +182,7 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
                 rc = own_c[t]
                 e = W[j, 4] + rc[C_RAD]
                 if not _may_cover(W[j, 0] + e * W[j, 2], W[j, 1] + e * W[j, 3], rc[C_X], rc[C_Y], c, own_f[t], rc[C_A0],
-                                  rc[C_II], rc[C_AC], rc[C_MI], rc[C_OK] > 0.0, rc[C_RR]):
+                                  rc[C_II], rc[C_AC], rc[C_MI], rc[C_OK] > 0.0, rc[C_RR], not (cones_from > 0.0)):
                     continue
                 if _seg_free(W[j, 0] - rc[C_X], W[j, 1] - rc[C_Y], W[j, 2], W[j, 3], W[j, 4] + rc[C_RAD],
                              W[j, 5] + rc[C_RAD], stl, sth, own_f[t], rc[C_A0], inc, r_alpha, cones_from):
@@ -204,7 +205,7 @@ def _node_test(b, beam_rl, beam_rh, beam_ca, beam_sa, n_beams, free, a0, inc, W,
         for j in range(n_w):
             ahj = W[j, 4] + rs
             if not _may_cover(W[j, 0] + ahj * W[j, 2], W[j, 1] + ahj * W[j, 3], ccx, ccy, c, free, a0, ii, acb, mi, ok,
-                              rr):
+                              rr, not (cones_from > 0.0)):
                 continue
             if _seg_free(W[j, 0] - ccx, W[j, 1] - ccy, W[j, 2], W[j, 3], W[j, 4] + rs, W[j, 5] + rs, stl, sth, free, a0,
                          inc, r_alpha, cones_from):

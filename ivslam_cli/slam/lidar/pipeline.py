@@ -100,7 +100,7 @@ def _sweep_text(scans: Scans, params: Params, submaps: bool) -> str:
 def _sweep_free_text(tracking, params: Params) -> str:
     """What the sweep leaves of the free cones (:func:`~.free_cones.sweep_free_from`)."""
     smin = None if tracking is None else tracking.smin
-    if smin is None or not np.any(smin > 0.0):
+    if smin is None or params.beams.fill_gaps or not np.any(smin > 0.0):
         return ""
     none = int(np.count_nonzero(~np.isfinite(smin)))
     fin = smin[np.isfinite(smin)]

@@ -50,16 +50,17 @@ def _case(draw):
         gap = draw(st.sampled_from([1e-9, 1e-6, 1e-4, 1e-2]))
         rho = math.hypot(dist + ah, ac)
         f = np.where(f > 0.0, rho * (1.0 + gap) + 1e-9, f)
-    ra = inc * draw(st.sampled_from([0.5, 0.5, 0.6, 0.25]))  # cones that touch, or gaps assumed free
-    return f, a0, inc, ra, cx, cy, c, hw, vx, vy, math.cos(phi), math.sin(phi), ah, ac
+    ra = inc * draw(st.sampled_from([0.5, 0.5, 0.6, 0.8, 1.1, 0.25]))  # cones that touch, or gaps assumed free
+    smin = draw(st.sampled_from([0.0, 0.0, 1e-300, 1e-3, 0.5]))  # every beam from one pose (0), or a sweep
+    return f, a0, inc, ra, cx, cy, c, hw, vx, vy, math.cos(phi), math.sin(phi), ah, ac, smin
 
 
 @settings(max_examples=examples(ci=3000))
 @given(_case())
 def test_the_quick_rejection_never_rejects_what_the_exact_test_certifies(case):
-    f, a0, inc, ra, cx, cy, c, hw, vx, vy, ux, uy, ah, ac = case
+    f, a0, inc, ra, cx, cy, c, hw, vx, vy, ux, uy, ah, ac, smin = case
     stl, sth = c - hw, c + hw
-    if not _seg_free(vx, vy, ux, uy, ah, ac, stl, sth, f, a0, inc, ra, 0.0):
+    if not _seg_free(vx, vy, ux, uy, ah, ac, stl, sth, f, a0, inc, ra, smin):
         return
     ii, acn, mi, ok, rr = _cover_setup(f.shape[0], a0, inc, ra)
     mid = 0.5 * (stl + sth)
@@ -67,7 +68,7 @@ def test_the_quick_rejection_never_rejects_what_the_exact_test_certifies(case):
         for t in (-1.0, 0.0, 1.0):
             px = cx + vx + s * ah * ux - t * ac * uy
             py = cy + vy + s * ah * uy + t * ac * ux
-            assert _may_cover(px, py, cx, cy, mid, f, a0, ii, acn, mi, ok, rr), (s, t)
+            assert _may_cover(px, py, cx, cy, mid, f, a0, ii, acn, mi, ok, rr, not smin > 0.0), (s, t)
 
 
 def test_the_quick_rejection_rejects_points_beyond_the_free_ranges():
@@ -80,14 +81,14 @@ def test_the_quick_rejection_rejects_points_beyond_the_free_ranges():
     ii, acn, mi, ok, rr = _cover_setup(nb, a0, inc, 0.5 * inc)
     assert ok
     for c in (0.0, 2 * math.pi, -6 * math.pi):  # the same heading, unnormalised
-        assert _may_cover(3.0, 0.0, 0.0, 0.0, c, f, a0, ii, acn, mi, ok, rr)
-        assert not _may_cover(4.1, 0.0, 0.0, 0.0, c, f, a0, ii, acn, mi, ok, rr)
-        assert not _may_cover(-3.0, 0.1, 0.0, 0.0, c, f, a0, ii, acn, mi, ok, rr)  # behind: outside the span
+        assert _may_cover(3.0, 0.0, 0.0, 0.0, c, f, a0, ii, acn, mi, ok, rr, True)
+        assert not _may_cover(4.1, 0.0, 0.0, 0.0, c, f, a0, ii, acn, mi, ok, rr, True)
+        assert not _may_cover(-3.0, 0.1, 0.0, 0.0, c, f, a0, ii, acn, mi, ok, rr, True)  # behind: outside the span
         b = a0 + 100.3 * inc
-        assert not _may_cover(2.0 * math.cos(b), 2.0 * math.sin(b), 0.0, 0.0, c, f, a0, ii, acn, mi, ok, rr)
+        assert not _may_cover(2.0 * math.cos(b), 2.0 * math.sin(b), 0.0, 0.0, c, f, a0, ii, acn, mi, ok, rr, True)
     # a heading far from the principal turns, or NaN: no shortcut (the exact test decides)
     for c in (1e6, -1e6, math.nan):
-        assert _may_cover(4.1, 0.0, 0.0, 0.0, c, f, a0, ii, acn, mi, ok, rr)
+        assert _may_cover(4.1, 0.0, 0.0, 0.0, c, f, a0, ii, acn, mi, ok, rr, True)
 
 
 @st.composite
@@ -95,7 +96,7 @@ def _window(draw):
     nb = draw(st.integers(2, 40))
     inc = draw(st.floats(1e-3, 0.05))
     a0 = draw(st.floats(-3.0, 1.0))
-    ra = inc * draw(st.sampled_from([0.5, 0.5, 0.5000001, 0.7, 0.25]))
+    ra = inc * draw(st.sampled_from([0.5, 0.5, 0.5000001, 0.7, 0.95, 1.1, 0.25]))
     f = np.array(draw(st.lists(st.sampled_from([-1.0, 0.5, 1.0, 2.0, 3.0]), min_size=nb, max_size=nb)))
     bl = a0 + draw(st.floats(-1.0, nb)) * inc
     bh = bl + draw(st.floats(0.0, 3.0)) * inc * draw(st.sampled_from([0.01, 0.3, 1.0]))
@@ -112,7 +113,7 @@ def test_covered_free_certifies_only_bearings_some_free_cone_holds(case):
     from ivslam_cli.slam.lidar.free_cones import covered_free
 
     f, a0, inc, ra, bl, bh, rho = case
-    if not covered_free(f, a0, inc, ra, bl, bh, rho):
+    if not covered_free(f, a0, inc, ra, bl, bh, rho, True):
         return
     centre = a0 + inc * np.arange(f.size)
     ok = f > rho
@@ -134,13 +135,35 @@ def test_covered_free_needs_only_the_cone_that_holds_a_narrow_window():
     inc = 0.01
     f = np.array([2.0, 2.0, -1.0, 2.0])
     a1 = 0.0 + 1 * inc
-    assert covered_free(f, 0.0, inc, 0.5 * inc, a1 + 0.1 * inc, a1 + 0.4 * inc, 1.5)
-    assert covered_free(f, 0.0, inc, 0.5 * inc, a1 - 0.4 * inc, a1 + 0.4 * inc, 1.5)
-    assert not covered_free(f, 0.0, inc, 0.5 * inc, a1 + 0.1 * inc, a1 + 0.6 * inc, 1.5)
-    assert not covered_free(f, 0.0, inc, 0.5 * inc, a1 + 0.1 * inc, a1 + 0.4 * inc, 2.5)
+    assert covered_free(f, 0.0, inc, 0.5 * inc, a1 + 0.1 * inc, a1 + 0.4 * inc, 1.5, True)
+    assert covered_free(f, 0.0, inc, 0.5 * inc, a1 - 0.4 * inc, a1 + 0.4 * inc, 1.5, True)
+    assert not covered_free(f, 0.0, inc, 0.5 * inc, a1 + 0.1 * inc, a1 + 0.6 * inc, 1.5, True)
+    assert not covered_free(f, 0.0, inc, 0.5 * inc, a1 + 0.1 * inc, a1 + 0.4 * inc, 2.5, True)
     # gaps assumed free (narrower cones): the two beams around the window
-    assert not covered_free(f, 0.0, inc, 0.25 * inc, a1 + 0.1 * inc, a1 + 0.4 * inc, 1.5)
-    assert covered_free(f, 0.0, inc, 0.25 * inc, 0.1 * inc, 0.4 * inc, 1.5)
+    assert not covered_free(f, 0.0, inc, 0.25 * inc, a1 + 0.1 * inc, a1 + 0.4 * inc, 1.5, True)
+    assert covered_free(f, 0.0, inc, 0.25 * inc, 0.1 * inc, 0.4 * inc, 1.5, True)
+
+
+def test_covered_free_needs_a_free_cone_at_each_bearing_not_every_cone_it_meets():
+    """Overlapping cones (``ra = 0.8 inc``): a window that enters a short beam's cone where its
+    neighbour's cone also holds it is certified by the neighbour (each bearing lies in a cone
+    free beyond ``rho``); reaching the bearings only the short beam's cone holds, it is not.
+    With ``ra > inc`` the short beam's neighbours bridge it."""
+    from ivslam_cli.slam.lidar.free_cones import covered_free
+
+    inc = 0.01
+    f = np.array([2.0, 2.0, 0.5, 2.0, 2.0])  # beam 2 (at 0.02) is free only to 0.5
+    ra = 0.8 * inc  # beam 2's cone [0.012, 0.028]; only it holds [0.018, 0.022]
+    assert covered_free(f, 0.0, inc, ra, 0.005, 0.016, 1.5, True)
+    assert covered_free(f, 0.0, inc, ra, 0.024, 0.035, 1.5, True)
+    assert not covered_free(f, 0.0, inc, ra, 0.005, 0.019, 1.5, True)
+    assert not covered_free(f, 0.0, inc, ra, 0.021, 0.035, 1.5, True)
+    assert not covered_free(f, 0.0, inc, ra, 0.005, 0.035, 1.5, True)
+    assert covered_free(f, 0.0, inc, ra, 0.005, 0.035, 0.4, True)
+    assert covered_free(f, 0.0, inc, 1.1 * inc, 0.005, 0.035, 1.5, True)
+    # beams taken from poses apart: every cone the window meets must be free
+    assert not covered_free(f, 0.0, inc, ra, 0.005, 0.016, 1.5, False)
+    assert covered_free(f, 0.0, inc, ra, 0.0, 0.003, 1.5, False)
 
 
 # ---------------------------------------------------------------- beams taken from poses apart
@@ -164,7 +187,7 @@ def _certified(x, y, box, f, a0, inc, ra, smin):
     dxl, dxh, dyl, dyh = x - xh, x - xl, y - yh, y - yl
     r_lo, r_hi = box_ranges(dxl, dxh, dyl, dyh)
     bl, bh, full = box_bearings(dxl, dxh, dyl, dyh)
-    return (not full) and r_lo >= smin and covered_free(f, a0, inc, ra, bl - thh, bh - thl, r_hi)
+    return (not full) and r_lo >= smin and covered_free(f, a0, inc, ra, bl - thh, bh - thl, r_hi, False)
 
 
 @st.composite
@@ -216,6 +239,32 @@ def test_swept_cones_prove_free_only_what_some_beam_saw(case):
             assert _cones_hold(x, y, o, th, a0, inc, ra, f).any(), (x, y, smin)
 
 
+@settings(max_examples=examples(ci=400))
+@given(_swept_scan())
+def test_swept_rectangles_certified_free_lie_in_some_beams_own_cone(case):
+    """The matcher's test of a rectangle against a swept scan (:func:`_seg_free` from its sensor
+    box holding every beam's pose, ``smin`` of :func:`sweep_free_from`): every point it
+    certifies free lies in the cone of some beam seen from that beam's own pose, nearer than its
+    free range (a scan not swept: each bearing from any cone free beyond it)."""
+    from ivslam_cli.slam.lidar.free_cones import sweep_free_from
+
+    nb, inc, ra, eta, delta, o, th, f, a0, rng = case
+    smin = float(sweep_free_from(np.array([[delta, eta]]), np.array([inc]), ra, False)[0])
+    cx, cy = 0.5 * (o[:, 0].min() + o[:, 0].max()), 0.5 * (o[:, 1].min() + o[:, 1].max())
+    rad = float(np.max(np.hypot(o[:, 0] - cx, o[:, 1] - cy))) * (1 + 1e-9) + 1e-12
+    for _ in range(300):
+        s = rng.uniform(0.01, 6.0)
+        b = rng.uniform(a0, a0 + (nb - 1) * inc) + rng.uniform(th.min(), th.max())
+        x, y = cx + s * math.cos(b), cy + s * math.sin(b)
+        phi = rng.uniform(-math.pi, math.pi)
+        h = rng.choice([1e-9, 1e-3, 0.02])
+        if _seg_free(x - cx, y - cy, math.cos(phi), math.sin(phi), h + rad, h + rad, th.min(), th.max(), f, a0, inc,
+                     ra, smin):
+            for px, py in ((x, y), (x + h * math.cos(phi), y + h * math.sin(phi)),
+                           (x - h * math.sin(phi), y + h * math.cos(phi))):
+                assert _cones_hold(px, py, o, th, a0, inc, ra, f, tol=1e-9).any(), (px, py, smin)
+
+
 def test_a_turn_with_the_sweep_opens_slivers_no_beam_saw():
     """A test that can fail: cones that only touch (bearing bound = half the step), the sensor
     turning by ``η`` from each beam to the next in the sweep's direction. Between beams ``i`` and
@@ -239,4 +288,4 @@ def test_a_turn_with_the_sweep_opens_slivers_no_beam_saw():
     assert sweep_free_from(np.array([[0.0, eta]]), np.array([inc]), ra, False)[0] == math.inf
     assert not _certified(x, y, box, f, a0, inc, ra, math.inf)
     assert sweep_free_from(np.array([[0.0, eta]]), np.array([inc]), 0.5 * inc + eta, False)[0] < 1e-300
-    assert sweep_free_from(np.array([[0.0, eta]]), np.array([inc]), ra, True)[0] == 0.0  # fill_gaps: assumed
+    assert 0.0 < sweep_free_from(np.array([[0.0, eta]]), np.array([inc]), ra, True)[0] < 1e-300  # fill_gaps: assumed

@@ -124,7 +124,7 @@ def test_the_selection_of_runs_keeps_every_run_the_quick_test_keeps():
                 c = ref_c[t]
                 e = base + c[C_RAD]
                 if _may_cover(cx + e * ux, cy + e * uy, c[C_X], c[C_Y], c[C_TH], ref_f[t], ref_a0[t], c[C_II], c[C_AC],
-                              c[C_MI], c[C_OK] > 0.0, c[C_RR]):
+                              c[C_MI], c[C_OK] > 0.0, c[C_RR], not c[C_SMIN] > 0.0):
                     n_kept += 1
                     assert t0 <= t <= t1, (k, t, t0, t1)
         # runs partition the scan's beams
