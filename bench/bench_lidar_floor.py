@@ -33,6 +33,12 @@ bounds what one match can reach, not the tracker, which meets many scans.
     python -m bench lidar_floor
     python -m bench.bench_lidar_floor --duration 60 --every 60 --q 0,5
     python -m bench.bench_lidar_floor --duration 30 --every 30 --pair 10 --q 0,5
+    python -m bench.bench_lidar_floor --log ../shared/datasets/breezyslam_mines/exp1.dat.xz \
+        --config configs/exp1.toml --at-rest 0:3,0:7,0:12 --q 0,1,2,5
+
+**A recorded log, pairs at rest** (``--log``): two scans between which the odometry shows no
+motion have the identity as their true relative pose; the same two-scan witnesses are searched
+around it (no truth needed), beside our matcher on the pair.
 """
 
 from __future__ import annotations
@@ -211,16 +217,18 @@ def pair_scan(log, k: int, r_abs: float, r_rel: float):
     return (a0 + inc * np.flatnonzero(v), lo, hi, f, a0, inc)
 
 
-def pair_floor(log, k: int, j: int, q: int, params, samples=(9, 7)):
+def pair_floor(log, k: int, j: int, q: int, params, samples=(9, 7), t=None):
     """Scan ``k`` against scan ``j`` (exact): ``(below, above, witnesses, matcher union)`` — the
-    largest heading offsets from the truth with a witness, the witnesses (robot poses in ``j``'s
-    frame) and our matcher's union on the same pair."""
+    largest heading offsets from the truth (or from ``t``, the relative pose searched around)
+    with a witness, the witnesses (robot poses in ``j``'s frame) and our matcher's union on the
+    same pair."""
     from ivslam_cli.paving.tiles import TileMap
     from ivslam_cli.slam.lidar.matcher import Matcher
 
     b = params.beams
     S, A = pair_scan(log, k, b.range_abs, b.range_rel), pair_scan(log, j, b.range_abs, b.range_rel)
-    t = relative_pose(np.asarray(log.truth.pose[j], float), np.asarray(log.truth.pose[k], float))
+    if t is None:
+        t = relative_pose(np.asarray(log.truth.pose[j], float), np.asarray(log.truth.pose[k], float))
     mount = tuple(float(v) for v in log.scans.mount)
     reach, wit = [], []
     for sign in (-1.0, 1.0):
@@ -265,7 +273,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--q", default="0,5", help="beams allowed to disagree (the pipeline's q_beams is 5)")
     ap.add_argument("--pair", type=int, default=0,
                     help="also each tested scan against the scan GAP before it, the world unknown (0: not)")
+    ap.add_argument("--log", type=Path, help="a recorded log instead: scan pairs taken at rest (--at-rest)")
+    ap.add_argument("--config", type=Path, help="with --log: its configuration (the bounds)")
+    ap.add_argument("--at-rest", default="0:3,0:7,0:12",
+                    help="with --log: pairs j:k of scans between which the odometry shows no motion")
     args = ap.parse_args(argv)
+    if args.log is not None:
+        return at_rest(args.log, args.config, [tuple(int(v) for v in p.split(":")) for p in args.at_rest.split(",")],
+                       [int(x) for x in args.q.split(",")])
     from ivslam_cli.logs import read_log
     from ivslam_cli.results.hdf5 import read_result
 
@@ -329,6 +344,41 @@ def pairs(log, rows: np.ndarray, qs: list[int], gap: int) -> int:
     if floors[qs[0]]:
         print(f"{'median':>5} " + " ".join(f"{np.median(floors[q]):>11.4f} {np.median(ours[q]):>10.4f}" for q in qs))
     print(f"pair witnesses {time.perf_counter() - t0:.0f} s (offsets searched in steps of {PAIR_OFFSETS[0]:g} rad)")
+    for f in failures:
+        print("SOUNDNESS FAILURE:", f)
+    return 1 if failures else 0
+
+
+def at_rest(path: Path, config: Path | None, pairs_: list[tuple[int, int]], qs: list[int]) -> int:
+    """Pairs of a recorded log's scans taken while the robot stands still (the odometry moves by
+    under 1 mm and 1 mrad between them): the true relative pose is the identity, so the witness
+    search runs around it, beside our matcher on the same pair (every beam, the config's bounds,
+    no sweep: the robot does not move). 1 if a witness lies outside our union."""
+    from ivslam_cli.config import resolve_config
+    from ivslam_cli.logs import read_log
+    from ivslam_cli.slam.lidar.params import Params
+
+    log = read_log(path)
+    params = Params.from_config(resolve_config(config, {}, log_bounds=log.bounds))
+    odo_t, odo_p = np.asarray(log.odometry.stamp, float), np.asarray(log.odometry.pose, float)
+    stamp = np.asarray(log.scans.stamp, float)
+    print(f"{path.name}: scan pairs at rest, every beam, no sweep; heading width with a witness (floor) and our "
+          "matcher's on the same pair (prior ±0.2 m, ±0.15 rad)")
+    print(f"{'pair':>7} " + " ".join(f"{'floor q=' + str(q):>11} {'ours q=' + str(q):>10}" for q in qs))
+    failures = []
+    for j, k in pairs_:
+        a, b = (np.clip(np.searchsorted(odo_t, stamp[i]), 0, len(odo_t) - 1) for i in (j, k))
+        d = relative_pose(odo_p[a], odo_p[b])
+        if not (math.hypot(d[0], d[1]) < 1e-3 and abs(d[2]) < 1e-3):
+            print(f"{j}:{k}: the odometry moves {np.round(d, 4).tolist()} between them: not at rest, skipped")
+            continue
+        cells = []
+        for q in qs:
+            lo, hi, wit, union = pair_floor(log, k, j, q, params, t=np.zeros(3))
+            failures += [f"pair {j}:{k}, q = {q}: witness {np.round(p, 5).tolist()} outside our union" for p in wit
+                         if not in_union(union, p)]
+            cells.append(f"{lo + hi:>11.4f} {float(union[:, 5].max() - union[:, 4].min()):>10.4f}")
+        print(f"{j:>3}:{k:<3} " + " ".join(cells), flush=True)
     for f in failures:
         print("SOUNDNESS FAILURE:", f)
     return 1 if failures else 0
