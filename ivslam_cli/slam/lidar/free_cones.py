@@ -64,35 +64,37 @@ def covered_free(f, a0, inc, ra, bl, bh, rho_h, one_pose):
     if ra >= 0.5 * inc:  # the beams i with a0 + i·inc ± ra meeting [bl, bh]; more, never fewer
         i0 = math.ceil(down(down(down(bl - a0) - ra) / inc))
         i1 = math.floor(up(up(up(bh - a0) + ra) / inc))
-        if not one_pose:
-            if i0 < 0 or i1 > nb - 1:
-                return False
-            for i in range(i0, i1 + 1):
-                if not (rho_h < f[i]):
-                    return False
-            return True
-        reach = bl  # [bl, reach] is covered
-        last = -2
-        for i in range(max(i0, 0), min(i1, nb - 1) + 1):
-            if not (rho_h < f[i]):
-                continue
-            c = a0 + i * inc
-            # consecutive cones touch (2 ra ≥ inc); past a gap, cone i must start by reach
-            if i != last + 1 and up(c - ra) + CONE_MARGIN > reach:
-                return False  # a bearing no cone free beyond rho_h holds: later cones start later
-            reach = max(reach, down(c + ra) - CONE_MARGIN)
-            last = i
-            if reach >= bh:
-                return True
-        return False
-    i0 = math.floor(down(down(bl - a0) / inc))
-    i1 = math.ceil(up(up(bh - a0) / inc))
+        if one_pose:
+            return _cones_cover(f, a0, inc, ra, bl, bh, rho_h, max(i0, 0), min(i1, nb - 1))
+    else:
+        i0 = math.floor(down(down(bl - a0) / inc))
+        i1 = math.ceil(up(up(bh - a0) / inc))
     if i0 < 0 or i1 > nb - 1:
         return False
     for i in range(i0, i1 + 1):
         if not (rho_h < f[i]):
             return False
     return True
+
+
+@njit(cache=True, inline="always")
+def _cones_cover(f, a0, inc, ra, bl, bh, rho_h, i0, i1):
+    """True if the cones of the beams ``i0..i1`` free beyond ``rho_h`` cover ``[bl, bh]``
+    (consecutive cones touch, ``2 ra ≥ inc``; past a gap, a cone must start by the covered end;
+    each shrunk by :data:`CONE_MARGIN`)."""
+    reach = bl  # [bl, reach] is covered
+    last = -2
+    for i in range(i0, i1 + 1):
+        if not (rho_h < f[i]):
+            continue
+        c = a0 + i * inc
+        if i != last + 1 and up(c - ra) + CONE_MARGIN > reach:
+            return False  # a bearing no cone free beyond rho_h holds: later cones start later
+        reach = max(reach, down(c + ra) - CONE_MARGIN)
+        last = i
+        if reach >= bh:
+            return True
+    return False
 
 
 @njit(cache=True, inline="always")
