@@ -102,8 +102,9 @@ def _seg_free(vx, vy, ux, uy, ah, ac, stl, sth, f, a0, inc, ra, smin):
     """True if every point ``v + s u + t u⊥`` (``|s| <= ah``, ``|t| <= ac``; ``v`` relative to a
     sensor whose heading is in ``[stl, sth]``) lies in the certain free space of that sensor's
     scan (free ranges ``f``, beams at ``a0 + i·inc``, cones of half-width ``ra``), none nearer
-    than ``smin`` to the sensor (:func:`sweep_free_from`: 0 exactly when every beam is taken
-    from one pose, so :func:`covered_free` may take each bearing from any cone that holds it)."""
+    than ``smin`` to the sensor (:func:`sweep_free_from`: with cones that touch, 0 only when
+    every beam is taken from one pose, so :func:`covered_free` may take each bearing from any
+    cone that holds it)."""
     dist = math.hypot(vx, vy)
     if not dist > 0.0:
         return False
@@ -195,8 +196,9 @@ def sweep_free_from(drift: np.ndarray, inc: np.ndarray, ra: float, fill: bool) -
     """Per scan, the distance from its sensor below which its free cones prove nothing, its
     beams taken one after another while the sensor moves at most ``δ`` and turns at most ``η``
     between two consecutive beams (``drift`` (S, 2); beam step ``inc`` (S,), cones of
-    half-width ``ra``): 0 exactly without motion (every beam from one pose), inf when the cones
-    cannot overlap by the turn.
+    half-width ``ra``): inf when the cones cannot overlap by the turn; 0 only when every beam
+    is taken from one pose, or when cones that do not touch are not assumed to leave free gaps
+    (they certify nothing then); a moving scan under ``fill`` gets the least positive float.
 
     Why. A point ``x`` proven free lies, seen from every sensor pose of the (swept) box, at a
     bearing in the window of beams ``i0..i1`` and nearer than their free ranges. Seen from beam
