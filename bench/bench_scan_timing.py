@@ -87,6 +87,27 @@ def main(argv: list[str] | None = None) -> int:
                    "stamps' jitter" if slope < -0.5 else "the scans follow their stamps")
         print(f"slope of the ratio over the interval: {slope:.2f} (0: taken at the stamps; about -1: a regular "
               f"clock) — {verdict}")
+    # the same against the odometry interpolated at the fitted clock's ticks (a check, not a bound)
+    from ivslam_cli.slam.lidar.scan_clock import scan_clock
+
+    try:
+        clock = scan_clock(log.scans, "fitted", str(args.log))
+    except Exception as exc:  # noqa: BLE001 - a log without a clock is an answer here
+        print(f"no regular clock fits the stamps: {exc}")
+        return 0
+    g = st + clock.offset
+    th = np.unwrap(op[:, 2])
+    Pg = np.column_stack([np.interp(g, ot, op[:, 0]), np.interp(g, ot, op[:, 1]), np.interp(g, ot, th)])
+    gxy = np.hypot(np.diff(Pg[:, 0]), np.diff(Pg[:, 1]))
+    mg = m & (gxy > 0.02)
+    print(f"{clock.text()}; the same ratio against the odometry interpolated at the ticks:")
+    for lo, hi in BINS:
+        s = mg & (q >= lo) & (q < hi)
+        if s.any():
+            print(f"{f'[{lo:g}, {hi:g})':>16} {int(s.sum()):>6} {np.median(dr[s] / gxy[s]):>13.3f}")
+    if mg.sum() > 10:
+        print(f"slope over the stamp interval: {np.polyfit(q[mg], dr[mg] / gxy[mg], 1)[0]:.2f} (0: the ticks are "
+              "when the scans were taken)")
     return 0
 
 

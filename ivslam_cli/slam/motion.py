@@ -319,6 +319,15 @@ class MotionSteps:
         cap = np.nextafter(np.maximum(tau, 0.0)[:, None] * np.where(stated, top, 0.0) * (1.0 + 1e-12), np.inf)
         return np.minimum(out, np.where(stated, cap, np.inf))
 
+    def _chain(self, s: float, lo: float, hi: float):
+        """The chain of the steps' chords from ``s`` over ``[lo, hi]`` (pose increments under a
+        stated top angular acceleration: :mod:`ivslam_cli.slam.chord_chain`), or ``None``."""
+        from ivslam_cli.slam.chord_chain import chain
+
+        if self.step_xy is None or not np.isfinite(self.turn_accel):
+            return None
+        return chain(self.node_stamp, self.U[:, 2], self.step_xy, self.turn_accel, self.accel, s, lo, hi)
+
     def _steps_met(self, t0: np.ndarray, t1: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The first and last steps ``[t0, t1]`` meets (clipped to the odometry's), and 4 ulps of
         its stamps (near 1.7e9 s they are 2.4e-7 s apart)."""
@@ -327,8 +336,8 @@ class MotionSteps:
         i1 = np.clip(np.searchsorted(self.node_stamp, t1, side="left") - 1, 0, n1 - 1)
         return i0, i1, 4.0 * np.spacing(np.abs(t0) + np.abs(t1))
 
-    def turn_between(self, s: np.ndarray, t0: np.ndarray, t1: np.ndarray,
-                     n_beams: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def turn_between(self, s: np.ndarray, t0: np.ndarray, t1: np.ndarray, n_beams: np.ndarray,
+                     slack: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """A nominal turn rate ``ω̂`` (M,) and bounds ``e``, ``η`` (M,): for every time ``t`` in
         ``[t0, t1]`` (which holds ``s``), ``|θ(t) − θ(s) − ω̂ (t − s)| ≤ e``, and between two
         consecutive of ``n_beams`` times evenly over ``[t0, t1]`` the turn strays from ``ω̂``
@@ -340,19 +349,30 @@ class MotionSteps:
         from the chord of its step by at most ``α (t − t_k)(t_k + h − t) / 2``). Otherwise ``ω̂ =
         0``, ``e`` the reach (:meth:`reach_between`) and ``η`` the drift (:meth:`drift_between`).
         A rate straying at most ``ρ`` from ``ω̂`` (twist: the rest of the steps' rates; pose
-        increments: ``ε / h + α h``) gives ``η = ρ × the interval`` (+ twice the lag)."""
+        increments: ``ε / h + α h``) gives ``η = ρ × the interval`` (+ twice the lag).
+
+        ``slack`` (M,): each of those times may be off by up to this (a scan taken up to
+        ``slack`` from its nominal time, :mod:`~ivslam_cli.slam.lidar.scan_clock`): ``e`` then
+        holds ``θ(t + δ) − θ(s) − ω̂ (t − s)`` for ``|δ| ≤ slack`` (the bound over the widened
+        window plus ``|ω̂| slack``). Then, and whenever ``[t0, t1]`` leaves ``s`` or its step, with
+        pose increments under ``α`` the heading is the chain of the steps' chords from ``s``
+        (:meth:`_chain`): increments ``Δ_j ± ε_j`` weighted by the share ``λ_j`` of each step
+        between ``s`` and ``t``, plus ``α h²/8`` and the chord error at ``s``; ``ω̂`` the rate
+        (a step's, or the window's chord) that gives the least ``e``."""
         w = np.zeros(t0.shape[0])
-        e = self.reach_between(t0, t1)[:, 1]
-        eta = self.drift_between(t0, t1, n_beams)[:, 1]
+        sl = np.zeros(t0.shape[0]) if slack is None else np.asarray(slack, float)
+        lo_w, hi_w = np.minimum(t0 - sl, s), np.maximum(t1 + sl, s)
+        e = self.reach_between(lo_w, hi_w)[:, 1]
+        eta = self.drift_between(t0, t1, n_beams, sl)[:, 1]
         ns = self.node_stamp
         n1 = ns.shape[0] - 1
         if n1 < 1:
             return w, e, eta
-        i0, i1, ulp = self._steps_met(t0, t1)
+        i0, i1, ulp = self._steps_met(lo_w, hi_w)
         dt = (t1 - t0 + ulp) / np.maximum(np.asarray(n_beams, float) - 1.0, 1.0)
         for k in range(t0.shape[0]):
             k0, k1 = int(i0[k]), int(max(i0[k], i1[k]))
-            tau = max(t1[k] - s[k], s[k] - t0[k], 0.0) + ulp[k]
+            tau = max(t1[k] + sl[k] - s[k], s[k] - t0[k] + sl[k], 0.0) + ulp[k]
             if self.turn_rate is not None:
                 W = self.turn_rate[k0:k1 + 1]
                 lo, hi = float(W[:, 0].min()), float(W[:, 1].max())
@@ -361,7 +381,8 @@ class MotionSteps:
                 lag = 2.0 * float(np.max(self.lag[k0:k1 + 2, 1]))
                 ek = np.nextafter((r * tau + lag) * (1.0 + 1e-12) + 1e-12, np.inf)
                 rho, lag_eta = r, lag
-            elif np.isfinite(self.turn_accel) and k0 == k1 and ns[k0] <= t0[k] and t1[k] <= ns[k0 + 1]:
+            elif (np.isfinite(self.turn_accel) and sl[k] == 0.0 and k0 == k1 and ns[k0] <= t0[k] <= s[k] <= t1[k]
+                  and t1[k] <= ns[k0 + 1]):
                 h = float(ns[k0 + 1] - ns[k0])
                 if not h > 0.0:
                     continue
@@ -372,14 +393,23 @@ class MotionSteps:
                 ek = np.nextafter((tau * eps / h + a * h * h / 8.0 + a * (s[k] - ns[k0]) * (ns[k0 + 1] - s[k]) / 2.0
                                    + 2.0 * abs(wc) * ulp[k]) * (1.0 + 1e-12) + 1e-12, np.inf)
                 rho, lag_eta = eps / h + a * h, 0.0
+            elif np.isfinite(self.turn_accel):
+                ch = self._chain(float(s[k]), float(t0[k] - sl[k]), float(t1[k] + sl[k]))
+                if ch is None:
+                    continue
+                wc, ek, rho = ch.turn(float(sl[k]), float(ulp[k]))
+                lag_eta = 0.0
             else:
                 continue
+            if sl[k] > 0.0 and self.turn_rate is not None:
+                ek = np.nextafter((ek + abs(wc) * sl[k]) * (1.0 + 1e-12) + 1e-12, np.inf)
             if ek < e[k]:
                 w[k], e[k] = wc, ek
                 eta[k] = np.nextafter((rho * dt[k] + lag_eta) * (1.0 + 1e-12) + 1e-15, np.inf)
         return w, e, eta
 
-    def move_between(self, s: np.ndarray, t0: np.ndarray, t1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def move_between(self, s: np.ndarray, t0: np.ndarray, t1: np.ndarray,
+                     slack: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """A nominal velocity ``V`` (M, 2) in the robot frame at ``s`` and a bound ``E`` (M,): for
         every ``t`` in ``[t0, t1]`` (which holds ``s``), ``|p(t) − p(s) − R(θ(s)) V (t − s)| ≤ E``.
         With a twist, ``V = (v̂, 0)``, ``v̂`` the middle of the speeds the steps met allow: ``E =
@@ -388,18 +418,21 @@ class MotionSteps:
         increments only under a stated top acceleration ``A``, for a scan stamped at an odometry
         stamp and swept within that step (``h``, increment ``Δp ± ε`` per axis): ``V = Δp / h``,
         ``E = τ √2 ε / h + A h² / 8`` (a path with ``|p''| ≤ A`` strays from its step's chord by
-        at most ``A (t − t_k)(t_k + h − t) / 2``). Otherwise ``V = 0`` and ``E`` the reach
-        (:meth:`reach_between`)."""
+        at most ``A (t − t_k)(t_k + h − t) / 2``); with ``slack`` (as :meth:`turn_between`), or a
+        window leaving ``s`` or its step, the chain of the steps' chords from ``s``
+        (:meth:`_chain`). Otherwise ``V = 0`` and ``E`` the reach (:meth:`reach_between`)."""
         V = np.zeros((t0.shape[0], 2))
-        E = self.reach_between(t0, t1)[:, 0].copy()
+        sl = np.zeros(t0.shape[0]) if slack is None else np.asarray(slack, float)
+        lo_w, hi_w = np.minimum(t0 - sl, s), np.maximum(t1 + sl, s)
+        E = self.reach_between(lo_w, hi_w)[:, 0].copy()
         ns = self.node_stamp
         n1 = ns.shape[0] - 1
         if n1 < 1:
             return V, E
-        i0, i1, ulp = self._steps_met(t0, t1)
+        i0, i1, ulp = self._steps_met(lo_w, hi_w)
         for k in range(t0.shape[0]):
             k0, k1 = int(i0[k]), int(max(i0[k], i1[k]))
-            tau = max(t1[k] - s[k], s[k] - t0[k], 0.0) + ulp[k]
+            tau = max(t1[k] + sl[k] - s[k], s[k] - t0[k] + sl[k], 0.0) + ulp[k]
             if self.speed is not None:
                 sp = self.speed[k0:k1 + 1]
                 lo, hi = float(sp[:, 0].min()), float(sp[:, 1].max())
@@ -410,14 +443,21 @@ class MotionSteps:
                 ek = (dv * tau + abs(vc) * om * tau * tau / 2.0 + 2.0 * float(np.max(lag[:, 0]))
                       + 2.0 * abs(vc) * tau * float(np.max(lag[:, 1])))
                 v = (vc, 0.0)
-            elif (np.isfinite(self.accel) and self.step_xy is not None and k0 == k1 and s[k] == ns[k0]
-                  and t1[k] <= ns[k0 + 1] and t0[k] >= ns[k0]):
+                if sl[k] > 0.0:
+                    ek += abs(vc) * sl[k]
+            elif (np.isfinite(self.accel) and self.step_xy is not None and sl[k] == 0.0 and k0 == k1
+                  and s[k] == ns[k0] and t1[k] <= ns[k0 + 1] and t0[k] >= ns[k0]):
                 h = float(ns[k0 + 1] - ns[k0])
                 if not h > 0.0:
                     continue
                 dx, dy, eps = self.step_xy[k0]
                 v = (dx / h, dy / h)
                 ek = tau * math.sqrt(2.0) * eps / h + self.accel * h * h / 8.0 + math.hypot(*v) * ulp[k]
+            elif np.isfinite(self.accel) and self.step_xy is not None and np.isfinite(self.turn_accel):
+                ch = self._chain(float(s[k]), float(t0[k] - sl[k]), float(t1[k] + sl[k]))
+                if ch is None:
+                    continue
+                v, ek = ch.move(float(sl[k]), float(ulp[k]))
             else:
                 continue
             ek = float(np.nextafter(ek * (1.0 + 1e-12) + 1e-12, np.inf))
@@ -425,16 +465,20 @@ class MotionSteps:
                 V[k], E[k] = v, ek
         return V, E
 
-    def drift_between(self, t0: np.ndarray, t1: np.ndarray, n_beams: np.ndarray) -> np.ndarray:
+    def drift_between(self, t0: np.ndarray, t1: np.ndarray, n_beams: np.ndarray,
+                      slack: np.ndarray | None = None) -> np.ndarray:
         """Upper bounds ``(δ, η)`` (M, 2) of how far the robot moves and turns between two
         consecutive beams of a scan taking its ``n_beams`` beams evenly over ``[t0, t1]``: with a
         twist, the largest speed and turn rate of the steps met times the time between two
         beams, plus the lag at both (the true pose is known only within the lag of the driven
         path); with pose increments, the whole motion over ``[t0, t1]`` (:meth:`reach_between`:
         nothing is known within a step). At most the top speed and turn rate times that time
-        where the bounds state them."""
+        where the bounds state them. ``slack``: the beams may all be taken up to this later or
+        earlier (the bound then holds over ``[t0 − slack, t1 + slack]``)."""
         # + ulps: ``t1`` is a stamp plus the sweep, rounded (2.4e-7 s near 1.7e9 s)
         tau = (t1 - t0 + 4.0 * np.spacing(np.abs(t0) + np.abs(t1))) / np.maximum(np.asarray(n_beams, float) - 1.0, 1.0)
+        if slack is not None:
+            t0, t1 = t0 - slack, t1 + slack
         out = self.reach_between(t0, t1)
         if self.rate is not None and self.node_stamp.shape[0] > 1:
             i0, i1, _ = self._steps_met(t0, t1)

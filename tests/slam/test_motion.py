@@ -157,3 +157,59 @@ def test_the_nominal_move_holds_the_true_position_within_its_error(seed, increme
     assert np.all(E <= reach)
     moving = (t1 - s > 0.02) & (np.hypot(V[:, 0], V[:, 1]) > 0.1)
     assert np.all(E[moving] < 0.5 * reach[moving])  # the nominal move is much tighter than the reach
+
+
+@given(st.integers(0, 2**31 - 1), st.booleans(), st.lists(
+    st.tuples(st.floats(0, 1), st.booleans(), st.floats(-0.3, 0.3), st.floats(0.0, 0.15), st.floats(0.0, 0.05)),
+    min_size=1, max_size=8))
+@settings(max_examples=examples(ci=40))
+def test_a_scan_off_its_stamp_keeps_the_truth_within_the_nominal_turn_and_move(seed, increments, spans):
+    """A scan paired with the odometry at ``s`` but taken over ``[s + d, s + d + T]`` (its own
+    clock: :mod:`ivslam_cli.slam.lidar.scan_clock`), every time of it up to ``slack`` off: the
+    true heading and position at each are within ``e``, ``E`` of ``θ(s) + ω̂ (t − s)``, ``p(s) +
+    R(θ(s)) V (t − s)`` at its nominal time ``t`` (:meth:`MotionSteps.turn_between`,
+    :meth:`~MotionSteps.move_between` with ``slack``; windows that leave ``s``'s step or do not
+    hold ``s``: with pose increments the chain of the steps' chords), and within the reach."""
+    log, tr, m = _motion(seed, increments, {"bounds.turn_accel_max": 3.0, "bounds.accel_max": 2.0})
+    ns = m.node_stamp
+    t_lo, t_hi = float(ns[0]), min(float(tr.pose_stamp[-1]), float(ns[-1]))
+    ref = float(tr.pose_stamp[0])
+    for f, at_node, d, T, sl in spans:
+        s = t_lo + f * (t_hi - t_lo)
+        if at_node:
+            s = float(ns[np.searchsorted(ns, s) - (s > ns[0])])
+        t0, t1 = s + d, s + d + T
+        if not (t_lo <= min(t0 - sl, s) and max(t1 + sl, s) <= t_hi):
+            continue
+        S, T0, T1, SL = (np.array([v]) for v in (s, t0, t1, sl))
+        w, e, _ = m.turn_between(S, T0, T1, np.array([60]), SL)
+        V, E = m.move_between(S, T0, T1, SL)
+        reach = m.reach_between(np.minimum(T0 - SL, S), np.maximum(T1 + SL, S))[0]
+        assert e[0] <= reach[1] and E[0] <= reach[0]
+        ts = np.linspace(t0 - ref, t1 - ref, 60)
+        p0 = _true_pose(tr, np.array([s - ref]), ref)[0]
+        c, sn = np.cos(p0[2]), np.sin(p0[2])
+        u = ts - (s - ref)
+        nom = np.column_stack([p0[0] + (c * V[0, 0] - sn * V[0, 1]) * u, p0[1] + (sn * V[0, 0] + c * V[0, 1]) * u])
+        for delta in np.linspace(-sl, sl, 5):
+            p = _true_pose(tr, ts + delta, ref)
+            assert np.all(np.abs(p[:, 2] - p0[2] - w[0] * u) <= e[0] + 1e-12), (s, d, T, sl, w, e)
+            assert np.all(np.hypot(p[:, 0] - nom[:, 0], p[:, 1] - nom[:, 1]) <= E[0] + 1e-12), (s, d, T, sl, V, E)
+
+
+def test_the_chain_of_chords_is_the_one_step_bound_within_one_step():
+    """Within one step from a stamp at its start, the chain of chords (taken when a slack is
+    given) gives the nominal turn and move of the one-step bounds, within the stamps' ulps."""
+    log, tr, m = _motion(3, True, {"bounds.turn_accel_max": 3.0, "bounds.accel_max": 2.0})
+    ns = m.node_stamp
+    k = np.arange(2, 20)
+    s, t1 = ns[k], ns[k] + 0.6 * (ns[k + 1] - ns[k])
+    n, tiny = np.full(k.shape, 100), np.full(k.shape, 1e-300)
+    w0, e0, eta0 = m.turn_between(s, s.copy(), t1, n)
+    w1, e1, eta1 = m.turn_between(s, s.copy(), t1, n, tiny)
+    V0, E0 = m.move_between(s, s.copy(), t1)
+    V1, E1 = m.move_between(s, s.copy(), t1, tiny)
+    assert np.allclose(w0, w1, rtol=1e-9, atol=1e-12) and np.allclose(V0, V1, rtol=1e-9, atol=1e-12)
+    assert np.all(e1 >= e0 * (1 - 1e-9)) and np.allclose(e0, e1, rtol=1e-3)
+    assert np.all(E1 >= E0 * (1 - 1e-9)) and np.allclose(E0, E1, rtol=1e-3)
+    assert np.allclose(eta0, eta1, rtol=1e-6)

@@ -9,6 +9,7 @@ import numpy as np
 from ivslam_cli.errors import ConfigError
 from ivslam_cli.interval.vector import bound_up
 from ivslam_cli.slam.lidar.map_update import LidarBounds
+from ivslam_cli.slam.lidar.scan_clock import CLOCKS
 from ivslam_cli.slam.motion import InitialPose, MotionBounds
 
 MOTIONS = ("auto", "twist", "pose")
@@ -54,6 +55,8 @@ class Params:
     q_hold: float
     sweep: float
     sweep_from_log: bool
+    scan_clock: str
+    scan_time: float
     submap_distance: float
     submap_turn: float
     submap_width: float
@@ -87,6 +90,9 @@ class Params:
         motion = cfg["lidar.motion"]
         if motion not in MOTIONS:
             raise ConfigError(f"[lidar] motion must be one of {', '.join(MOTIONS)}, got {motion!r}")
+        clock = cfg["lidar.scan_clock"]
+        if clock not in CLOCKS:
+            raise ConfigError(f"[lidar] scan_clock must be one of {', '.join(CLOCKS)}, got {clock!r}")
         known = cfg["lidar.known_poses"]
         if known not in KNOWN_SOURCES:
             raise ConfigError(f"[lidar] known_poses must be one of {', '.join(KNOWN_SOURCES)}, got {known!r}")
@@ -98,6 +104,7 @@ class Params:
             motion=motion, max_pose_width=float(cfg["lidar.max_pose_width"]), max_step=float(cfg["lidar.max_step"]),
             contract=bool(cfg["lidar.contract"]), q_beams=int(cfg["lidar.q_beams"]),
             q_retry=int(cfg["lidar.q_retry"]), q_hold=float(cfg["lidar.q_hold"]), sweep=float(cfg["lidar.sweep"]), sweep_from_log=bool(cfg["lidar.sweep_from_log"]),
+            scan_clock=clock, scan_time=float(cfg["bounds.scan_time"]),
             submap_distance=float(cfg["lidar.submap_distance"]), submap_turn=float(cfg["lidar.submap_turn"]),
             submap_width=float(cfg["lidar.submap_width"]), submap_overlap=float(cfg["lidar.submap_overlap"]),
             match_boxes=int(cfg["lidar.match_boxes"]), match_stride=int(cfg["lidar.match_stride"]),

@@ -51,6 +51,7 @@ from ivslam_cli.results.model import (
 from ivslam_cli.slam.lidar.map_update import grid_of, map_scans, usable_scans
 from ivslam_cli.slam.lidar.params import Params
 from ivslam_cli.slam.lidar.prediction import predict_poses, sweep_times
+from ivslam_cli.slam.lidar.scan_clock import scan_clock
 from ivslam_cli.slam.pipeline import empty_events, make_result
 
 
@@ -87,14 +88,21 @@ def _heading_width(b: np.ndarray) -> np.ndarray:
 
 def _sweep_text(scans: Scans, params: Params, submaps: bool) -> str:
     T, source = sweep_times(scans, params)
-    if not submaps or not np.any(T != 0.0):
+    if not submaps:
         return "at the scan's stamp; "
+    clock = scan_clock(scans, params.scan_clock, "")
+    when = "the scan's stamp" if params.scan_clock == "stamps" else "the scan's tick"
+    pre = f"{clock.text()}; " if clock.text() else ""
+    if params.scan_time > 0.0:
+        pre += f"each scan's first beam within bounds.scan_time = {params.scan_time:g} s of {when}; "
+    if not np.any(T != 0.0):
+        return f"at {when}; " + pre
     lo, hi = float(np.min(T)), float(np.max(T))
     span = f"{abs(lo):.4g} s" if lo == hi else f"{abs(lo):.4g}–{abs(hi):.4g} s"
-    return (f"at its own time, within {span} {'after' if hi > 0 else 'before'} the scan's stamp ({source}), "
+    return (f"at its own time, within {span} {'after' if hi > 0 else 'before'} {when} ({source}), "
             "each beam turned by the odometry's nominal turn to its time (twist; pose increments under "
-            "bounds.turn_accel_max), every pose widened by how far the robot moves and how far its turn may stray "
-            "from that in that time; ")
+            "bounds.turn_accel_max), every pose widened by how far the robot moves and how far its turn may "
+            "stray from that in that time; ") + pre
 
 
 def _sweep_free_text(tracking, params: Params) -> str:

@@ -25,6 +25,7 @@ from ivslam_cli.errors import IvslamError
 from ivslam_cli.interval.vector import bound_up, sym
 from ivslam_cli.logs.model import Dropped, LogData, Scans
 from ivslam_cli.slam.lidar.params import Params
+from ivslam_cli.slam.lidar.scan_clock import scan_clock
 from ivslam_cli.slam.motion import choose_motion, initial_box, motion_steps
 from ivslam_cli.slam.motion_kernel import dead_reckon, widen_boxes
 
@@ -124,10 +125,19 @@ def sweep_times(scans: Scans, params: Params) -> tuple[np.ndarray, str]:
     return T, "lidar.sweep"
 
 
-def beam_times(scans: Scans, params: Params) -> tuple[np.ndarray, np.ndarray]:
+def beam_times(scans: Scans, params: Params, clock=None) -> tuple[np.ndarray, np.ndarray]:
     """Per scan ``(b, c)``: beam ``i`` is taken at its stamp ``+ b + i·c`` (see
     :func:`sweep_times`: the log's ``time_increment`` ``c`` from the stamp, or ``lidar.sweep`` T
-    spread evenly after the stamp, before it when negative)."""
+    spread evenly after the stamp, before it when negative), ``b`` moved by the scan's clock
+    (``clock``, else ``lidar.scan_clock``: :mod:`.scan_clock`); all within ``bounds.scan_time``
+    of that."""
+    if clock is None:
+        clock = scan_clock(scans, params.scan_clock)
+    b, c = _sweep_beams(scans, params)
+    return b + clock.offset, c
+
+
+def _sweep_beams(scans: Scans, params: Params) -> tuple[np.ndarray, np.ndarray]:
     T = sweep_times(scans, params)[0]
     n = np.diff(scans.offsets)
     c = np.where(n > 1, np.abs(T) / np.maximum(n - 1, 1), 0.0)
@@ -175,17 +185,18 @@ def sweep_motion(scans: Scans, params: Params, m, used: np.ndarray) -> SweepMode
     smin = np.zeros(len(scans))
     b, c = beam_times(scans, params)
     b, c = b[used], c[used]
-    if not np.any(c != 0.0):
+    slack = np.full(used.size, float(params.scan_time))
+    if not (np.any(c != 0.0) or np.any(b != 0.0) or params.scan_time > 0.0):
         return SweepModel(sweep, smin, scans, np.zeros((0, 2)), np.zeros(len(scans)), np.zeros(len(scans)))
     n = np.diff(scans.offsets)[used]
     s = np.asarray(scans.stamp, float)[used]
     last = b + (np.maximum(n, 1) - 1) * c
     t0, t1 = s + np.minimum(b, last), s + np.maximum(b, last)
-    reach = m.reach_between(t0, t1)
-    drift = m.drift_between(t0, t1, n)
-    w, e, eta = m.turn_between(s, t0, t1, n)
+    reach = m.reach_between(np.minimum(t0 - slack, s), np.maximum(t1 + slack, s))
+    drift = m.drift_between(t0, t1, n, slack)
+    w, e, eta = m.turn_between(s, t0, t1, n, slack)
     lever = math.hypot(float(scans.mount[0]), float(scans.mount[1]))
-    tau = np.maximum(np.abs(b), np.abs(last))
+    tau = np.maximum(np.abs(b), np.abs(last)) + slack
     turn_lever = np.zeros(len(scans))
     turn_lever[used] = np.nextafter(np.minimum(np.abs(w) * tau, 2.0) * lever * (1.0 + 1e-12), np.inf)
     sweep[used, 0] = np.nextafter((reach[:, 0] + turn_lever[used]) * (1.0 + 1e-12), np.inf)
@@ -199,7 +210,7 @@ def sweep_motion(scans: Scans, params: Params, m, used: np.ndarray) -> SweepMode
     smin[used] = sweep_free_from(np.column_stack([d_s, eta]), inc[used], float(params.beams.bearing),
                                  bool(params.beams.fill_gaps))
     # the nominal move of each beam's sensor, in the sensor frame at the stamp
-    V, E = m.move_between(s, t0, t1)
+    V, E = m.move_between(s, t0, t1, slack)
     err = sweep[:, 0].copy()
     err[used] = np.minimum(E, sweep[used, 0])
     mx, my, myaw = (float(v) for v in scans.mount)

@@ -99,3 +99,67 @@ def test_every_beam_is_taken_from_within_its_chunks_box(seed):
             worst = max(worst, float(np.max(box_j[[1, 3]] - box_j[[0, 2]])))
     # the chunks' boxes are far narrower than the whole sweep's move (3.7 cm either side)
     assert worst < 0.5 * 2 * float(np.median(model.reach[used, 0]))
+
+
+@pytest.mark.parametrize("seed,increments", [(2, False), (3, True)])
+def test_scans_stamped_off_their_clock_are_taken_back_to_it(seed, increments):
+    """A swept log whose stamps jitter (up to ±30 ms) around the scans' regular clock: with ``lidar.scan_clock = "fitted"`` and a
+    ``bounds.scan_time`` covering the fit's error, every beam's true sensor at its true time
+    lies in its chunk's box around the true pose at the stamp; taken at the stamps, some do not."""
+    from dataclasses import replace
+
+    from ivslam_cli.logs.model import Odometry
+    from ivslam_cli.slam.lidar.map_update import sensor_boxes
+    from ivslam_cli.slam.lidar.prediction import beam_times, sweep_motion, trajectory
+    from ivslam_cli.slam.lidar.scan_clock import scan_clock
+    from ivslam_cli.slam.lidar.sweep_map import chunk_boxes, chunk_scans
+
+    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=seed, steps=80, sweep=SWEEP))
+    tr = log.truth
+    true_stamp = np.asarray(log.scans.stamp, float)
+    rng = np.random.default_rng(seed)
+    jitter = rng.uniform(-0.03, 0.03, true_stamp.shape)
+    scans = replace(log.scans, stamp=true_stamp + jitter)
+    over = {"lidar.sweep_from_log": False, "lidar.sweep": SWEEP}
+    if increments:  # the true poses as pose increments (the simulated robot turns at a constant rate between them)
+        log = replace(log, odometry=Odometry(stamp=tr.pose_stamp.copy(), pose=tr.pose.copy(), twist=None))
+        over.update({"lidar.motion": "pose", "bounds.turn_accel_max": 3.0, "bounds.accel_max": 2.0})
+    log = replace(log, scans=scans)
+    fit = scan_clock(scans, "fitted")
+    miss = float(np.max(np.abs(scans.stamp + fit.offset - true_stamp)))
+    assert miss < 0.5 * 0.03  # the fit takes the scans back, up to its error
+    results = {}
+    for clock, slack in (("fitted", miss * 1.01), ("stamps", 0.0)):
+        params = LidarParams.from_config(resolve_config(None, {**over, "lidar.scan_clock": clock,
+                                                               "bounds.scan_time": slack}, log_bounds=log.bounds))
+        used, _, m, _, _, _ = trajectory(log, params, scans)
+        model = sweep_motion(scans, params, m, used)
+        ch = chunk_scans(model.beams, model.offset, model.smin)
+        b, c = beam_times(scans, params, scan_clock(scans, "stamps"))  # the sweep from the true time
+        ref = float(tr.pose_stamp[0])
+        ts, th_u = tr.pose_stamp - ref, np.unwrap(tr.pose[:, 2])
+        mx, my, myaw = scans.mount
+        out = 0
+        for k in used[2:-3]:
+            t_k = float(scans.stamp[k]) - ref
+            p = [np.interp(t_k, ts, tr.pose[:, 0]), np.interp(t_k, ts, tr.pose[:, 1]), np.interp(t_k, ts, th_u)]
+            box = np.array([p[0], p[0], p[1], p[1], p[2], p[2]])
+            cb = chunk_boxes(ch, k, box, float(model.reach[k, 1]), float(model.err[k]), float(model.turn_lever[k]))
+            sb = sensor_boxes(cb, scans.mount)
+            for j in range(ch.first[k], ch.first[k + 1]):
+                lo, hi = int(ch.scans.offsets[j]), int(ch.scans.offsets[j + 1])
+                i = np.arange(lo, hi) - int(scans.offsets[k])
+                t_i = (true_stamp[k] - ref) + b[k] + c[k] * i
+                x, y, th = (np.interp(t_i, ts, tr.pose[:, 0]), np.interp(t_i, ts, tr.pose[:, 1]),
+                            np.interp(t_i, ts, th_u))
+                sx = x + np.cos(th) * mx - np.sin(th) * my
+                sy = y + np.sin(th) * mx + np.cos(th) * my
+                bj = sb[j - ch.first[k]]
+                a_true = scans.angle_min[k] + i * scans.angle_increment[k]
+                a_desk = ch.scans.angle_min[j] + np.arange(hi - lo) * ch.scans.angle_increment[j]
+                head = th + myaw + a_true - a_desk
+                inside = ((bj[0] <= sx) & (sx <= bj[1]) & (bj[2] <= sy) & (sy <= bj[3])
+                          & (bj[4] - 1e-12 <= head) & (head <= bj[5] + 1e-12))
+                out += int(np.count_nonzero(~inside))
+        results[clock] = out
+    assert results["fitted"] == 0 and results["stamps"] > 0, results
