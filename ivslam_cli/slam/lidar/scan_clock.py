@@ -32,6 +32,7 @@ class ScanClock:
     period: float = 0.0  # the fitted clock's period (0: the stamps)
     repeats: int = 0  # scans that repeat the previous one's ranges
     spread: tuple[float, float] = (0.0, 0.0)  # the stamps off their ticks: least, largest (s)
+    concentration: float = 1.0  # |mean exp(2πi t / T)| of the distinct stamps (1: on the ticks, ~0: no clock)
 
     def text(self) -> str:
         if self.period == 0.0:
@@ -63,6 +64,24 @@ def _phase_concentration(s: np.ndarray, periods: np.ndarray) -> np.ndarray:
     return out
 
 
+def _period(tn: np.ndarray, T0: float) -> float:
+    """The period near ``T0`` that concentrates the phases of ``tn`` most. The periodogram's
+    peak is about ``T²/span`` wide: over the first 64 stamps, steps of a tenth of that within
+    ±10 % of ``T0``; then, the stamps doubled each time, within three of the last peak widths."""
+    m = min(64, tn.shape[0])
+    T, lo, hi = T0, 0.9 * T0, 1.1 * T0
+    while True:
+        span = max(float(tn[m - 1] - tn[0]), T)
+        step = max(0.1 * T * T / span, 1e-12 * T)
+        periods = np.arange(lo, hi + step, step)
+        T = float(periods[np.argmax(_phase_concentration(tn[:m], periods))])
+        if m == tn.shape[0]:
+            return T
+        width = T * T / span
+        lo, hi = T - 3.0 * width, T + 3.0 * width
+        m = min(2 * m, tn.shape[0])
+
+
 def fit_clock(stamps: np.ndarray, repeat: np.ndarray, path: str = "") -> ScanClock:
     """The regular clock through ``stamps`` (see the module docstring), ``repeat`` marking scans
     that repeat the previous one. Raises :class:`IvslamError` when the stamps do not follow one
@@ -80,11 +99,7 @@ def fit_clock(stamps: np.ndarray, repeat: np.ndarray, path: str = "") -> ScanClo
     T0 = float(np.median(dt[dt > 0])) if np.any(dt > 0) else 0.0
     if not T0 > 0.0:
         raise IvslamError("lidar.scan_clock = 'fitted': the scan stamps do not advance", path)
-    span = float(tn[-1] - tn[0])
-    # the periodogram's peak is about T²/span wide: steps of a tenth of that over ±10 %
-    step = max(0.1 * T0 * T0 / max(span, T0), 1e-9 * T0)
-    periods = np.arange(0.9 * T0, 1.1 * T0, step)
-    T = float(periods[np.argmax(_phase_concentration(tn, periods))])
+    T = _period(tn, T0)
     phi = float(np.angle(np.mean(np.exp(2j * np.pi * tn / T)))) * T / (2 * np.pi)
     tick = np.empty(s.shape[0], np.int64)
     tick[new] = np.round((tn - phi) / T).astype(np.int64)
@@ -101,7 +116,8 @@ def fit_clock(stamps: np.ndarray, repeat: np.ndarray, path: str = "") -> ScanClo
     off = g - t
     res = -off[new]
     return ScanClock(offset=off, period=float(T), repeats=int(rep.sum()),
-                     spread=(float(res.min()), float(res.max())))
+                     spread=(float(res.min()), float(res.max())),
+                     concentration=float(_phase_concentration(tn, np.array([T]))[0]))
 
 
 def scan_clock(scans: Scans, which: str, path: str = "") -> ScanClock:
