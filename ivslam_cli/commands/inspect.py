@@ -20,6 +20,24 @@ def _stream(name: str, stamp, extra: dict | None = None) -> dict:
     return {k: (v.item() if isinstance(v, np.generic) else v) for k, v in d.items()}
 
 
+def _scan_clock(log) -> dict:
+    """Scans repeating the previous one's ranges, and the stamps against the regular clock fitted
+    to them (``lidar.scan_clock``): only where the stamps' phases concentrate (a clock is there)
+    and some stamp is at least 1 ms off it."""
+    from ivslam_cli.errors import IvslamError
+    from ivslam_cli.slam.lidar.scan_clock import fit_clock, repeated_scans
+
+    rep = repeated_scans(log.scans)
+    out = {"repeated_scans": int(rep.sum())}
+    try:
+        c = fit_clock(log.scans.stamp, rep)
+    except IvslamError:
+        return out
+    if c.concentration >= 0.5 and max(-c.spread[0], c.spread[1]) >= 1e-3:
+        out.update(clock_period=c.period, stamps_off_clock=list(c.spread))
+    return out
+
+
 def summarize(log) -> dict:
     """A JSON-able summary of a :class:`LogData` (also used by the text output)."""
     import numpy as np
@@ -31,7 +49,7 @@ def summarize(log) -> dict:
         streams.append(_stream("scans", log.scans.stamp, {
             "beams_min": int(beams.min()), "beams_max": int(beams.max()),
             "valid_fraction": float(log.scans.valid.mean()) if log.scans.valid.size else 0.0,
-            "mount": list(log.scans.mount), "frame_id": log.scans.frame_id}))
+            "mount": list(log.scans.mount), "frame_id": log.scans.frame_id, **_scan_clock(log)}))
     if log.odometry is not None:
         o = log.odometry
         streams.append(_stream("odometry", o.stamp, {
@@ -86,6 +104,12 @@ def _text(s: dict) -> str:
         if "landmarks" in st:
             line += f"  ids {st['landmarks']}"
         out.append(line)
+        if st.get("repeated_scans"):
+            out.append(f"    {st['repeated_scans']} scan(s) repeat the previous one's ranges (the same scan read again)")
+        if st.get("clock_period"):
+            lo, hi = st["stamps_off_clock"]
+            out.append(f"    stamps {1e3 * lo:+.1f} to {1e3 * hi:+.1f} ms off a regular {1e3 * st['clock_period']:.4f} ms "
+                       "clock: if the sensor keeps it (python -m bench scan_timing), lidar.scan_clock = \"fitted\"")
     modes = [m for m, ok in s["modes"].items() if ok]
     out.append("run modes: " + (", ".join(modes) or "none"))
     if s["lidar_input"]:

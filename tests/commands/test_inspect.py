@@ -55,6 +55,22 @@ def test_inspect_reports_topics_truth_and_lidar_input(datasets, cli_run):
     assert scans["rate_hz"] == pytest.approx(5.0, abs=0.1)
 
 
+@pytest.mark.datasets
+def test_inspect_says_when_scan_stamps_jitter_off_a_clock_and_scans_repeat(datasets, cli_run):
+    """exp1's logger stamps each scan when it reads it: the stamps jitter off the sensor's clock
+    and four reads repeat the previous scan (lidar.scan_clock); ACES's keyframes have no clock."""
+    s = json.loads(cli_run("inspect", datasets / "breezyslam_mines/exp1.dat.xz", "--json").output)
+    scans = {x["stream"]: x for x in s["streams"]}["scans"]
+    assert scans["repeated_scans"] == 4 and 0.0985 < scans["clock_period"] < 0.0989
+    lo, hi = scans["stamps_off_clock"]
+    assert lo < -0.03 and hi > 0.02
+    text = cli_run("inspect", datasets / "breezyslam_mines/exp1.dat.xz").output
+    assert "4 scan(s) repeat" in text and 'lidar.scan_clock = "fitted"' in text
+    aces = json.loads(cli_run("inspect", datasets / "carmen_corrected/aces-corrected.log.gz", "--json").output)
+    a = {x["stream"]: x for x in aces["streams"]}["scans"]
+    assert a["repeated_scans"] == 0 and "clock_period" not in a
+
+
 def test_inspect_help_has_example(cli_run):
     res = cli_run("inspect", "--help")
     assert res.exit_code == 0
