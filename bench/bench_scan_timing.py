@@ -33,7 +33,8 @@ def ahead(log, k: int, cone: float) -> float:
     (NaN with fewer than 5)."""
     sc = log.scans
     a, b = int(sc.offsets[k]), int(sc.offsets[k + 1])
-    ang = float(sc.angle_min[k]) + float(sc.angle_increment[k]) * np.arange(b - a)
+    ang = float(sc.angle_min[k]) + float(sc.angle_increment[k]) * np.arange(b - a) + float(sc.mount[2])
+    ang = np.angle(np.exp(1j * ang))  # in the robot's frame
     v = np.asarray(sc.valid[a:b], bool) & (np.abs(ang) < cone)
     r = np.asarray(sc.ranges[a:b], float)[v] * np.cos(ang[v])
     return float(np.median(r)) if r.size >= 5 else math.nan
@@ -55,7 +56,9 @@ def main(argv: list[str] | None = None) -> int:
     i = np.clip(np.searchsorted(ot, st), 0, len(ot) - 1)
     shared = float(np.mean(np.abs(ot[i] - st) < 1e-9))
     dt = np.diff(st)
-    P = op[i]
+    # the odometry at the scan stamps (interpolated where they are not shared)
+    P = np.column_stack([np.interp(st, ot, op[:, 0]), np.interp(st, ot, op[:, 1]),
+                         np.interp(st, ot, np.unwrap(op[:, 2]))])
     dxy = np.hypot(np.diff(P[:, 0]), np.diff(P[:, 1]))
     dth = np.abs(np.angle(np.exp(1j * np.diff(P[:, 2]))))
     print(f"{args.log.name}: {st.size} scans, stamps shared with the odometry: {shared:.0%}; stamp interval "
@@ -81,6 +84,11 @@ def main(argv: list[str] | None = None) -> int:
         if s.any():
             print(f"{f'[{lo:g}, {hi:g})':>16} {int(s.sum()):>6} {np.median(dr[s] / dxy[s]):>13.3f} "
                   f"{np.median(1.0 / q[s]):>14.3f}")
+    outer = [int((m & (q >= lo) & (q < hi)).sum()) for lo, hi in (BINS[0], BINS[2])]
+    if sum(outer) < 5:
+        print(f"the stamp intervals vary too little to tell ({outer[0]} short and {outer[1]} long straight steps, "
+              "5 needed)")
+        return 0
     if m.sum() > 10:
         slope = np.polyfit(q[m], dr[m] / dxy[m], 1)[0]
         verdict = ("the scans keep their own clock: each is paired with odometry off its acquisition by up to the "
