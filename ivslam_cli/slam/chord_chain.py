@@ -9,8 +9,9 @@ Within a step ``[t_j, t_j + h_j]`` a path with ``|θ''| ≤ α`` strays from its
     θ(t) − θ(s) = Σ_j λ_j(t) D_j + c(t) − c(s),   D_j ∈ Δ_j ± ε_j,
 
 ``λ_j(t) = f_j(t) − f_j(s)`` the share of step ``j`` between ``s`` and ``t`` (``f_j(t)`` the
-clipped fraction of step ``j`` before ``t``) and ``|c| ≤`` the chord error: the nominal
-``N(t) = Σ λ_j Δ_j`` is within ``Σ |λ_j| ε_j + α h²/8 + c(s)`` of the truth. Positions chain
+clipped fraction of step ``j`` before ``t``) and ``|c(t)| ≤ α (t − t_j)(t_j + h_j − t) / 2``:
+the nominal ``N(t) = Σ λ_j Δ_j`` is within ``Σ |λ_j| ε_j + |c(t)| + |c(s)|`` of the truth (the
+chord term taken at the window's point nearest each step's middle). Positions chain
 the same way with the increments ``R(θ(t_j) − θ(s)) B_j`` in the frame at ``s`` (``B_j ± ε``
 per axis; the heading's error at ``t_j`` turns ``B_j`` by at most that angle). Against a rate
 ``ω̂`` (velocity ``V``) the deviation is piecewise linear plus piecewise ``|linear|`` in ``t``:
@@ -38,6 +39,7 @@ class Chain:
     et: np.ndarray  # (J,) their half-width per axis
     h: np.ndarray  # (J,) step durations
     win: np.ndarray  # (J,) the step meets the window
+    g: float  # max over the window of (t − t_j)(t_j + h_j − t) / 2, t in step j (the chord factor)
     alpha: float
     accel: float
     cs_th: float  # the heading's chord error at s
@@ -47,23 +49,24 @@ class Chain:
         """``(ω̂, e, ρ)``: ``|θ(t + δ) − θ(s) − ω̂ (t − s)| ≤ e`` for ``t + δ`` in the window and
         ``|δ| ≤ slack``; ``|θ'(t) − ω̂| ≤ ρ`` in the window. ``ω̂`` is the candidate rate (each
         step's in the window, the window's chord) with the least ``e``."""
+        hw = self.h[self.win]
+        rate = self.D[self.win] / hw
+        cands = list(rate)
+        if self.u[-1] > self.u[0]:
+            N = self.lam @ self.D
+            cands.append((N[-1] - N[0]) / (self.u[-1] - self.u[0]))
+        w, e = min(((float(c), self.turn_at(float(c), slack, ulp)) for c in cands), key=lambda x: x[1])
+        rho = float(np.max(np.abs(rate - w) + self.eps[self.win] / hw + self.alpha * hw))
+        return w, e, _up(rho)
+
+    def turn_at(self, w: float, slack: float, ulp: float) -> float:
+        """``e`` of :meth:`turn` for the given rate ``w``."""
         N = self.lam @ self.D
         err = np.abs(self.lam) @ self.eps
         hw = self.h[self.win]
-        rate = self.D[self.win] / hw
-        top = float(np.max(np.abs(rate) + self.eps[self.win] / hw + self.alpha * hw))
-        chord = self.alpha * float(np.max(hw * hw)) / 8.0 + self.cs_th
-        cands = list(rate)
-        if self.u[-1] > self.u[0]:
-            cands.append((N[-1] - N[0]) / (self.u[-1] - self.u[0]))
-        best = None
-        for w in cands:
-            e = float(np.max(np.abs(N - w * self.u) + err)) + chord + abs(w) * slack + 2.0 * top * ulp
-            if best is None or e < best[1]:
-                best = (float(w), e)
-        w, e = best
-        rho = float(np.max(np.abs(rate - w) + self.eps[self.win] / hw + self.alpha * hw))
-        return w, _up(e), _up(rho)
+        top = float(np.max(np.abs(self.D[self.win] / hw) + self.eps[self.win] / hw + self.alpha * hw))
+        e = float(np.max(np.abs(N - w * self.u) + err)) + self.alpha * self.g + self.cs_th + abs(w) * slack
+        return _up(e + 2.0 * top * ulp)
 
     def move(self, slack: float, ulp: float) -> tuple[tuple[float, float], float]:
         """``(V, E)``: ``|p(t + δ) − p(s) − R(θ(s)) V (t − s)| ≤ E`` for ``t + δ`` in the window
@@ -80,7 +83,7 @@ class Chain:
         vel = Q[self.win] / hw[:, None]
         top = float(np.max(np.hypot(vel[:, 0], vel[:, 1]) + (math.sqrt(2.0) * self.et[self.win]) / hw
                            + self.accel * hw))
-        chord = self.accel * float(np.max(hw * hw)) / 8.0 + self.cs_p
+        chord = self.accel * self.g + self.cs_p
         cands = [tuple(v) for v in vel]
         if self.u[-1] > self.u[0]:
             cands.append(tuple((P[-1] - P[0]) / (self.u[-1] - self.u[0])))
@@ -124,6 +127,10 @@ def chain(ns: np.ndarray, dth: np.ndarray, step_xy: np.ndarray | None, alpha: fl
     lam = frac(u_abs) - fs
     lam_node = frac(t_j) - fs
     win = (ns[J + 1] >= lo) & (t_j <= hi)
+    # (t − t_j)(t_j + h − t) / 2 peaks at the step's middle: the window's point nearest it
+    mid = np.clip(t_j + 0.5 * h, np.maximum(lo, t_j), np.minimum(hi, t_j + h))
+    gj = (mid - t_j) * (t_j + h - mid) / 2.0
+    g = float(np.max(np.where(win, np.maximum(gj, 0.0), 0.0))) * (1.0 + 1e-12) if win.any() else float(np.max(h * h)) / 8.0
     ks = int(np.clip(np.searchsorted(ns, s, side="right") - 1, 0, n1 - 1))
     gs = (s - ns[ks]) * (ns[ks + 1] - s) / 2.0
     if not gs >= 0.0:
@@ -134,5 +141,5 @@ def chain(ns: np.ndarray, dth: np.ndarray, step_xy: np.ndarray | None, alpha: fl
         B, et = np.zeros((J.size, 2)), np.zeros(J.size)
     else:
         B, et = step_xy[J, :2], step_xy[J, 2]
-    return Chain(u=u_abs - s, lam=lam, lam_node=lam_node, D=D, eps=eps, B=B, et=et, h=h, win=win,
+    return Chain(u=u_abs - s, lam=lam, lam_node=lam_node, D=D, eps=eps, B=B, et=et, h=h, win=win, g=g,
                  alpha=alpha, accel=accel, cs_th=alpha * gs, cs_p=(accel * gs if np.isfinite(accel) else np.inf))

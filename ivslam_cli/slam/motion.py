@@ -408,6 +408,29 @@ class MotionSteps:
                 eta[k] = np.nextafter((rho * dt[k] + lag_eta) * (1.0 + 1e-12) + 1e-15, np.inf)
         return w, e, eta
 
+    def turn_runs(self, s: np.ndarray, b: np.ndarray, c: np.ndarray, n_beams: np.ndarray, w: np.ndarray,
+                  e: np.ndarray, slack: np.ndarray, runs: int) -> np.ndarray:
+        """``(M, runs)``: for each scan (beam ``i`` at ``s + b + i c``, within ``slack``) cut
+        into ``runs`` runs of beams as :func:`~ivslam_cli.slam.lidar.sweep_map.chunk_scans` cuts
+        it, a bound of ``|θ(t) − θ(s) − w (t − s)|`` over each run's times: with pose increments
+        under a stated top angular acceleration the chain of chords over the run alone (its
+        chord term where the run is in each step), at most ``e``; else ``e``."""
+        out = np.repeat(np.asarray(e, float)[:, None], runs, axis=1)
+        if self.step_xy is None or not np.isfinite(self.turn_accel) or self.node_stamp.shape[0] < 2:
+            return out
+        for k in range(s.shape[0]):
+            nb = int(n_beams[k])
+            parts = min(runs, max(nb, 1))
+            for r in range(parts):
+                i0, i1 = (r * nb) // parts, max(((r + 1) * nb) // parts - 1, (r * nb) // parts)
+                ta, tb = s[k] + b[k] + c[k] * i0, s[k] + b[k] + c[k] * i1
+                lo, hi = min(ta, tb) - slack[k], max(ta, tb) + slack[k]
+                ch = self._chain(float(s[k]), float(lo), float(hi))
+                if ch is not None:
+                    ulp = 4.0 * float(np.spacing(abs(lo) + abs(hi)))
+                    out[k, r] = min(out[k, r], ch.turn_at(float(w[k]), float(slack[k]), ulp))
+        return out
+
     def move_between(self, s: np.ndarray, t0: np.ndarray, t1: np.ndarray,
                      slack: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """A nominal velocity ``V`` (M, 2) in the robot frame at ``s`` and a bound ``E`` (M,): for

@@ -213,3 +213,38 @@ def test_the_chain_of_chords_is_the_one_step_bound_within_one_step():
     assert np.all(e1 >= e0 * (1 - 1e-9)) and np.allclose(e0, e1, rtol=1e-3)
     assert np.all(E1 >= E0 * (1 - 1e-9)) and np.allclose(E0, E1, rtol=1e-3)
     assert np.allclose(eta0, eta1, rtol=1e-6)
+
+
+@given(st.integers(0, 2**31 - 1), st.floats(0.2, 1.0), st.floats(2.0, 8.0), st.lists(
+    st.tuples(st.floats(0.05, 0.95), st.booleans(), st.floats(-0.2, 0.2), st.floats(0.0, 0.1),
+              st.floats(0.0, 0.02)), min_size=1, max_size=8))
+@settings(max_examples=examples(ci=40))
+def test_the_chain_holds_a_heading_that_bends_within_its_steps_at_the_stated_rate(seed, amp, omega, spans):
+    """A heading ``θ(t) = a sin(Ω t) + 1.01 a Ω t`` (``|θ''| ≤ a Ω²``, stated as
+    ``turn_accel_max``; monotone, so within a step it stays within the step's turn as pose
+    increments assume, and under π a step) read as pose increments at irregular stamps: within
+    a step it strays from the chord by up to the chord bound, which the chain of chords (and its
+    chord term taken where the window is in each step) must hold, at every time of a window off
+    the stamp and its slack. Half the chord term fails it."""
+    rng = np.random.default_rng(seed)
+    t = 100.0 + np.cumsum(np.r_[0.0, rng.uniform(0.05, 0.15, 40)])
+
+    def theta(x):
+        return amp * np.sin(omega * x) + 1.01 * amp * omega * (x - 100.0)
+
+    th = theta(t)
+    odo = Odometry(stamp=t, pose=np.column_stack([np.zeros_like(t), np.zeros_like(t), th]), twist=None)
+    over = {"bounds.turn_accel_max": amp * omega * omega * (1 + 1e-9), "bounds.accel_max": 1.0,
+            "bounds.odom_rot_abs": 1e-9, "bounds.odom_rot_rel": 1e-9, "bounds.odom_trans_abs": 1e-9}
+    m = motion_steps(odo, MotionBounds.from_config(resolve_config(None, over)), t[:1], prefer="pose")
+    for f, at_node, d, T, sl in spans:
+        s = t[0] + f * (t[-1] - t[0])
+        if at_node:
+            s = float(t[np.searchsorted(t, s)])
+        t0, t1 = s + d, s + d + T
+        if not (t[0] <= min(t0 - sl, s) and max(t1 + sl, s) <= t[-1]):
+            continue
+        w, e, _ = m.turn_between(*(np.array([v]) for v in (s, t0, t1)), np.array([40]), np.array([sl]))
+        u = np.linspace(t0, t1, 200)
+        for delta in np.linspace(-sl, sl, 5):
+            assert np.all(np.abs(theta(u + delta) - theta(s) - w[0] * (u - s)) <= e[0] + 1e-12), (s, d, T, sl, w, e)

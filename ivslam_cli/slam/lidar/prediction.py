@@ -161,6 +161,7 @@ class SweepModel:
     offset: np.ndarray  # (B, 2) each beam's sensor moved from the stamp's by the nominal motion (sensor frame)
     err: np.ndarray  # (S,) each beam's sensor within this of its nominal position (rule A's widening)
     turn_lever: np.ndarray  # (S,) the mount's lever turned by the nominal turn moves the sensor at most this
+    run_turn: np.ndarray | None = None  # (S, CHUNKS) reach[:, 1] over each run of beams alone (sweep_map)
 
 
 def sweep_motion(scans: Scans, params: Params, m, used: np.ndarray) -> SweepModel:
@@ -180,6 +181,7 @@ def sweep_motion(scans: Scans, params: Params, m, used: np.ndarray) -> SweepMode
     from dataclasses import replace
 
     from ivslam_cli.slam.lidar.free_cones import sweep_free_from
+    from ivslam_cli.slam.lidar.sweep_map import CHUNKS
 
     sweep = np.zeros((len(scans), 2))
     smin = np.zeros(len(scans))
@@ -223,7 +225,10 @@ def sweep_motion(scans: Scans, params: Params, m, used: np.ndarray) -> SweepMode
         oy = V[j, 1] * tau + np.sin(w[j] * tau) * mx + (np.cos(w[j] * tau) - 1.0) * my
         offset[lo:hi, 0] = ci * ox - si * oy
         offset[lo:hi, 1] = si * ox + ci * oy
-    return SweepModel(sweep, smin, replace(scans, angle_min=a0, angle_increment=inc), offset, err, turn_lever)
+    run_turn = np.repeat(sweep[:, 1:2], CHUNKS, axis=1)
+    run_turn[used] = m.turn_runs(s, b, c, n, w, e, slack, CHUNKS)
+    return SweepModel(sweep, smin, replace(scans, angle_min=a0, angle_increment=inc), offset, err, turn_lever,
+                      run_turn)
 
 
 def trajectory(log: LogData, params: Params, scans: Scans):

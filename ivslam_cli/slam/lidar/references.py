@@ -174,15 +174,16 @@ def own_runs_at(own_c, ccx, ccy, cc, sc, c, rs, hw):
     own_c[0, C_SLACK] = sl
 
 
-def scan_runs(k: int, box: np.ndarray, nb: int, chunks, sweep, err: float, lever: float):
+def scan_runs(k: int, box: np.ndarray, nb: int, chunks, sweep, err: float, lever: float, run_turn=None):
     """Scan ``k`` (``nb`` beams) from robot box ``box`` as runs of beams: ``(robot boxes (m, 6),
-    beam bounds (m + 1,))``, the runs of :mod:`.sweep_map` when it moves (``chunks``), else the
-    whole scan from its box widened by ``sweep`` ``(d, a)``."""
+    beam bounds (m + 1,))``, the runs of :mod:`.sweep_map` when it moves (``chunks``; each run's
+    heading widened by its own ``run_turn``, else the scan's), else the whole scan from its box
+    widened by ``sweep`` ``(d, a)``."""
     box = np.ascontiguousarray(box, float)
     if chunks is None or not chunks.moves[k]:
         return swept_box(box, sweep)[None, :], np.array([0, nb])
     j0, j1 = int(chunks.first[k]), int(chunks.first[k + 1])
-    boxes = chunk_boxes(chunks, k, box, float(sweep[1]), err, lever)
+    boxes = chunk_boxes(chunks, k, box, float(sweep[1]) if run_turn is None else run_turn, err, lever)
     return boxes, chunks.scans.offsets[j0:j1 + 1] - chunks.scans.offsets[j0]
 
 

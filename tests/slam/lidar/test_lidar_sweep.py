@@ -52,15 +52,51 @@ def test_a_swept_log_keeps_the_truth_with_its_sweep_and_loses_it_without():
     assert sweep_times_source[1] == "lidar.sweep" and np.allclose(sweep_times_source[0], SWEEP)
 
 
+def _beams_outside_their_runs(scans, tr, model, ch, ks, b, c, taken):
+    """Over scans ``ks``: how many beams' true sensors (the simulated robot's pose at the beam's
+    own time ``taken[k] + b[k] + c[k] i``, the laser on its mount) fall outside their run's
+    sensor box built around the true pose at the scan's stamp, or whose true direction (heading
+    + mount + beam angle) is not the run's deskewed angle turned by a heading of its box; and
+    the widest run box."""
+    from ivslam_cli.slam.lidar.map_update import sensor_boxes
+    from ivslam_cli.slam.lidar.sweep_map import chunk_boxes
+
+    ref = float(tr.pose_stamp[0])
+    ts, th_u = tr.pose_stamp - ref, np.unwrap(tr.pose[:, 2])
+    mx, my, myaw = scans.mount
+    out, worst = 0, 0.0
+    for k in ks:
+        t_k = float(scans.stamp[k]) - ref
+        p = [np.interp(t_k, ts, tr.pose[:, 0]), np.interp(t_k, ts, tr.pose[:, 1]), np.interp(t_k, ts, th_u)]
+        box = np.array([p[0], p[0], p[1], p[1], p[2], p[2]])
+        cb = chunk_boxes(ch, k, box, model.run_turn[k], float(model.err[k]), float(model.turn_lever[k]))
+        sb = sensor_boxes(cb, scans.mount)
+        for j in range(ch.first[k], ch.first[k + 1]):
+            lo, hi = int(ch.scans.offsets[j]), int(ch.scans.offsets[j + 1])
+            i = np.arange(lo, hi) - int(scans.offsets[k])
+            t_i = (float(taken[k]) - ref) + b[k] + c[k] * i
+            x, y, th = (np.interp(t_i, ts, tr.pose[:, 0]), np.interp(t_i, ts, tr.pose[:, 1]), np.interp(t_i, ts, th_u))
+            sx = x + np.cos(th) * mx - np.sin(th) * my
+            sy = y + np.sin(th) * mx + np.cos(th) * my
+            bj = sb[j - ch.first[k]]
+            a_true = scans.angle_min[k] + i * scans.angle_increment[k]
+            a_desk = ch.scans.angle_min[j] + np.arange(hi - lo) * ch.scans.angle_increment[j]
+            head = th + myaw + a_true - a_desk
+            inside = ((bj[0] <= sx) & (sx <= bj[1]) & (bj[2] <= sy) & (sy <= bj[3])
+                      & (bj[4] - 1e-12 <= head) & (head <= bj[5] + 1e-12))
+            out += int(np.count_nonzero(~inside))
+            worst = max(worst, float(np.max(bj[[1, 3]] - bj[[0, 2]])))
+    return out, worst
+
+
 @pytest.mark.parametrize("seed", [1, 4])
 def test_every_beam_is_taken_from_within_its_chunks_box(seed):
     """The sweep deskewed (prediction.sweep_motion) and mapped in runs of beams (sweep_map):
     from the true pose at a scan's stamp, every beam's true sensor (the simulated robot's pose at
     the beam's own time, the laser on its mount) lies in its chunk's sensor box, and its true
     direction is the chunk's deskewed beam angle turned by a heading of the chunk's box."""
-    from ivslam_cli.slam.lidar.map_update import sensor_boxes
     from ivslam_cli.slam.lidar.prediction import beam_times, sweep_motion, trajectory
-    from ivslam_cli.slam.lidar.sweep_map import chunk_boxes, chunk_scans
+    from ivslam_cli.slam.lidar.sweep_map import chunk_scans
 
     log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=seed, steps=40, sweep=SWEEP))
     params = LidarParams.from_config(resolve_config(None, {}, log_bounds=log.bounds))
@@ -70,49 +106,24 @@ def test_every_beam_is_taken_from_within_its_chunks_box(seed):
     ch = chunk_scans(model.beams, model.offset, model.smin)
     assert ch is not None and ch.moves[used].all()
     b, c = beam_times(scans, params)
-    ref = float(tr.pose_stamp[0])
-    ts = tr.pose_stamp - ref
-    th_u = np.unwrap(tr.pose[:, 2])
-    mx, my, myaw = scans.mount
-    worst = 0.0
-    for k in used[1:-2]:
-        t_k = float(scans.stamp[k]) - ref
-        p = [np.interp(t_k, ts, tr.pose[:, 0]), np.interp(t_k, ts, tr.pose[:, 1]), np.interp(t_k, ts, th_u)]
-        box = np.array([p[0], p[0], p[1], p[1], p[2], p[2]])
-        cb = chunk_boxes(ch, k, box, float(model.reach[k, 1]), float(model.err[k]), float(model.turn_lever[k]))
-        sb = sensor_boxes(cb, scans.mount)
-        for j in range(ch.first[k], ch.first[k + 1]):
-            lo, hi = int(ch.scans.offsets[j]), int(ch.scans.offsets[j + 1])
-            i = np.arange(lo, hi) - int(scans.offsets[k])
-            t_i = t_k + b[k] + c[k] * i
-            x, y, th = (np.interp(t_i, ts, tr.pose[:, 0]), np.interp(t_i, ts, tr.pose[:, 1]),
-                        np.interp(t_i, ts, th_u))
-            sx = x + np.cos(th) * mx - np.sin(th) * my
-            sy = y + np.sin(th) * mx + np.cos(th) * my
-            box_j = sb[j - ch.first[k]]
-            assert np.all((box_j[0] <= sx) & (sx <= box_j[1]) & (box_j[2] <= sy) & (sy <= box_j[3])), (k, j)
-            # the true direction of beam i: heading th + mount + a_i; the chunk's: its heading + a'_i
-            a_true = scans.angle_min[k] + i * scans.angle_increment[k]
-            a_desk = ch.scans.angle_min[j] + (np.arange(hi - lo)) * ch.scans.angle_increment[j]
-            head = th + myaw + a_true - a_desk
-            assert np.all((box_j[4] - 1e-12 <= head) & (head <= box_j[5] + 1e-12)), (k, j)
-            worst = max(worst, float(np.max(box_j[[1, 3]] - box_j[[0, 2]])))
+    out, worst = _beams_outside_their_runs(scans, tr, model, ch, used[1:-2], b, c, scans.stamp)
+    assert out == 0
     # the chunks' boxes are far narrower than the whole sweep's move (3.7 cm either side)
     assert worst < 0.5 * 2 * float(np.median(model.reach[used, 0]))
 
 
 @pytest.mark.parametrize("seed,increments", [(2, False), (3, True)])
 def test_scans_stamped_off_their_clock_are_taken_back_to_it(seed, increments):
-    """A swept log whose stamps jitter (up to ±30 ms) around the scans' regular clock: with ``lidar.scan_clock = "fitted"`` and a
-    ``bounds.scan_time`` covering the fit's error, every beam's true sensor at its true time
-    lies in its chunk's box around the true pose at the stamp; taken at the stamps, some do not."""
+    """A swept log whose stamps jitter (up to ±30 ms) around the scans' regular clock: with
+    ``lidar.scan_clock = "fitted"`` and a ``bounds.scan_time`` covering the fit's error, every
+    beam's true sensor at its true time lies in its chunk's box around the true pose at the
+    stamp; taken at the stamps, some do not."""
     from dataclasses import replace
 
     from ivslam_cli.logs.model import Odometry
-    from ivslam_cli.slam.lidar.map_update import sensor_boxes
     from ivslam_cli.slam.lidar.prediction import beam_times, sweep_motion, trajectory
     from ivslam_cli.slam.lidar.scan_clock import scan_clock
-    from ivslam_cli.slam.lidar.sweep_map import chunk_boxes, chunk_scans
+    from ivslam_cli.slam.lidar.sweep_map import chunk_scans
 
     log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=seed, steps=80, sweep=SWEEP))
     tr = log.truth
@@ -134,32 +145,12 @@ def test_scans_stamped_off_their_clock_are_taken_back_to_it(seed, increments):
                                                                "bounds.scan_time": slack}, log_bounds=log.bounds))
         used, _, m, _, _, _ = trajectory(log, params, scans)
         model = sweep_motion(scans, params, m, used)
+        # each run's own turn error is at most the scan's, and with the chain of chords below it
+        assert np.all(model.run_turn[used] <= model.reach[used, 1][:, None])
+        if increments and clock == "fitted":
+            assert np.median(model.run_turn[used].mean(axis=1) / model.reach[used, 1]) < 0.95
         ch = chunk_scans(model.beams, model.offset, model.smin)
         b, c = beam_times(scans, params, scan_clock(scans, "stamps"))  # the sweep from the true time
-        ref = float(tr.pose_stamp[0])
-        ts, th_u = tr.pose_stamp - ref, np.unwrap(tr.pose[:, 2])
-        mx, my, myaw = scans.mount
-        out = 0
-        for k in used[2:-3]:
-            t_k = float(scans.stamp[k]) - ref
-            p = [np.interp(t_k, ts, tr.pose[:, 0]), np.interp(t_k, ts, tr.pose[:, 1]), np.interp(t_k, ts, th_u)]
-            box = np.array([p[0], p[0], p[1], p[1], p[2], p[2]])
-            cb = chunk_boxes(ch, k, box, float(model.reach[k, 1]), float(model.err[k]), float(model.turn_lever[k]))
-            sb = sensor_boxes(cb, scans.mount)
-            for j in range(ch.first[k], ch.first[k + 1]):
-                lo, hi = int(ch.scans.offsets[j]), int(ch.scans.offsets[j + 1])
-                i = np.arange(lo, hi) - int(scans.offsets[k])
-                t_i = (true_stamp[k] - ref) + b[k] + c[k] * i
-                x, y, th = (np.interp(t_i, ts, tr.pose[:, 0]), np.interp(t_i, ts, tr.pose[:, 1]),
-                            np.interp(t_i, ts, th_u))
-                sx = x + np.cos(th) * mx - np.sin(th) * my
-                sy = y + np.sin(th) * mx + np.cos(th) * my
-                bj = sb[j - ch.first[k]]
-                a_true = scans.angle_min[k] + i * scans.angle_increment[k]
-                a_desk = ch.scans.angle_min[j] + np.arange(hi - lo) * ch.scans.angle_increment[j]
-                head = th + myaw + a_true - a_desk
-                inside = ((bj[0] <= sx) & (sx <= bj[1]) & (bj[2] <= sy) & (sy <= bj[3])
-                          & (bj[4] - 1e-12 <= head) & (head <= bj[5] + 1e-12))
-                out += int(np.count_nonzero(~inside))
+        out, _ = _beams_outside_their_runs(scans, tr, model, ch, used[2:-3], b, c, true_stamp)
         results[clock] = out
     assert results["fitted"] == 0 and results["stamps"] > 0, results
