@@ -68,32 +68,37 @@ class Chain:
         e = float(np.max(np.abs(N - w * self.u) + err)) + self.alpha * self.g + self.cs_th + abs(w) * slack
         return _up(e + 2.0 * top * ulp)
 
-    def move(self, slack: float, ulp: float) -> tuple[tuple[float, float], float]:
-        """``(V, E)``: ``|p(t + δ) − p(s) − R(θ(s)) V (t − s)| ≤ E`` for ``t + δ`` in the window
-        and ``|δ| ≤ slack``, ``V`` the candidate velocity in the frame at ``s`` (each step's in
-        the window, the window's chord) with the least ``E``."""
+    def _moves(self):
+        """``(P, err, top)``: the nominal positions at the breakpoints in the frame at ``s``,
+        their errors, and the fastest a step in the window may move."""
         phi = self.lam_node @ self.D
         ephi = np.abs(self.lam_node) @ self.eps + self.cs_th
         c, sn = np.cos(phi), np.sin(phi)
         Q = np.column_stack([c * self.B[:, 0] - sn * self.B[:, 1], sn * self.B[:, 0] + c * self.B[:, 1]])
         qerr = math.sqrt(2.0) * self.et + np.hypot(self.B[:, 0], self.B[:, 1]) * ephi
-        P = self.lam @ Q
-        err = np.abs(self.lam) @ qerr
         hw = self.h[self.win]
         vel = Q[self.win] / hw[:, None]
         top = float(np.max(np.hypot(vel[:, 0], vel[:, 1]) + (math.sqrt(2.0) * self.et[self.win]) / hw
                            + self.accel * hw))
-        chord = self.accel * self.g + self.cs_p
-        cands = [tuple(v) for v in vel]
+        return self.lam @ Q, np.abs(self.lam) @ qerr, top, vel
+
+    def move_at(self, v, slack: float, ulp: float, moves=None) -> float:
+        """``E`` of :meth:`move` for the given velocity ``v`` (in the frame at ``s``)."""
+        P, err, top, _ = self._moves() if moves is None else moves
+        d = np.hypot(P[:, 0] - v[0] * self.u, P[:, 1] - v[1] * self.u)
+        e = float(np.max(d + err)) + self.accel * self.g + self.cs_p + math.hypot(*v) * slack
+        return _up(e + 2.0 * top * ulp)
+
+    def move(self, slack: float, ulp: float) -> tuple[tuple[float, float], float]:
+        """``(V, E)``: ``|p(t + δ) − p(s) − R(θ(s)) V (t − s)| ≤ E`` for ``t + δ`` in the window
+        and ``|δ| ≤ slack``, ``V`` the candidate velocity in the frame at ``s`` (each step's in
+        the window, the window's chord) with the least ``E``."""
+        moves = self._moves()
+        P, vel = moves[0], moves[3]
+        cands = [tuple(float(x) for x in v) for v in vel]
         if self.u[-1] > self.u[0]:
-            cands.append(tuple((P[-1] - P[0]) / (self.u[-1] - self.u[0])))
-        best = None
-        for v in cands:
-            d = np.hypot(P[:, 0] - v[0] * self.u, P[:, 1] - v[1] * self.u)
-            e = float(np.max(d + err)) + chord + math.hypot(*v) * slack + 2.0 * top * ulp
-            if best is None or e < best[1]:
-                best = ((float(v[0]), float(v[1])), e)
-        return best[0], _up(best[1])
+            cands.append(tuple(float(x) for x in (P[-1] - P[0]) / (self.u[-1] - self.u[0])))
+        return min(((v, self.move_at(v, slack, ulp, moves)) for v in cands), key=lambda x: x[1])
 
 
 def _up(x: float) -> float:

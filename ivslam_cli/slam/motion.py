@@ -408,16 +408,21 @@ class MotionSteps:
                 eta[k] = np.nextafter((rho * dt[k] + lag_eta) * (1.0 + 1e-12) + 1e-15, np.inf)
         return w, e, eta
 
-    def turn_runs(self, s: np.ndarray, b: np.ndarray, c: np.ndarray, n_beams: np.ndarray, w: np.ndarray,
-                  e: np.ndarray, slack: np.ndarray, runs: int) -> np.ndarray:
-        """``(M, runs)``: for each scan (beam ``i`` at ``s + b + i c``, within ``slack``) cut
-        into ``runs`` runs of beams as :func:`~ivslam_cli.slam.lidar.sweep_map.chunk_scans` cuts
-        it, a bound of ``|θ(t) − θ(s) − w (t − s)|`` over each run's times: with pose increments
-        under a stated top angular acceleration the chain of chords over the run alone (its
-        chord term where the run is in each step), at most ``e``; else ``e``."""
+    def sweep_runs(self, s: np.ndarray, b: np.ndarray, c: np.ndarray, n_beams: np.ndarray, w: np.ndarray,
+                   e: np.ndarray, V: np.ndarray, E: np.ndarray, slack: np.ndarray,
+                   runs: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(turn, move)`` (M, runs) each: for each scan (beam ``i`` at ``s + b + i c``, within
+        ``slack``) cut into ``runs`` runs of beams as
+        :func:`~ivslam_cli.slam.lidar.sweep_map.chunk_scans` cuts it, bounds of ``|θ(t) − θ(s)
+        − w (t − s)|`` and of ``|p(t) − p(s) − R(θ(s)) V (t − s)|`` over each run's times: with
+        pose increments under a stated top angular acceleration the chain of chords over the run
+        alone (its chord term where the run is in each step; the move under a stated top
+        acceleration), at most ``e`` and ``E``; else ``e`` and ``E``."""
         out = np.repeat(np.asarray(e, float)[:, None], runs, axis=1)
+        mv = np.repeat(np.asarray(E, float)[:, None], runs, axis=1)
         if self.step_xy is None or not np.isfinite(self.turn_accel) or self.node_stamp.shape[0] < 2:
-            return out
+            return out, mv
+        moves = np.isfinite(self.accel)
         for k in range(s.shape[0]):
             nb = int(n_beams[k])
             parts = min(runs, max(nb, 1))
@@ -429,7 +434,9 @@ class MotionSteps:
                 if ch is not None:
                     ulp = 4.0 * float(np.spacing(abs(lo) + abs(hi)))
                     out[k, r] = min(out[k, r], ch.turn_at(float(w[k]), float(slack[k]), ulp))
-        return out
+                    if moves:
+                        mv[k, r] = min(mv[k, r], ch.move_at(V[k], float(slack[k]), ulp))
+        return out, mv
 
     def move_between(self, s: np.ndarray, t0: np.ndarray, t1: np.ndarray,
                      slack: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -492,6 +492,7 @@ class Matcher:
         self.off = np.zeros((0, 2)) if model is None else np.ascontiguousarray(model.offset, float)
         self.lever = np.zeros(S) if model is None else np.asarray(model.turn_lever, float)
         self.run_turn = None if model is None else model.run_turn
+        self.run_err = None if model is None else model.run_err
         # a swept reference scan in runs of beams, each from its nominal sensor (sweep_map.Chunks)
         self.chunks = chunks
         self.p = params
@@ -515,9 +516,10 @@ class Matcher:
         (scan index, robot box (6,)) pairs; a swept reference in runs of beams
         (:mod:`.references`)."""
         sc = self.scans
-        rt = self.run_turn
+        rt, re = self.run_turn, self.run_err
         runs = [scan_runs(k, box, int(sc.offsets[k + 1] - sc.offsets[k]), self.chunks, self.sweep[k],
-                          float(self.err[k]), float(self.lever[k]), None if rt is None else rt[k]) for k, box in refs]
+                          float(self.err[k]) if re is None else re[k], float(self.lever[k]),
+                          None if rt is None else rt[k]) for k, box in refs]
         out = reference_rows(sc, refs, runs, self.mount, self.r_abs, self.r_rel, self.r_alpha, self.smin,
                              int(self.p.match_stride if stride is None else stride), self.W)
         self.W = out[-1]

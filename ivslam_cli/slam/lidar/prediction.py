@@ -162,6 +162,7 @@ class SweepModel:
     err: np.ndarray  # (S,) each beam's sensor within this of its nominal position (rule A's widening)
     turn_lever: np.ndarray  # (S,) the mount's lever turned by the nominal turn moves the sensor at most this
     run_turn: np.ndarray | None = None  # (S, CHUNKS) reach[:, 1] over each run of beams alone (sweep_map)
+    run_err: np.ndarray | None = None  # (S, CHUNKS) err over each run of beams alone
 
 
 def sweep_motion(scans: Scans, params: Params, m, used: np.ndarray) -> SweepModel:
@@ -226,9 +227,10 @@ def sweep_motion(scans: Scans, params: Params, m, used: np.ndarray) -> SweepMode
         offset[lo:hi, 0] = ci * ox - si * oy
         offset[lo:hi, 1] = si * ox + ci * oy
     run_turn = np.repeat(sweep[:, 1:2], CHUNKS, axis=1)
-    run_turn[used] = m.turn_runs(s, b, c, n, w, e, slack, CHUNKS)
+    run_err = np.repeat(err[:, None], CHUNKS, axis=1)
+    run_turn[used], run_err[used] = m.sweep_runs(s, b, c, n, w, e, V, err[used], slack, CHUNKS)
     return SweepModel(sweep, smin, replace(scans, angle_min=a0, angle_increment=inc), offset, err, turn_lever,
-                      run_turn)
+                      run_turn, run_err)
 
 
 def trajectory(log: LogData, params: Params, scans: Scans):

@@ -174,11 +174,11 @@ def own_runs_at(own_c, ccx, ccy, cc, sc, c, rs, hw):
     own_c[0, C_SLACK] = sl
 
 
-def scan_runs(k: int, box: np.ndarray, nb: int, chunks, sweep, err: float, lever: float, run_turn=None):
+def scan_runs(k: int, box: np.ndarray, nb: int, chunks, sweep, err, lever: float, run_turn=None):
     """Scan ``k`` (``nb`` beams) from robot box ``box`` as runs of beams: ``(robot boxes (m, 6),
     beam bounds (m + 1,))``, the runs of :mod:`.sweep_map` when it moves (``chunks``; each run's
-    heading widened by its own ``run_turn``, else the scan's), else the whole scan from its box
-    widened by ``sweep`` ``(d, a)``."""
+    heading widened by its own ``run_turn``, else the scan's; ``err`` the move's error, the
+    scan's or one per run), else the whole scan from its box widened by ``sweep`` ``(d, a)``."""
     box = np.ascontiguousarray(box, float)
     if chunks is None or not chunks.moves[k]:
         return swept_box(box, sweep)[None, :], np.array([0, nb])

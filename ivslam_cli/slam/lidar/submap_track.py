@@ -147,8 +147,10 @@ class Track:
             one[0] = scan
             return update_map(tmap, self.scans, all_boxes, self.p.beams, order=one, smin=self.smin)
         j0, j1 = int(ch.first[scan]), int(ch.first[scan + 1])
-        a = float(self.sweep[scan, 1]) if self.model.run_turn is None else self.model.run_turn[scan]
-        cb = chunk_boxes(ch, scan, r, a, float(self.model.err[scan]), float(self.model.turn_lever[scan]))
+        md = self.model
+        a = float(self.sweep[scan, 1]) if md.run_turn is None else md.run_turn[scan]
+        e = float(md.err[scan]) if md.run_err is None else md.run_err[scan]
+        cb = chunk_boxes(ch, scan, r, a, e, float(md.turn_lever[scan]))
         cboxes[j0:j1] = cb
         check_extent(cb, np.full(j1 - j0, scan), self.extent, self.path)
         res = update_map(tmap, ch.scans, cboxes, self.p.beams, order=np.arange(j0, j1), smin=ch.smin)

@@ -78,16 +78,17 @@ def chunk_scans(scans: Scans, offset: np.ndarray, smin: np.ndarray, n: int = CHU
                   moves=moves)
 
 
-def chunk_boxes(ch: Chunks, k: int, box: np.ndarray, a, err: float, lever: float) -> np.ndarray:
+def chunk_boxes(ch: Chunks, k: int, box: np.ndarray, a, err, lever: float) -> np.ndarray:
     """The robot boxes (m, 6) of scan ``k``'s chunks from its robot box ``box`` at the stamp:
     moved by each chunk's nominal move turned by the box's heading (its lever over the heading
     interval widened by ``a``, the turn's error: one for the scan, or one per chunk), widened by
-    the chunk's spread, ``err`` (the move's error) and ``a`` times ``lever`` (the mount's lever
+    the chunk's spread, ``err`` (the move's error, likewise) and ``a`` times ``lever`` (the mount's lever
     turned by the nominal turn, whose move turns with the true heading); the heading widened by
     ``a``."""
     j0, j1 = int(ch.first[k]), int(ch.first[k + 1])
     cen = ch.centre[j0:j1]
     a = np.broadcast_to(np.asarray(a, float), (j1 - j0,)) if np.ndim(a) == 0 else np.asarray(a, float)[:j1 - j0]
+    err = np.asarray(err, float) if np.ndim(err) == 0 else np.asarray(err, float)[:j1 - j0]
     tl, th = box[4] - a, box[5] + a
     tc = 0.5 * (tl + th)
     hw = 0.5 * (th - tl) * (1.0 + 1e-12) + 1e-15 * (1.0 + np.abs(tc))

@@ -69,7 +69,7 @@ def _beams_outside_their_runs(scans, tr, model, ch, ks, b, c, taken):
         t_k = float(scans.stamp[k]) - ref
         p = [np.interp(t_k, ts, tr.pose[:, 0]), np.interp(t_k, ts, tr.pose[:, 1]), np.interp(t_k, ts, th_u)]
         box = np.array([p[0], p[0], p[1], p[1], p[2], p[2]])
-        cb = chunk_boxes(ch, k, box, model.run_turn[k], float(model.err[k]), float(model.turn_lever[k]))
+        cb = chunk_boxes(ch, k, box, model.run_turn[k], model.run_err[k], float(model.turn_lever[k]))
         sb = sensor_boxes(cb, scans.mount)
         for j in range(ch.first[k], ch.first[k + 1]):
             lo, hi = int(ch.scans.offsets[j]), int(ch.scans.offsets[j + 1])
@@ -145,8 +145,9 @@ def test_scans_stamped_off_their_clock_are_taken_back_to_it(seed, increments):
                                                                "bounds.scan_time": slack}, log_bounds=log.bounds))
         used, _, m, _, _, _ = trajectory(log, params, scans)
         model = sweep_motion(scans, params, m, used)
-        # each run's own turn error is at most the scan's, and with the chain of chords below it
+        # each run's own turn and move errors are at most the scan's, with the chain of chords below
         assert np.all(model.run_turn[used] <= model.reach[used, 1][:, None])
+        assert np.all(model.run_err[used] <= model.err[used][:, None])
         if increments and clock == "fitted":
             assert np.median(model.run_turn[used].mean(axis=1) / model.reach[used, 1]) < 0.95
         ch = chunk_scans(model.beams, model.offset, model.smin)
