@@ -357,7 +357,8 @@ class MotionSteps:
         window plus ``|ω̂| slack``). Then, and whenever ``[t0, t1]`` leaves ``s`` or its step, with
         pose increments under ``α`` the heading is the chain of the steps' chords from ``s``
         (:meth:`_chain`): increments ``Δ_j ± ε_j`` weighted by the share ``λ_j`` of each step
-        between ``s`` and ``t``, plus ``α h²/8`` and the chord error at ``s``; ``ω̂`` the rate
+        between ``s`` and ``t``, plus the chord error where the window is in each step and at
+        ``s``; ``ω̂`` the rate
         (a step's, or the window's chord) that gives the least ``e``."""
         w = np.zeros(t0.shape[0])
         sl = np.zeros(t0.shape[0]) if slack is None else np.asarray(slack, float)

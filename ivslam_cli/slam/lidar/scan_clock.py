@@ -72,7 +72,7 @@ def _period(tn: np.ndarray, T0: float) -> float:
     T, lo, hi = T0, 0.9 * T0, 1.1 * T0
     while True:
         span = max(float(tn[m - 1] - tn[0]), T)
-        step = max(0.1 * T * T / span, 1e-12 * T)
+        step = max(0.1 * T * T / span, 1e-12 * T, (hi - lo) / 4096.0)
         periods = np.arange(lo, hi + step, step)
         T = float(periods[np.argmax(_phase_concentration(tn[:m], periods))])
         if m == tn.shape[0]:
@@ -85,8 +85,20 @@ def _period(tn: np.ndarray, T0: float) -> float:
 def fit_clock(stamps: np.ndarray, repeat: np.ndarray, path: str = "") -> ScanClock:
     """The regular clock through ``stamps`` (see the module docstring), ``repeat`` marking scans
     that repeat the previous one. Raises :class:`IvslamError` when the stamps do not follow one
-    (two distinct scans on one tick, or fewer than 3 distinct scans)."""
+    (two distinct scans on one tick, fewer than 3 distinct scans, or stamps so far apart that
+    the fit overflows)."""
+    try:
+        with np.errstate(over="raise", invalid="raise"):
+            return _fit(stamps, repeat, path)
+    except (FloatingPointError, ValueError, MemoryError, OverflowError):
+        raise IvslamError("lidar.scan_clock = 'fitted': no regular clock can be fitted to the scan stamps "
+                          "(they span too much for their intervals)", path) from None
+
+
+def _fit(stamps: np.ndarray, repeat: np.ndarray, path: str) -> ScanClock:
     s = np.asarray(stamps, float)
+    if not np.all(np.isfinite(s)) or (s.size and not np.isfinite(s[-1] - s[0])):
+        raise IvslamError("lidar.scan_clock = 'fitted': the scan stamps are not finite numbers", path)
     rep = np.asarray(repeat, bool).copy()
     if rep.size:
         rep[0] = False
@@ -97,7 +109,7 @@ def fit_clock(stamps: np.ndarray, repeat: np.ndarray, path: str = "") -> ScanClo
     tn = t[new]
     dt = np.diff(tn)
     T0 = float(np.median(dt[dt > 0])) if np.any(dt > 0) else 0.0
-    if not T0 > 0.0:
+    if not (T0 > 0.0 and np.isfinite(T0)):
         raise IvslamError("lidar.scan_clock = 'fitted': the scan stamps do not advance", path)
     T = _period(tn, T0)
     phi = float(np.angle(np.mean(np.exp(2j * np.pi * tn / T)))) * T / (2 * np.pi)

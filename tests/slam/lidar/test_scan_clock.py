@@ -70,3 +70,9 @@ def test_exp1s_scans_follow_a_regular_clock_their_stamps_do_not():
     lo, hi = c.spread
     assert -0.06 < lo < -0.03 and 0.02 < hi < 0.06
     assert "regular clock" in c.text()
+
+
+@pytest.mark.parametrize("stamps", [[-1e308, 0.1, 0.2, 0.3], [0.0, 0.1, np.inf, 0.3], [0.0, 1e308, 1.5e308, 1.7e308]])
+def test_stamps_no_clock_can_be_fitted_to_are_a_clear_error(stamps):
+    with pytest.raises(IvslamError, match="scan_clock"):
+        fit_clock(np.array(stamps), np.zeros(len(stamps), bool))
