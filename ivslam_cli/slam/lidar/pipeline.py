@@ -94,7 +94,7 @@ def _sweep_text(scans: Scans, params: Params, submaps: bool) -> str:
     when = "the scan's stamp" if params.scan_clock == "stamps" else "the scan's tick"
     pre = f"{clock.text()}; " if clock.text() else ""
     if params.scan_time > 0.0:
-        pre += f"each scan's first beam within bounds.scan_time = {params.scan_time:g} s of {when}; "
+        pre += f"every beam within bounds.scan_time = {params.scan_time:g} s of its nominal time (from {when}); "
     if not np.any(T != 0.0):
         return f"at {when}; " + pre
     lo, hi = float(np.min(T)), float(np.max(T))

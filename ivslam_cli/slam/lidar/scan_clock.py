@@ -9,7 +9,7 @@ maximises the concentration of the stamps' phases (a Rayleigh periodogram), each
 nearest tick, a scan whose ranges repeat the previous one's (the same scan read twice) takes the
 previous one's, and ``(φ, T)`` are the least-squares fit of the stamps on their ticks. What the
 sensor's clock does between ticks is stated, not fitted: ``bounds.scan_time`` bounds how far
-each scan's first beam may be from its time (stamp or tick).
+each beam may be from its nominal time (``lidar.sweep`` from the stamp or the tick).
 """
 
 from __future__ import annotations
@@ -51,7 +51,7 @@ def repeated_scans(scans: Scans) -> np.ndarray:
     r = np.asarray(scans.ranges)
     for k in np.flatnonzero((n[1:] == n[:-1]) & (n[1:] > 0)) + 1:
         a, b, c = int(scans.offsets[k - 1]), int(scans.offsets[k]), int(scans.offsets[k + 1])
-        rep[k] = np.array_equal(r[a:b], r[b:c])
+        rep[k] = np.array_equal(r[a:b], r[b:c], equal_nan=True)
     return rep
 
 
