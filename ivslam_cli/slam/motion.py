@@ -418,9 +418,12 @@ class MotionSteps:
         − w (t − s)|`` and of ``|p(t) − p(s) − R(θ(s)) V (t − s)|`` over each run's times: with
         pose increments under a stated top angular acceleration the chain of chords over the run
         alone (its chord term where the run is in each step; the move under a stated top
-        acceleration), at most ``e`` and ``E``; else ``e`` and ``E``."""
+        acceleration), with a twist each run's own bounds about ``w`` and ``V``
+        (:meth:`_twist_runs`), at most ``e`` and ``E``; else ``e`` and ``E``."""
         out = np.repeat(np.asarray(e, float)[:, None], runs, axis=1)
         mv = np.repeat(np.asarray(E, float)[:, None], runs, axis=1)
+        if self.turn_rate is not None and self.node_stamp.shape[0] >= 2:
+            return self._twist_runs(s, b, c, n_beams, w, V, slack, runs, out, mv)
         if self.step_xy is None or not np.isfinite(self.turn_accel) or self.node_stamp.shape[0] < 2:
             return out, mv
         moves = np.isfinite(self.accel)
@@ -437,6 +440,30 @@ class MotionSteps:
                     out[k, r] = min(out[k, r], ch.turn_at(float(w[k]), float(slack[k]), ulp))
                     if moves:
                         mv[k, r] = min(mv[k, r], ch.move_at(V[k], float(slack[k]), ulp))
+        return out, mv
+
+    def _twist_runs(self, s, b, c, n_beams, w, V, slack, runs, out, mv):
+        """:meth:`sweep_runs` with a twist: each run's own :meth:`turn_between` and
+        :meth:`move_between` (rate ``ω̂_r``, velocity ``V_r``, bounds ``e_r``, ``E_r``) taken about
+        the scan's ``ω̂`` and ``V``: ``e_r + |ω̂_r − ω̂| τ_r`` and ``E_r + |V_r − V| τ_r``, ``τ_r``
+        the run's farthest time from ``s`` (plus the slack)."""
+        nb = np.asarray(n_beams, np.int64)
+        parts = np.minimum(runs, np.maximum(nb, 1))
+        k, r = np.nonzero(np.arange(runs)[None, :] < parts[:, None])
+        i0 = (r * nb[k]) // parts[k]
+        i1 = np.maximum(((r + 1) * nb[k]) // parts[k] - 1, i0)
+        ta, tb = s[k] + b[k] + c[k] * i0, s[k] + b[k] + c[k] * i1
+        lo, hi = np.minimum(ta, tb), np.maximum(ta, tb)
+        sl = np.asarray(slack, float)[k]
+        wr, er, _ = self.turn_between(s[k], lo, hi, i1 - i0 + 1, sl)
+        Vr, Er = self.move_between(s[k], lo, hi, sl)
+        tau = np.maximum(np.maximum(hi + sl - s[k], s[k] - lo + sl), 0.0) + 4.0 * np.spacing(np.abs(lo) + np.abs(hi))
+        up = 1.0 + 1e-12
+        turn = np.nextafter((er + np.abs(wr - np.asarray(w, float)[k]) * tau) * up + 1e-15, np.inf)
+        dV = np.hypot(Vr[:, 0] - V[k, 0], Vr[:, 1] - V[k, 1])
+        move = np.nextafter((Er + dV * up * tau) * up + 1e-15, np.inf)
+        out[k, r] = np.minimum(out[k, r], turn)
+        mv[k, r] = np.minimum(mv[k, r], move)
         return out, mv
 
     def move_between(self, s: np.ndarray, t0: np.ndarray, t1: np.ndarray,

@@ -108,6 +108,11 @@ def test_every_beam_is_taken_from_within_its_chunks_box(seed):
     b, c = beam_times(scans, params)
     out, worst = _beams_outside_their_runs(scans, tr, model, ch, used[1:-2], b, c, scans.stamp)
     assert out == 0
+    # each run's own bounds (the twist's rates about the scan's, over the run's times alone)
+    assert np.all(model.run_turn[used] <= model.reach[used, 1][:, None])
+    assert np.all(model.run_err[used] <= model.err[used][:, None])
+    assert np.median(model.run_turn[used].mean(axis=1) / model.reach[used, 1]) < 0.75
+    assert np.median(model.run_err[used].mean(axis=1) / model.err[used]) < 0.75
     # the chunks' boxes are far narrower than the whole sweep's move (3.7 cm either side)
     assert worst < 0.5 * 2 * float(np.median(model.reach[used, 0]))
 
@@ -148,7 +153,7 @@ def test_scans_stamped_off_their_clock_are_taken_back_to_it(seed, increments):
         # each run's own turn and move errors are at most the scan's, with the chain of chords below
         assert np.all(model.run_turn[used] <= model.reach[used, 1][:, None])
         assert np.all(model.run_err[used] <= model.err[used][:, None])
-        if increments and clock == "fitted":
+        if clock == "fitted":
             assert np.median(model.run_turn[used].mean(axis=1) / model.reach[used, 1]) < 0.95
         ch = chunk_scans(model.beams, model.offset, model.smin)
         b, c = beam_times(scans, params, scan_clock(scans, "stamps"))  # the sweep from the true time
