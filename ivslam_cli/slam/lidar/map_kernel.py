@@ -113,7 +113,7 @@ def _level_buffers():
 
 @njit(cache=True)
 def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps,
-             exact, lg, T, new, tl, blk, mblk, cand, cand_f, stats, WF, WI, fill=True, smin=0.0):
+             exact, lg, T, new, tl, blk, mblk, cand, cand_f, stats, WF, WI, fill=True, smin=0.0, obstacles=True):
     """P_EMPTY^k, P_OBSTACLE^k and the new beams of one scan (fast path; the same cells and
     beams as :func:`~.map_reference.traverse_reference`). ``T``: the scan's table
     (:func:`~.map_tables._fast_tables`); ``WF, WI``: work arrays (:func:`_level_buffers`). The
@@ -138,6 +138,8 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
 
     ``smin``: no cell nearer than this to the sensor box is proven empty
     (:func:`~.free_cones.sweep_free_from`: the beams of a sweep are taken from poses apart).
+    ``obstacles`` False: P_EMPTY^k alone (the same empty records; blocks are refined only where
+    a cell may be proven empty, and nothing of P_OBSTACLE^k or ``new`` is recorded).
 
     Returns ``(ok, n_tl, n_blk, n_mblk, n_cand, need)``; ``ok`` False: a buffer was too small
     (``need`` > 0: the work arrays, which need that many columns; ``new`` and ``stats`` are then
@@ -177,7 +179,7 @@ def traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_al
     n_tiles = (tx1 - tx0 + 1) * nty
     TT = np.empty(_CHUNK, dtype=np.int64)
     TS = np.empty(_CHUNK, dtype=np.int64)
-    sc = (eps, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, gmin_c, i0, j0, nty, smin)
+    sc = (eps, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, gmin_c, i0, j0, nty, smin, obstacles)
     rec = (tl, blk, mblk, cand, cand_f)
     G = (RL, RH, OL, OH, EL, EH, CV, SM, X0, X1, Y0, Y1, IL, IH, KL, KH)
     n_tl = 0
@@ -254,7 +256,7 @@ def _decide_blocks(lev, n_lev, q0, inner, exact, sc, LX, LY, NX, NY, G, T, lg, c
     :func:`traverse`), ``rec = (tl, blk, mblk, cand, cand_f)`` with ``n_rec = (n_tl, n_blk,
     n_mblk)`` records so far. Returns ``(ok, n_next, n_tl, n_blk, n_mblk, nodes, empty cells,
     obstacle cells)``; ``ok`` False: a record buffer is full."""
-    eps, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, gmin_c, i0, j0, nty, smin = sc
+    eps, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, gmin_c, i0, j0, nty, smin, obstacles = sc
     RL, RH, OL, OH, EL, EH, CV, SM, X0, X1, Y0, Y1, IL, IH, KL, KH = G
     tl, blk, mblk, cand, cand_f = rec
     n_tl, n_blk, n_mblk = n_rec
@@ -302,7 +304,7 @@ def _decide_blocks(lev, n_lev, q0, inner, exact, sc, LX, LY, NX, NY, G, T, lg, c
             n_empty += s * s
             continue
         freep = r_lo < f_max
-        obs = r_hi >= lo_min and r_lo <= hi_max
+        obs = obstacles and r_hi >= lo_min and r_lo <= hi_max
         if simple:
             # [o_lo, o_hi] holds every cell's window
             if obs and exact:
@@ -374,7 +376,7 @@ def _decide_cells(n_lev, q0, exact, sc, LX, LY, G, T, lg, cells, box, TT, TS, re
     passed (into ``cand``, the beams of unmeasured marked cells set new). ``n_rec = (n_tl, n_blk,
     n_cand)``. Returns ``(ok, n_tl, n_blk, n_cand, nodes, empty cells, obstacle cells)``; ``ok``
     False: a record buffer is full."""
-    eps, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, gmin_c, i0, j0, nty, smin = sc
+    eps, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge, err, gmin_c, i0, j0, nty, smin, obstacles = sc
     RL, RH, OL, OH, EL, EH, CV, SM = G[0], G[1], G[2], G[3], G[4], G[5], G[6], G[7]
     tl, blk, mblk, cand, cand_f = rec
     n_tl, n_blk, n_cand = n_rec
@@ -398,7 +400,7 @@ def _decide_cells(n_lev, q0, exact, sc, LX, LY, G, T, lg, cells, box, TT, TS, re
         else:
             code, o_lo, o_hi, r_lo, r_hi = _cell(cx_, cy_, eps, box, a0, inc, h, nb, rmax, mid, lo_edge, hi_edge,
                                                  T, lg, stats)
-        if code == 0 or (code == 2 and exact) or (code == 1 and r_lo < smin):
+        if code == 0 or (code == 2 and exact) or (code == 1 and r_lo < smin) or (code != 1 and not obstacles):
             continue
         if code == 1:
             slot = _tile_slot(tl, n_tl, TS[q], cx_ >> TILE_SHIFT, cy_ >> TILE_SHIFT, 1)
@@ -469,7 +471,7 @@ def _grown(a):
 
 @njit(cache=True)
 def _traverse_grown(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, lg, T,
-                    new, tl, blk, mblk, cand, cand_f, st, WF, WI, fill, smin):
+                    new, tl, blk, mblk, cand, cand_f, st, WF, WI, fill, smin, obstacles=True):
     """:func:`traverse` of one scan, its record buffers and work arrays grown (and ``new``,
     ``st`` reset) until they hold the scan: ``(n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand,
     cand_f, WF, WI)``."""
@@ -479,7 +481,7 @@ def _traverse_grown(keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_re
         st[:] = 0
         ok, n_tl, n_blk, n_mblk, n_cand, need = traverse(keys, slots, cells, ranges, valid, a0, inc, box, r_abs,
                                                          r_rel, r_alpha, eps, exact, lg, T, new, tl, blk, mblk,
-                                                         cand, cand_f, st, WF, WI, fill, smin)
+                                                         cand, cand_f, st, WF, WI, fill, smin, obstacles)
         if ok:
             return n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f, WF, WI
         if need > 0:
@@ -554,10 +556,10 @@ def update_log(keys, slots, cells, coords, n, ranges, valid, offsets, angle_min,
 
 
 @njit(cache=True)
-def scan_cells(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, fill=True, smin=0.0):
+def scan_cells(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, fill=True, smin=0.0, obstacles=True):
     """P_EMPTY^k and P_OBSTACLE^k of one scan as cell index arrays (for tests and plots):
     ``(empty_ix, empty_iy, obst_ix, obst_iy)`` (the cells of :func:`scan_cells_reference`,
-    in another order)."""
+    in another order; ``obstacles`` False: no P_OBSTACLE^k cells, the same P_EMPTY^k)."""
     nb = ranges.shape[0]
     lg, T = _fast_buffers(max(nb, 1))
     new = np.zeros(max(nb, 1), dtype=np.bool_)
@@ -569,7 +571,7 @@ def scan_cells(ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, f
     st = np.zeros(4, dtype=np.int64)
     n_tl, n_blk, n_mblk, n_cand, tl, blk, mblk, cand, cand_f, WF, WI = _traverse_grown(
         keys, slots, cells, ranges, valid, a0, inc, box, r_abs, r_rel, r_alpha, eps, exact, lg, T, new, tl, blk,
-        mblk, cand, cand_f, st, WF, WI, fill, smin)
+        mblk, cand, cand_f, st, WF, WI, fill, smin, obstacles)
     ex = np.empty(st[1], dtype=np.int64)
     ey = np.empty(st[1], dtype=np.int64)
     _block_cells(blk, n_blk, ex, ey, 0)

@@ -34,7 +34,7 @@ def union_empty(keys, slots, cells, ranges, valid, a0, inc, boxes, r_abs, r_rel,
     :func:`~.map_kernel.scan_cells`' P_EMPTY^k of ``boxes[0]`` and passes the leaf test of every
     other box (no cell nearer than ``smin`` to a box: see :func:`~.map_kernel.traverse`)."""
     nb = ranges.shape[0]
-    ex, ey, _, _ = scan_cells(ranges, valid, a0, inc, boxes[0], r_abs, r_rel, r_alpha, eps, False, fill, smin)
+    ex, ey, _, _ = scan_cells(ranges, valid, a0, inc, boxes[0], r_abs, r_rel, r_alpha, eps, False, fill, smin, False)
     lg, T = _fast_buffers(max(nb, 1))
     st = np.zeros(4, dtype=np.int64)
     rmax = _fast_tables(ranges, valid, r_abs, r_rel, _cos_gap(r_alpha, inc, fill), T)

@@ -446,6 +446,9 @@ def test_fast_scan_cells_equal_reference(seed):
         ref = K.scan_cells_reference(*args, exact)
         assert _cellset(new[0], new[1]) == _cellset(ref[0], ref[1])
         assert _cellset(new[2], new[3]) == _cellset(ref[2], ref[3])
+        # P_EMPTY^k alone (the map union's first box): the same cells, no obstacle traversal
+        only = K.scan_cells(*args, exact, True, 0.0, False)
+        assert _cellset(only[0], only[1]) == _cellset(ref[0], ref[1]) and only[2].size == 0
 
 
 def _run_log(fn, tmap, scans, boxes, bounds, order, exact, write, smin=None):
