@@ -174,6 +174,21 @@ class AnchorGraph:
     paved: int = 0  # wide priors paved (loopsearch)
     pave_tests: int = 0
     pave_incomplete: int = 0
+    pave_skipped: int = 0  # wide priors not paved: at least as wide as one that ran out against that submap
+    # per old submap, the narrowest (x-y width, heading) of a prior whose paving ran out
+    pave_failed: dict = field(default_factory=dict)
+
+    def pave_hopeless(self, s: int, width: float, heading: float) -> bool:
+        """True if a prior against submap ``s`` is at least as wide, in x-y and heading, as one
+        whose paving ran out of budget (its paving would derive nothing either, as a rule)."""
+        f = self.pave_failed.get(s)
+        return f is not None and width >= f[0] and heading >= f[1]
+
+    def pave_ran_out(self, s: int, width: float, heading: float) -> None:
+        """Record that the paving of a prior against submap ``s`` ran out."""
+        f = self.pave_failed.get(s)
+        if f is None or (width <= f[0] and heading <= f[1]):
+            self.pave_failed[s] = (width, heading)
 
     def add_edge(self, a: int, b: int, box: np.ndarray, kind: int) -> None:
         """Meet ``box`` (anchor ``b`` in ``a``'s frame) into the edge (a, b)."""

@@ -364,6 +364,7 @@ def solve(log: LogData, params: Params, progress=None) -> LidarOutput:
             "graph_sweeps": int(tracking.graph.sweeps), "graph_empty_meets": int(tracking.graph.empty_meets),
             "loop_priors_paved": int(tracking.graph.paved), "loop_pave_tests": int(tracking.graph.pave_tests),
             "loop_pave_incomplete": int(tracking.graph.pave_incomplete),
+            "loop_pave_skipped": int(tracking.graph.pave_skipped),
         })
         from ivslam_cli.slam.lidar.global_map import render_global
         from ivslam_cli.slam.lidar.sweep_map import swept_box

@@ -200,6 +200,11 @@ def _search_loops(j: int, scan: int, gb: np.ndarray, submaps, active, graph: L.A
             continue
         cands.append((-(h - s.index), L.width(prior) + reach * L.heading(prior), s, prior, narrow))
     cands.sort(key=lambda c: (c[0], c[1]))  # the longest chain first: where a loop tells the most
+    cands = cands[: params.loop_candidates]
+    # a wide prior at least as wide as one whose paving ran out against that submap: not paved
+    hopeless = [not c[4] and graph.pave_hopeless(c[2].index, L.width(c[3]), L.heading(c[3])) for c in cands]
+    graph.pave_skipped += sum(hopeless)
+    cands = [c for c, h in zip(cands, hopeless) if not h]
     added = False
     for (_, _, s, prior, narrow), (paved, pave_nt, roots, box, nb, nt) in zip(
             cands[: params.loop_candidates],
@@ -211,6 +216,8 @@ def _search_loops(j: int, scan: int, gb: np.ndarray, submaps, active, graph: L.A
             graph.pave_tests += pave_nt
         if roots is None:
             graph.pave_incomplete += 1
+            if paved and pave_nt > 0:
+                graph.pave_ran_out(s.index, L.width(prior), L.heading(prior))
             continue
         empty = box is None
         graph.loops.append(L.LoopConstraint(j, s.index, h, prior, np.full(6, np.nan) if empty else box, nb, nt,

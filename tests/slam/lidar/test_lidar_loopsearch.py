@@ -79,3 +79,22 @@ def test_merged_leaves_cover_the_same_poses():
     for _ in range(2000):
         q = rng.uniform([-0.1, -0.1, -0.05], [2.1, 0.6, 0.25])
         assert _inside(q, leaves) == _inside(q, m)
+
+
+def test_a_prior_as_wide_as_one_that_ran_out_is_not_paved_again():
+    """The anchor graph remembers, per old submap, the narrowest prior whose paving ran out (it
+    derives nothing); a later prior against that submap at least as wide in x-y and in heading
+    is not paved. The submaps' priors grow along an open chain, so on the TurtleBot bag 64 of
+    80 pavings are skipped with the result unchanged bit for bit (docs/results.md)."""
+    from ivslam_cli.slam.lidar.loops import AnchorGraph
+
+    g = AnchorGraph()
+    assert not g.pave_hopeless(3, 100.0, 7.0)
+    g.pave_ran_out(3, 4.0, 1.5)
+    assert g.pave_hopeless(3, 4.0, 1.5) and g.pave_hopeless(3, 6.0, 2.0)
+    assert not g.pave_hopeless(3, 3.9, 2.0) and not g.pave_hopeless(3, 6.0, 1.4)
+    assert not g.pave_hopeless(2, 6.0, 2.0)  # another submap
+    g.pave_ran_out(3, 5.0, 1.0)  # not narrower in both: the record stays
+    assert g.pave_failed[3] == (4.0, 1.5)
+    g.pave_ran_out(3, 3.0, 1.0)
+    assert g.pave_hopeless(3, 3.5, 1.2)
