@@ -242,6 +242,19 @@ def chord_steps(V: np.ndarray, W: np.ndarray, dt: np.ndarray) -> tuple[np.ndarra
     return rho, alpha, iv.mul(W, dt)
 
 
+def _run_times(s, b, c, n_beams, runs: int):
+    """Each scan (beam ``i`` at ``s + b + i c``) cut into at most ``runs`` runs of beams as
+    :func:`~ivslam_cli.slam.lidar.sweep_map.chunk_scans` cuts it: ``(scan, run, beams, first
+    time, last time)`` per run (arrays)."""
+    nb = np.asarray(n_beams, np.int64)
+    parts = np.minimum(runs, np.maximum(nb, 1))
+    k, r = np.nonzero(np.arange(runs)[None, :] < parts[:, None])
+    i0 = (r * nb[k]) // parts[k]
+    i1 = np.maximum(((r + 1) * nb[k]) // parts[k] - 1, i0)
+    ta, tb = s[k] + b[k] + c[k] * i0, s[k] + b[k] + c[k] * i1
+    return k, r, i1 - i0 + 1, np.minimum(ta, tb), np.maximum(ta, tb)
+
+
 @dataclass
 class MotionSteps:
     """Dead-reckoning steps between nodes, and where each event (observation, scan) sits.
@@ -427,19 +440,14 @@ class MotionSteps:
         if self.step_xy is None or not np.isfinite(self.turn_accel) or self.node_stamp.shape[0] < 2:
             return out, mv
         moves = np.isfinite(self.accel)
-        for k in range(s.shape[0]):
-            nb = int(n_beams[k])
-            parts = min(runs, max(nb, 1))
-            for r in range(parts):
-                i0, i1 = (r * nb) // parts, max(((r + 1) * nb) // parts - 1, (r * nb) // parts)
-                ta, tb = s[k] + b[k] + c[k] * i0, s[k] + b[k] + c[k] * i1
-                lo, hi = min(ta, tb) - slack[k], max(ta, tb) + slack[k]
-                ch = self._chain(float(s[k]), float(lo), float(hi))
-                if ch is not None:
-                    ulp = 4.0 * float(np.spacing(abs(lo) + abs(hi)))
-                    out[k, r] = min(out[k, r], ch.turn_at(float(w[k]), float(slack[k]), ulp))
-                    if moves:
-                        mv[k, r] = min(mv[k, r], ch.move_at(V[k], float(slack[k]), ulp))
+        K, R, _, lo, hi = _run_times(s, b, c, n_beams, runs)
+        for k, r, lo_r, hi_r in zip(K.tolist(), R.tolist(), (lo - slack[K]).tolist(), (hi + slack[K]).tolist()):
+            ch = self._chain(float(s[k]), lo_r, hi_r)
+            if ch is not None:
+                ulp = 4.0 * float(np.spacing(abs(lo_r) + abs(hi_r)))
+                out[k, r] = min(out[k, r], ch.turn_at(float(w[k]), float(slack[k]), ulp))
+                if moves:
+                    mv[k, r] = min(mv[k, r], ch.move_at(V[k], float(slack[k]), ulp))
         return out, mv
 
     def _twist_runs(self, s, b, c, n_beams, w, V, slack, runs, out, mv):
@@ -447,15 +455,9 @@ class MotionSteps:
         :meth:`move_between` (rate ``ω̂_r``, velocity ``V_r``, bounds ``e_r``, ``E_r``) taken about
         the scan's ``ω̂`` and ``V``: ``e_r + |ω̂_r − ω̂| τ_r`` and ``E_r + |V_r − V| τ_r``, ``τ_r``
         the run's farthest time from ``s`` (plus the slack)."""
-        nb = np.asarray(n_beams, np.int64)
-        parts = np.minimum(runs, np.maximum(nb, 1))
-        k, r = np.nonzero(np.arange(runs)[None, :] < parts[:, None])
-        i0 = (r * nb[k]) // parts[k]
-        i1 = np.maximum(((r + 1) * nb[k]) // parts[k] - 1, i0)
-        ta, tb = s[k] + b[k] + c[k] * i0, s[k] + b[k] + c[k] * i1
-        lo, hi = np.minimum(ta, tb), np.maximum(ta, tb)
+        k, r, n, lo, hi = _run_times(s, b, c, n_beams, runs)
         sl = np.asarray(slack, float)[k]
-        wr, er, _ = self.turn_between(s[k], lo, hi, i1 - i0 + 1, sl)
+        wr, er, _ = self.turn_between(s[k], lo, hi, n, sl)
         Vr, Er = self.move_between(s[k], lo, hi, sl)
         tau = np.maximum(np.maximum(hi + sl - s[k], s[k] - lo + sl), 0.0) + 4.0 * np.spacing(np.abs(lo) + np.abs(hi))
         up = 1.0 + 1e-12

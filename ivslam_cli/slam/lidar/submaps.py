@@ -207,10 +207,9 @@ def _search_loops(j: int, scan: int, gb: np.ndarray, submaps, active, graph: L.A
     cands = [c for c, h in zip(cands, hopeless) if not h]
     added = False
     for (_, _, s, prior, narrow), (paved, pave_nt, roots, box, nb, nt) in zip(
-            cands[: params.loop_candidates],
+            cands,
             track.map(lambda c: _loop_match(track.matcher(), scan, c[2], c[3], c[4], params, reach,
-                                            track.q_for((scan, c[2].anchor_scan))),
-                      cands[: params.loop_candidates])):
+                                            track.q_for((scan, c[2].anchor_scan))), cands)):
         if paved:
             graph.paved += 1
             graph.pave_tests += pave_nt
