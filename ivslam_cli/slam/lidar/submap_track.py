@@ -32,7 +32,7 @@ from ivslam_cli.logs.model import Scans
 from ivslam_cli.slam.lidar.map_update import UpdateResult, check_extent, map_union_free, update_map
 from ivslam_cli.slam.lidar.matcher import Matcher, hull
 from ivslam_cli.slam.lidar.params import Params
-from ivslam_cli.slam.lidar.sweep_map import chunk_boxes, chunk_scans, swept_box
+from ivslam_cli.slam.lidar.sweep_map import chunk_boxes, chunk_scans, staggered_errors, swept_box
 from ivslam_cli.slam.motion_kernel import meet_node, propagate, propagate_boxes, widen_boxes
 
 
@@ -116,6 +116,8 @@ class Track:
         self.smin = np.zeros(len(scans)) if model is None else model.smin
         # swept scans mapped in runs of beams, each from its nominal sensor position (sweep_map)
         self.chunks = None if model is None else chunk_scans(scans, model.offset, model.smin)
+        # ... and, for the cells between two runs, P_EMPTY in runs cut at the runs' middles
+        self.stagger = None if self.chunks is None else chunk_scans(scans, model.offset, model.smin, staggered=True)
         # scans q-relaxed somewhere: up to q_retry of their beams may be wrong, so every match of
         # one, or against one, allows as many
         self.relaxed = np.zeros(len(scans), bool)
@@ -135,10 +137,22 @@ class Track:
                                 np.zeros(1, np.int64), np.zeros((nc, 6)))
         return b
 
+    def _run_boxes(self, scan: int, r: np.ndarray, staggered: bool = False) -> np.ndarray:
+        """The robot boxes (runs, 6) of a moving swept scan's runs of beams (the plain or the
+        staggered ones) from its robot box ``r`` (6,) at its stamp (:mod:`.sweep_map`)."""
+        ch, md = (self.stagger if staggered else self.chunks), self.model
+        a = float(self.sweep[scan, 1]) if md.run_turn is None else md.run_turn[scan]
+        e = float(md.err[scan]) if md.run_err is None else md.run_err[scan]
+        if staggered:
+            n = int(self.chunks.first[scan + 1] - self.chunks.first[scan])
+            a, e = staggered_errors(a, n), staggered_errors(e, n)
+        return chunk_boxes(ch, scan, r, a, e, float(md.turn_lever[scan]))
+
     def map_scan(self, tmap, scan: int, r: np.ndarray) -> UpdateResult:
         """Scan ``scan`` mapped into ``tmap`` from robot box ``r`` (6,) at its stamp: widened by
-        its sweep, or, when it moves, in runs of beams each from its nominal sensor position
-        (:mod:`.sweep_map`). The result is indexed by scan."""
+        its sweep, or, when it moves, in runs of beams each from its nominal sensor position,
+        then in the staggered runs (P_EMPTY only) (:mod:`.sweep_map`). The result is indexed by
+        scan."""
         _, all_boxes, one, cboxes = self._buffers()
         ch = self.chunks
         if ch is None or not ch.moves[scan]:
@@ -147,16 +161,36 @@ class Track:
             one[0] = scan
             return update_map(tmap, self.scans, all_boxes, self.p.beams, order=one, smin=self.smin)
         j0, j1 = int(ch.first[scan]), int(ch.first[scan + 1])
-        md = self.model
-        a = float(self.sweep[scan, 1]) if md.run_turn is None else md.run_turn[scan]
-        e = float(md.err[scan]) if md.run_err is None else md.run_err[scan]
-        cb = chunk_boxes(ch, scan, r, a, e, float(md.turn_lever[scan]))
+        cb = self._run_boxes(scan, r)
         cboxes[j0:j1] = cb
         check_extent(cb, np.full(j1 - j0, scan), self.extent, self.path)
         res = update_map(tmap, ch.scans, cboxes, self.p.beams, order=np.arange(j0, j1), smin=ch.smin)
         stats = np.zeros((len(self.scans), res.stats.shape[1]), res.stats.dtype)
         stats[scan] = res.stats[j0:j1].sum(axis=0)
+        self._runs_empty(tmap, self.stagger, scan, self._run_boxes(scan, r, staggered=True)[:, None, :])
         return UpdateResult(res.is_old, stats)
+
+    def _runs_empty(self, tmap, ch, scan: int, boxes: np.ndarray) -> int:
+        """Run by run of ``ch``, the cells run ``i`` proves free from every box ``boxes[i]``
+        (runs, n, 6) marked EMPTY (:func:`.map_update.map_union_free`); how many were not."""
+        j0 = int(ch.first[scan])
+        n = 0
+        for i in range(boxes.shape[0]):
+            j = j0 + i
+            if ch.scans.offsets[j + 1] > ch.scans.offsets[j]:
+                n += map_union_free(tmap, ch.scans, j, boxes[i], self.p.beams, float(ch.smin[j]))
+        return n
+
+    def map_set(self, tmap, scan: int, u: np.ndarray) -> int:
+        """The cells scan ``scan`` proves free from every box of its pose set ``u`` (n, 6) at its
+        stamp marked EMPTY in ``tmap`` (after :meth:`map_scan` with their hull); how many were
+        not before. A moving swept scan, run by run: a cell a run proves free from each box's
+        run box is free whichever box holds the pose."""
+        ch = self.chunks
+        if ch is None or not ch.moves[scan]:
+            return map_union_free(tmap, self.scans, scan, swept_box(u, self.sweep[scan]), self.p.beams,
+                                  self.smin[scan])
+        return self._runs_empty(tmap, ch, scan, np.stack([self._run_boxes(scan, b) for b in u], axis=1))
 
     def matcher(self) -> Matcher:
         """This thread's matcher."""
@@ -300,8 +334,7 @@ class Track:
                 # the cells every box of its pose set proves free, beyond the hull's
                 u = met_rows(s.union, r)
                 if u.shape[0] > 1:
-                    u = swept_box(u, self.sweep[scan])
-                    out.set_cells = map_union_free(s.tmap, self.scans, scan, u, params.beams, self.smin[scan])
+                    out.set_cells = self.map_set(s.tmap, scan, u)
             s.mapped.append(j)
             if not relaxed:
                 # up to q_retry of a relaxed scan's beams may break the model: no reference

@@ -8,9 +8,10 @@ The map kernels take one sensor box per scan, so the scan is cut into :data:`CHU
 consecutive beams, each mapped as a scan of its own from the robot box moved by its beams'
 nominal move (the odometry's, :meth:`~ivslam_cli.slam.motion.MotionSteps.move_between`, turned
 with the box's heading) and widened by their spread about it and the move's error. A chunk
-proves free only the bearings its own cones cover (a cell between two chunks is left to
-other scans) and, like the whole scan, nothing nearer its sensor than the sweep's ``smin``
-(:func:`~.free_cones.sweep_free_from`). The guarantee is the map's: every proven-free cell
+proves free only the bearings its own cones cover and, like the whole scan, nothing nearer its
+sensor than the sweep's ``smin`` (:func:`~.free_cones.sweep_free_from`). A cell whose bearings
+span two chunks is proven by the *staggered* runs, cut at the chunks' middles (P_EMPTY only:
+their P_OBSTACLE would only add to the outer set). The guarantee is the map's: every proven-free cell
 free, every end point in P_OBSTACLE, for every pose of the robot box at the stamp.
 """
 
@@ -40,22 +41,29 @@ class Chunks:
     moves: np.ndarray  # (S,) some beam of the scan moves (else it is mapped whole)
 
 
-def chunk_scans(scans: Scans, offset: np.ndarray, smin: np.ndarray, n: int = CHUNKS) -> Chunks | None:
+def chunk_scans(scans: Scans, offset: np.ndarray, smin: np.ndarray, n: int = CHUNKS,
+                staggered: bool = False) -> Chunks | None:
     """``scans`` cut into ``n`` runs of beams each, with the nominal moves ``offset`` (B, 2, in
-    the sensor frame) of their beams' sensors; None when no beam moves."""
+    the sensor frame) of their beams' sensors; None when no beam moves. ``staggered``: cut at
+    the middles of those runs instead (``n + 1`` runs, half a run at each end), so that run
+    ``i`` lies within runs ``i − 1`` and ``i`` of the plain cut (:func:`staggered_errors`)."""
     if offset.shape[0] != scans.ranges.shape[0] or not np.any(offset != 0.0):
         return None
     myaw = float(scans.mount[2])
     c, s = math.cos(myaw), math.sin(myaw)
     o = np.column_stack([c * offset[:, 0] - s * offset[:, 1], s * offset[:, 0] + c * offset[:, 1]])  # robot frame
     nb = np.diff(scans.offsets)
-    parts = np.minimum(n, np.maximum(nb, 1))
+    base = np.minimum(n, np.maximum(nb, 1))
+    parts = base + 1 if staggered else base
     first = np.concatenate([[0], np.cumsum(parts)]).astype(np.int64)
     C = int(first[-1])
     of = np.repeat(np.arange(len(scans)), parts)
     starts = np.empty(C, np.int64)
     for k in range(len(scans)):
-        cut = scans.offsets[k] + (np.arange(parts[k]) * nb[k]) // parts[k]
+        if staggered:
+            cut = scans.offsets[k] + np.concatenate([[0], ((2 * np.arange(base[k]) + 1) * nb[k]) // (2 * base[k])])
+        else:
+            cut = scans.offsets[k] + (np.arange(parts[k]) * nb[k]) // parts[k]
         starts[first[k]:first[k + 1]] = cut
     offs = np.concatenate([starts, [scans.offsets[-1]]]).astype(np.int64)
     lead = starts - scans.offsets[of]  # beams before the chunk in its scan
@@ -76,6 +84,13 @@ def chunk_scans(scans: Scans, offset: np.ndarray, smin: np.ndarray, n: int = CHU
     moves = np.array([bool(np.any(o[scans.offsets[k]:scans.offsets[k + 1]] != 0.0)) for k in range(len(scans))])
     return Chunks(scans=cs, of=of, first=first, centre=centre, spread=spread, smin=np.asarray(smin, float)[of],
                   moves=moves)
+
+
+def staggered_errors(x, n: int) -> np.ndarray:
+    """Per-run bounds (``n`` runs, or one for the scan) as bounds of the ``n + 1`` staggered
+    runs: run ``i`` lies within plain runs ``i − 1`` and ``i``, so it takes the larger."""
+    x = np.broadcast_to(np.asarray(x, float), (n,)) if np.ndim(x) == 0 else np.asarray(x, float)[:n]
+    return np.concatenate([x[:1], np.maximum(x[:-1], x[1:]), x[-1:]])
 
 
 def chunk_boxes(ch: Chunks, k: int, box: np.ndarray, a, err, lever: float) -> np.ndarray:

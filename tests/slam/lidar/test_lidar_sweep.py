@@ -52,14 +52,14 @@ def test_a_swept_log_keeps_the_truth_with_its_sweep_and_loses_it_without():
     assert sweep_times_source[1] == "lidar.sweep" and np.allclose(sweep_times_source[0], SWEEP)
 
 
-def _beams_outside_their_runs(scans, tr, model, ch, ks, b, c, taken):
+def _beams_outside_their_runs(scans, tr, model, ch, ks, b, c, taken, plain=None):
     """Over scans ``ks``: how many beams' true sensors (the simulated robot's pose at the beam's
     own time ``taken[k] + b[k] + c[k] i``, the laser on its mount) fall outside their run's
     sensor box built around the true pose at the scan's stamp, or whose true direction (heading
     + mount + beam angle) is not the run's deskewed angle turned by a heading of its box; and
-    the widest run box."""
+    the widest run box. ``plain``: ``ch`` holds the staggered runs of these chunks."""
     from ivslam_cli.slam.lidar.map_update import sensor_boxes
-    from ivslam_cli.slam.lidar.sweep_map import chunk_boxes
+    from ivslam_cli.slam.lidar.sweep_map import chunk_boxes, staggered_errors
 
     ref = float(tr.pose_stamp[0])
     ts, th_u = tr.pose_stamp - ref, np.unwrap(tr.pose[:, 2])
@@ -69,7 +69,11 @@ def _beams_outside_their_runs(scans, tr, model, ch, ks, b, c, taken):
         t_k = float(scans.stamp[k]) - ref
         p = [np.interp(t_k, ts, tr.pose[:, 0]), np.interp(t_k, ts, tr.pose[:, 1]), np.interp(t_k, ts, th_u)]
         box = np.array([p[0], p[0], p[1], p[1], p[2], p[2]])
-        cb = chunk_boxes(ch, k, box, model.run_turn[k], model.run_err[k], float(model.turn_lever[k]))
+        a, e = model.run_turn[k], model.run_err[k]
+        if plain is not None:
+            n = int(plain.first[k + 1] - plain.first[k])
+            a, e = staggered_errors(a, n), staggered_errors(e, n)
+        cb = chunk_boxes(ch, k, box, a, e, float(model.turn_lever[k]))
         sb = sensor_boxes(cb, scans.mount)
         for j in range(ch.first[k], ch.first[k + 1]):
             lo, hi = int(ch.scans.offsets[j]), int(ch.scans.offsets[j + 1])
@@ -108,6 +112,18 @@ def test_every_beam_is_taken_from_within_its_chunks_box(seed):
     b, c = beam_times(scans, params)
     out, worst = _beams_outside_their_runs(scans, tr, model, ch, used[1:-2], b, c, scans.stamp)
     assert out == 0
+    # the staggered runs (the cells between two runs): the same beams in the same order, one run
+    # more, each within two adjacent runs of the plain cut, and the same guarantee
+    st = chunk_scans(model.beams, model.offset, model.smin, staggered=True)
+    for k in used:
+        p0, p1, s0, s1 = ch.first[k], ch.first[k + 1], st.first[k], st.first[k + 1]
+        assert s1 - s0 == p1 - p0 + 1
+        po, so = ch.scans.offsets, st.scans.offsets
+        assert so[s0] == po[p0] and so[s1] == po[p1] and np.all(np.diff(so[s0:s1 + 1]) >= 0)
+        for i in range(1, s1 - s0):
+            assert po[p0 + i - 1] <= so[s0 + i] and so[s0 + i + 1] <= po[min(p0 + i + 1, p1)]
+    out_s, _ = _beams_outside_their_runs(scans, tr, model, st, used[1:-2], b, c, scans.stamp, plain=ch)
+    assert out_s == 0
     # each run's own bounds (the twist's rates about the scan's, over the run's times alone)
     assert np.all(model.run_turn[used] <= model.reach[used, 1][:, None])
     assert np.all(model.run_err[used] <= model.err[used][:, None])
