@@ -98,17 +98,27 @@ def cone_scans(pose: np.ndarray, beam_angle: np.ndarray, half_width: float,
 
 
 @njit(cache=True)
-def swept_cone_scans(pose: np.ndarray, rate: np.ndarray, mount: np.ndarray, beam_angle: np.ndarray,
-                     beam_time: np.ndarray, half_width: float, segments: np.ndarray) -> np.ndarray:
+def swept_cone_scans(pose: np.ndarray, twist: np.ndarray, stamp: np.ndarray, mount: np.ndarray,
+                     beam_angle: np.ndarray, beam_time: np.ndarray, half_width: float,
+                     segments: np.ndarray) -> np.ndarray:
     """:func:`cone_scans` with each beam taken at its own time: beam ``b`` of scan ``i`` from the
-    sensor of the robot pose ``pose[i] + beam_time[b] · rate[i]`` (robot poses ``(T, 3)`` and
-    their rates of change ``(T, 3)``; ``mount`` (3,) the sensor on the robot)."""
+    sensor of the robot ``beam_time[b]`` after pose ``i``, on the arcs it drives (robot poses
+    ``(T, 3)`` at ``stamp`` ``(T,)``, each twist ``(v, ω)`` ``(T, 2)`` held until the next
+    stamp; ``mount`` (3,) the sensor on the robot): the exact unicycle motion the poses come
+    from (:func:`~.motion.step_scalar`)."""
     n, m, k = pose.shape[0], beam_angle.shape[0], segments.shape[0]
     out = np.empty((n, m))
     for i in range(n):
         for b in range(m):
-            t = beam_time[b]
-            x, y, th = pose[i, 0] + t * rate[i, 0], pose[i, 1] + t * rate[i, 1], pose[i, 2] + t * rate[i, 2]
+            j = i
+            while j + 1 < n and stamp[j + 1] - stamp[i] <= beam_time[b]:
+                j += 1
+            t = beam_time[b] - (stamp[j] - stamp[i])
+            half = 0.5 * twist[j, 1] * t
+            chord = twist[j, 0] * t * (math.sin(half) / half if half != 0.0 else 1.0)
+            x = pose[j, 0] + chord * math.cos(pose[j, 2] + half)
+            y = pose[j, 1] + chord * math.sin(pose[j, 2] + half)
+            th = pose[j, 2] + 2.0 * half
             c, s = math.cos(th), math.sin(th)
             ox, oy = x + c * mount[0] - s * mount[1], y + s * mount[0] + c * mount[1]
             a = th + mount[2] + beam_angle[b]

@@ -116,15 +116,15 @@ def simulate_lidar(cfg: SimConfig, progress=None) -> LogData:
                                  cfg.outlier_rate, cfg.outlier_magnitude)
     sensor_pose = laser_poses(pose, prof.mount)
     if cfg.sweep > 0.0:
-        # each beam from the robot pose at its own time: poses between two stamps interpolated
-        th = np.unwrap(pose[:, 2])
-        p = np.column_stack([pose[:, :2], th])
-        rate_ = np.empty_like(p)
-        rate_[:-1] = np.diff(p, axis=0) / np.diff(stamp)[:, None]
-        rate_[-1] = rate_[-2] if n > 1 else 0.0
+        # each beam from the robot pose at its own time, on the arc the robot drives (after the
+        # last stamp, the last step's)
         beam_time = np.linspace(0.0, cfg.sweep, prof.beams)
-        d = swept_cone_scans(p, rate_, np.asarray(prof.mount, float), prof.beam_angles(), beam_time,
-                             float(bounds["beam_angle"]), np.ascontiguousarray(world.segments, float)).ravel()
+        held = twist.copy()
+        if n > 1:
+            held[-1] = twist[-2]
+        d = swept_cone_scans(pose, held, stamp - stamp[0], np.asarray(prof.mount, float), prof.beam_angles(),
+                             beam_time, float(bounds["beam_angle"]),
+                             np.ascontiguousarray(world.segments, float)).ravel()
     elif cfg.beam_model == "cone":
         d = cone_cast(sensor_pose, prof.beam_angles(), bounds["beam_angle"], world.segments).ravel()
     else:

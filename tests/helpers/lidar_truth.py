@@ -9,6 +9,29 @@ import numpy as np
 from ivslam_cli.report.core import compute_report, relative_pose, truth_at
 
 
+def true_pose_at(tr, t, t_ref: float = 0.0) -> np.ndarray:
+    """The simulated robot's true poses ``(n, 3)`` at times ``t_ref + t``: on the arc through the
+    two truth samples around each time (the simulator's unicycle holds its twist over a step:
+    :func:`ivslam_cli.simulate.motion.step_scalar`), heading unwrapped; beyond the truth's span,
+    on its first or last arc (a swept simulation's last scan is taken on the last step's arc).
+    Times relative to ``t_ref`` keep the microseconds between two beams (stamps near 1.7e9 s are
+    2.4e-7 s apart)."""
+    t = np.atleast_1d(np.asarray(t, float))
+    ts = tr.pose_stamp - t_ref
+    th = np.unwrap(tr.pose[:, 2])
+    k = np.clip(np.searchsorted(ts, t, side="right") - 1, 0, len(ts) - 2)
+    h = ts[k + 1] - ts[k]
+    f = np.where(h > 0.0, (t - ts[k]) / np.where(h > 0.0, h, 1.0), 0.0)
+    half = 0.5 * (th[k + 1] - th[k])
+    dx, dy = tr.pose[k + 1, 0] - tr.pose[k, 0], tr.pose[k + 1, 1] - tr.pose[k, 1]
+    turns = np.abs(half) > 1e-12
+    # the chord to the fraction f of the arc: |chord| sin(f half) / sin(half), turned by (f - 1) half
+    length = np.hypot(dx, dy) * np.where(turns, np.sin(f * half) / np.where(turns, np.sin(half), 1.0), f)
+    a = np.arctan2(dy, dx) + (f - 1.0) * half
+    return np.column_stack([tr.pose[k, 0] + length * np.cos(a), tr.pose[k, 1] + length * np.sin(a),
+                            th[k] + 2.0 * f * half])
+
+
 def containment(res) -> dict[str, tuple[int, int]]:
     """``kind -> (contained, checked)`` of the report's truth checks (poses in the result's frame,
     relative boxes, proven-free cells against the walls)."""

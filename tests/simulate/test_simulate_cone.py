@@ -30,6 +30,7 @@ from ivslam_cli.simulate.raycast import cast
 from ivslam_cli.simulate.sensors import PROFILES, get_profile
 from ivslam_cli.simulate.worlds import BUILTIN, load_world
 from tests.helpers.hyp import examples, lanes
+from tests.helpers.lidar_truth import true_pose_at
 
 REL = 1e-12  # rounding allowance of the kernel and of the oracle (relative)
 
@@ -154,21 +155,19 @@ def check_cone_log(log, rays: int = 64):
     """Every beam of ``log`` is in bounds for the nearest wall distance within its stated cone
     exactly when it is not marked an outlier (a no-return beam claims ``d + e(d) > range_max``
     or a too-short return); returns the oracle's nearest points ``(B, 2)``. With a sweep
-    (``meta["sweep"]``), each beam is taken from the robot pose at its own time (the true poses
-    of two stamps interpolated)."""
+    (``meta["sweep"]``), each beam is taken from the robot pose at its own time (on the arc
+    through the true poses of two stamps)."""
     sc, tr, b = log.scans, log.truth, log.bounds
     h = b["beam_angle"]
     out = tr.outliers["scans"]
     mx, my, myaw = sc.mount
     points = np.full((sc.ranges.shape[0], 2), np.nan)
     sweep = float(log.meta.get("sweep", 0.0))
-    pose = np.column_stack([tr.pose[:, :2], np.unwrap(tr.pose[:, 2])])
+    ref = float(tr.pose_stamp[0])
     for k in range(len(sc)):
         b0, b1 = int(sc.offsets[k]), int(sc.offsets[k + 1])
         f = sweep * np.arange(b1 - b0) / max(b1 - b0 - 1, 1)
-        k0, k1 = (k, k + 1) if k + 1 < len(sc) else (k - 1, k)  # the last scan: the step before it
-        rate = (pose[k1] - pose[k0]) / (tr.pose_stamp[k1] - tr.pose_stamp[k0])
-        x, y, th = (pose[k][None, :] + f[:, None] * rate[None, :]).T
+        x, y, th = true_pose_at(tr, (float(sc.stamp[k]) - ref) + f, ref).T
         origin = np.column_stack([x + np.cos(th) * mx - np.sin(th) * my, y + np.sin(th) * mx + np.cos(th) * my])
         ang = th + myaw + (sc.angle_min[k] + np.arange(b1 - b0) * sc.angle_increment[k])
         d_hi, pts, delta = oracle(origin, ang, h, tr.world, rays)

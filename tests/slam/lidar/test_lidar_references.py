@@ -22,6 +22,7 @@ from ivslam_cli.slam.lidar.prediction import sweep_motion, trajectory
 from ivslam_cli.slam.lidar.references import (C_AC, C_I0, C_II, C_MI, C_N, C_OK, C_RAD, C_RR, C_RUNS, C_SMIN, C_TH,
                                               C_X, C_Y, runs_may_cover)
 from ivslam_cli.slam.lidar.sweep_map import chunk_scans
+from tests.helpers.lidar_truth import true_pose_at
 
 SWEEP = 0.0667
 
@@ -36,10 +37,11 @@ def _swept(seed: int, steps: int = 30, **kw):
 
 
 def _truth_at(log, t):
-    tr = log.truth
-    th = np.unwrap(tr.pose[:, 2])
-    return (np.interp(t, tr.pose_stamp, tr.pose[:, 0]), np.interp(t, tr.pose_stamp, tr.pose[:, 1]),
-            np.interp(t, tr.pose_stamp, th))
+    ref = float(log.truth.pose_stamp[0])
+    p = true_pose_at(log.truth, np.asarray(t, float) - ref, ref)
+    if np.ndim(t) == 0:
+        p = p[0]
+    return p[..., 0], p[..., 1], p[..., 2]
 
 
 def _true_box(log, k: int) -> np.ndarray:

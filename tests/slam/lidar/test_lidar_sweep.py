@@ -12,7 +12,7 @@ from ivslam_cli.slam.lidar import Params as LidarParams
 from ivslam_cli.slam.lidar.sweep_map import swept_box
 from ivslam_cli.slam.lidar.pipeline import run
 from ivslam_cli.slam.lidar.prediction import sweep_times
-from tests.helpers.lidar_truth import containment
+from tests.helpers.lidar_truth import containment, true_pose_at
 
 SWEEP = 0.0667  # the URG-04LX: 683 of 1024 steps of a 100 ms turn
 
@@ -62,12 +62,11 @@ def _beams_outside_their_runs(scans, tr, model, ch, ks, b, c, taken, plain=None)
     from ivslam_cli.slam.lidar.sweep_map import chunk_boxes, staggered_errors
 
     ref = float(tr.pose_stamp[0])
-    ts, th_u = tr.pose_stamp - ref, np.unwrap(tr.pose[:, 2])
     mx, my, myaw = scans.mount
     out, worst = 0, 0.0
     for k in ks:
         t_k = float(scans.stamp[k]) - ref
-        p = [np.interp(t_k, ts, tr.pose[:, 0]), np.interp(t_k, ts, tr.pose[:, 1]), np.interp(t_k, ts, th_u)]
+        p = true_pose_at(tr, t_k, ref)[0]
         box = np.array([p[0], p[0], p[1], p[1], p[2], p[2]])
         a, e = model.run_turn[k], model.run_err[k]
         if plain is not None:
@@ -79,7 +78,7 @@ def _beams_outside_their_runs(scans, tr, model, ch, ks, b, c, taken, plain=None)
             lo, hi = int(ch.scans.offsets[j]), int(ch.scans.offsets[j + 1])
             i = np.arange(lo, hi) - int(scans.offsets[k])
             t_i = (float(taken[k]) - ref) + b[k] + c[k] * i
-            x, y, th = (np.interp(t_i, ts, tr.pose[:, 0]), np.interp(t_i, ts, tr.pose[:, 1]), np.interp(t_i, ts, th_u))
+            x, y, th = true_pose_at(tr, t_i, ref).T
             sx = x + np.cos(th) * mx - np.sin(th) * my
             sy = y + np.sin(th) * mx + np.cos(th) * my
             bj = sb[j - ch.first[k]]
