@@ -9,9 +9,10 @@ consecutive beams, each mapped as a scan of its own from the robot box moved by 
 nominal move (the odometry's, :meth:`~ivslam_cli.slam.motion.MotionSteps.move_between`, turned
 with the box's heading) and widened by their spread about it and the move's error. A chunk
 proves free only the bearings its own cones cover and, like the whole scan, nothing nearer its
-sensor than the sweep's ``smin`` (:func:`~.free_cones.sweep_free_from`). A cell whose bearings
-span two chunks is proven by the *staggered* runs, cut at the chunks' middles (P_EMPTY only:
-their P_OBSTACLE would only add to the outer set). The guarantee is the map's: every proven-free cell
+sensor than the sweep's ``smin`` (:func:`~.free_cones.sweep_free_from`). The scan is also
+mapped in *staggered* runs, cut at the chunks' middles (P_EMPTY only: their P_OBSTACLE would
+only add to the outer set), so a cell whose bearings span the boundary of two chunks, but not
+more than half a chunk, lies within one of them. The guarantee is the map's: every proven-free cell
 free, every end point in P_OBSTACLE, for every pose of the robot box at the stamp.
 """
 
