@@ -150,7 +150,7 @@ KEYS: tuple[Key, ...] = (
     Key("lidar", "loop_every", 5, "int", "loop closure: every n-th scan is searched for loops", "", 1),
     Key("lidar", "loop_window", (3.0, 1.5), "float2", "loop closure: an older submap is searched only when the scan's pose in its anchor's frame (what the global boxes and the chain of anchors allow) is at most this wide in x, y [m] and θ [rad]", "m, rad", 0.0),
     Key("lidar", "loop_wide", 8.0, "float", "loop closure: a prior wider than loop_window but at most this wide in x and y [m], any heading, is paved first (every 4th beam, leaves of 0.25 m) and its kept leaves matched; 0 = off", "m", 0.0),
-    Key("lidar", "loop_candidates", 2, "int", "loop closure: at most this many older submaps are searched per scan (the narrowest priors first)", "", 1),
+    Key("lidar", "loop_candidates", 2, "int", "loop closure: at most this many older submaps are searched per scan (the longest chain first: the oldest submap, then the narrowest prior)", "", 1),
     Key("lidar", "loop_stride", 1, "int", "loop closure: every n-th beam of the scan, and of the old submap's anchor scan, is tested", "", 1),
     Key("lidar", "loop_boxes", 8000, "int", "loop closure: pose sub-boxes tested per loop search at most (a search out of budget keeps every pose it did not exclude)", "", 1),
     Key("lidar", "threads", 0, "int", "tracking: a scan's submaps (the overlapping ones) are matched and mapped in this many threads, with the same results as in one; 0: the cores this process may run on (a batch's workers run one each)", "", 0, maximum=1024),
