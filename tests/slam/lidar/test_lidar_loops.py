@@ -263,17 +263,17 @@ def test_the_mosaic_places_every_cell_at_its_anchor_box_centre():
         1 for k in free if free[k] > 0 or obst[k] > 0)
 
 
-@pytest.mark.slow  # ~30 s each
+@pytest.mark.slow  # ~45 s each
 @pytest.mark.parametrize("seed", seeds(ci=20))
 def test_the_simulated_config_keeps_the_truth_in_narrow_relative_boxes(seed):
     """``configs/simulated_lidar.toml`` (no simulated beam breaks its bounds: ``q_beams = 0``,
     every beam, the heading searched to 0.625 mm, a submap every metre, loops searched every
-    other scan against the oldest submap the prior allows) on 20 s rooms logs: every truth
-    inside, no empty event; the relative boxes of the scans (the anchors' apart) median at most
-    0.15 m and 0.03 rad (issue #16's targets); the global map at least half the log-odds free
-    cells; the global box median at most 0.5 m (issue #18's target). Measured on seeds 0-19:
-    relative 0.063-0.072 m and 0.0218-0.0295 rad; global box median 0.23-0.49 m (seed 15 the
-    widest); global free cells 0.64-0.85x log-odds."""
+    other scan) on 20 s rooms logs: every truth inside, no empty event; the relative boxes of
+    the scans (the anchors' apart) median at most 0.15 m and 0.03 rad (issue #16's targets);
+    the global map at least half the log-odds free cells; the global box median at most 0.5 m
+    (issue #18's target). Measured on seeds 0-19: relative 0.063-0.072 m and 0.0218-0.0295
+    rad; global box median 0.23-0.49 m (seed 15 the widest); global free cells 0.64-0.85x
+    log-odds."""
     log, _ = _run(seed, duration=20.0)
     params = LidarParams.from_config(resolve_config(CONFIGS / "simulated_lidar.toml", {}, log_bounds=log.bounds))
     res = run(log, params)
