@@ -276,5 +276,27 @@ def _cell_parts_area(parts, start):
     return out
 
 
+@njit(cache=True)
+def prune_contained(parts, lo, hi, keep, disjoint=False):
+    """``keep[q]`` for ``q`` in ``lo..hi``: False when another part of the pool contains part
+    ``q`` (of equal parts, the first is kept). The union of the kept parts is the pool's.
+    ``disjoint``: the parts' interiors are known disjoint, so only segments and points are
+    searched (a part with an interior lies in no other)."""
+    for q in range(lo, hi):
+        keep[q] = True
+        if disjoint and parts[q, 0, 0] < parts[q, 0, 1] and parts[q, 1, 0] < parts[q, 1, 1]:
+            continue
+        for r in range(lo, hi):
+            if r == q:
+                continue
+            if (parts[r, 0, 0] <= parts[q, 0, 0] and parts[q, 0, 1] <= parts[r, 0, 1]
+                    and parts[r, 1, 0] <= parts[q, 1, 0] and parts[q, 1, 1] <= parts[r, 1, 1]):
+                equal = (parts[r, 0, 0] == parts[q, 0, 0] and parts[q, 0, 1] == parts[r, 0, 1]
+                         and parts[r, 1, 0] == parts[q, 1, 0] and parts[q, 1, 1] == parts[r, 1, 1])
+                if not equal or r < q:
+                    keep[q] = False
+                    break
+
+
 def empty_paving(grid: Grid) -> GridPaving:
     return GridPaving(grid, np.empty(0, np.int64), np.empty(0, np.uint8), np.empty((0, 2, 2)))

@@ -23,6 +23,7 @@ from ivslam_cli.paving.grid import (
     key_i,
     key_j,
     cell_of,
+    prune_contained,
     coord,
     empty_paving,
 )
@@ -110,24 +111,6 @@ def _intersect(kA, lA, sA, pA, kB, lB, sB, pB):
 
 
 @njit(cache=True)
-def _prune(parts, lo, hi, keep):
-    """``keep[q]`` for ``q`` in ``lo..hi``: False when another part of the pool contains part
-    ``q`` (of equal parts, the first is kept). The union of the kept parts is the pool's."""
-    for q in range(lo, hi):
-        keep[q] = True
-        for r in range(lo, hi):
-            if r == q:
-                continue
-            if (parts[r, 0, 0] <= parts[q, 0, 0] and parts[q, 0, 1] <= parts[r, 0, 1]
-                    and parts[r, 1, 0] <= parts[q, 1, 0] and parts[q, 1, 1] <= parts[r, 1, 1]):
-                equal = (parts[r, 0, 0] == parts[q, 0, 0] and parts[q, 0, 1] == parts[r, 0, 1]
-                         and parts[r, 1, 0] == parts[q, 1, 0] and parts[q, 1, 1] == parts[r, 1, 1])
-                if not equal or r < q:
-                    keep[q] = False
-                    break
-
-
-@njit(cache=True)
 def _reduce(keys, label, start, parts, ox, oy, h, max_parts):
     """Merge rows with equal keys (``keys`` sorted; row ``r``'s parts ``parts[start[r]:start[r+1]]``):
     INNER wins (one part: the cell), else the parts are pooled, dropping those contained in
@@ -156,7 +139,7 @@ def _reduce(keys, label, start, parts, ox, oy, h, max_parts):
         hi = start[first[c + 1]]
         cnt = 1
         if ol[c] != INNER:
-            _prune(parts, lo, hi, keep)
+            prune_contained(parts, lo, hi, keep)
             cnt = 0
             for q in range(lo, hi):
                 cnt += keep[q]

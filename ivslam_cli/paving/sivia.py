@@ -39,6 +39,7 @@ from ivslam_cli.paving.grid import (
     key_j,
     coord,
     empty_paving,
+    prune_contained,
 )
 
 DEFAULT_MAX_CELLS = 20_000_000
@@ -163,17 +164,33 @@ def _sub_boxes(I, J, box, depth, ox, oy, h):
 
 
 @njit(cache=True)
+def _compact(parts, lo, hi, keep):
+    """Drops the parts in ``lo..hi`` contained in another (duplicates: all but the first), moving
+    the kept ones to the front; returns how many are kept. The union is unchanged. The parts'
+    interiors are disjoint (pieces of distinct sub-cells or bisection halves), so only a
+    segment or a point can lie in another."""
+    prune_contained(parts, lo, hi, keep, True)
+    w = lo
+    for q in range(lo, hi):
+        if keep[q]:
+            parts[w] = parts[q]
+            w += 1
+    return w - lo
+
+
+@njit(cache=True)
 def _reduce_sub(n, per, sb, inp, out, inside, meet):
     """Per cell: its parts, the contracted pieces (a piece proven inside is kept whole); every
     piece proven inside -> INNER (one part, the cell); no piece left -> dropped (label 0).
 
     Returns ``(label (n,), box (n, 2, 2) hull of the parts, count (n,), parts (n * per, 2, 2))``
-    with cell ``k``'s parts at ``parts[k * per : k * per + count[k]]``.
+    with cell ``k``'s parts at ``parts[k * per : k * per + count[k]]``, none contained in another.
     """
     box = np.empty((n, 2, 2))
     label = np.zeros(n, np.uint8)  # 0 = dropped
     count = np.zeros(n, np.int64)
     parts = np.empty((n * per, 2, 2))
+    keep = np.empty(n * per, np.bool_)
     for k in range(n):
         base = k * per
         all_in = True
@@ -205,6 +222,7 @@ def _reduce_sub(n, per, sb, inp, out, inside, meet):
             c = 1
         elif c > 0:
             label[k] = BOUNDARY
+            c = _compact(parts, base, base + c, keep)
         count[k] = c
         box[k, 0, 0] = np.inf
         box[k, 0, 1] = -np.inf
@@ -308,8 +326,8 @@ def _bisect(b):
 
 @njit(cache=True)
 def _pack(cell, parts, n):
-    """Parts grouped by cell (``cell`` sorted): ``(count (n,), per, padded (n * per, 2, 2),
-    hull (n, 2, 2))`` in the layout of :func:`_reduce_sub`."""
+    """Parts grouped by cell (``cell`` sorted), those contained in another dropped: ``(count (n,),
+    per, padded (n * per, 2, 2), hull (n, 2, 2))`` in the layout of :func:`_reduce_sub`."""
     count = np.zeros(n, np.int64)
     for q in range(cell.shape[0]):
         count[cell[q]] += 1
@@ -328,6 +346,10 @@ def _pack(cell, parts, n):
         for d in range(2):
             box[k, d, 0] = min(box[k, d, 0], parts[q, d, 0])
             box[k, d, 1] = max(box[k, d, 1], parts[q, d, 1])
+    keep = np.empty(n * per, np.bool_)
+    for k in range(n):
+        if count[k] > 1:
+            count[k] = _compact(padded, k * per, k * per + count[k], keep)
     return count, per, padded, box
 
 

@@ -12,7 +12,7 @@ import math
 import mpmath
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import example, given
 from hypothesis import strategies as st
 
 from ivslam_cli import paving as P
@@ -47,6 +47,7 @@ def test_polar_paving_sound(params, sub, seed):
 
 @SETTINGS
 @given(polar_params(), st.sampled_from([1, 2, 3]), st.integers(0, 2**32 - 1))
+@example(((0.0, 0.0), (0.0, 0.05), (0.0, 7.0), 0.2, (0.0, 0.25)), 1, 0)  # degenerate sub-parts
 def test_sub_parts_tighten_never_lose(params, sub, seed):
     """Several boxes per boundary cell: the outer approximation shrinks (area <= the one-box
     area, each cell's hull within its sub=0 box), inner cells are kept, true points stay in."""
