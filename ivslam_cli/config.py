@@ -153,6 +153,8 @@ KEYS: tuple[Key, ...] = (
     Key("lidar", "loop_candidates", 2, "int", "loop closure: at most this many older submaps are searched per scan (the longest chain first: the oldest submap, then the narrowest prior)", "", 1),
     Key("lidar", "loop_stride", 1, "int", "loop closure: every n-th beam of the scan, and of the old submap's anchor scan, is tested", "", 1),
     Key("lidar", "loop_boxes", 8000, "int", "loop closure: pose sub-boxes tested per loop search at most (a search out of budget keeps every pose it did not exclude)", "", 1),
+    Key("lidar", "pair_boxes", 0, "int", "scan pairs: each scan also matched against the scan before it alone (that scan's frame exact, the motion model's step box the prior), giving an enclosure of their relative pose (the scan-to-scan relations of benchmarks) beside the submaps' chain; the pose sub-boxes tested per pair at most; 0: no pairs", "", 0, maximum=1_000_000),
+    Key("lidar", "pair_stride", 1, "int", "scan pairs: every n-th beam of both scans is tested", "", 1),
     Key("lidar", "threads", 0, "int", "tracking: a scan's submaps (the overlapping ones) are matched and mapped in this many threads, with the same results as in one; 0: the cores this process may run on (a batch's workers run one each)", "", 0, maximum=1024),
     Key("lidar", "poses_known", False, "bool", "guaranteed mapping only: the poses are given (known_poses) within pose_margin; no odometry needed"),
     Key("lidar", "known_poses", "auto", "str", "with poses_known, where the poses come from: truth (the log's ground truth), scan (poses recorded with each scan, e.g. CARMEN FLASER), odometry (odometry poses), or auto (the first of these the log has); interpolated at scan stamps between given poses"),

@@ -281,6 +281,41 @@ def relative_containment(r: Result, truth: GroundTruth) -> Containment | None:
                        centre_error=err)
 
 
+def scan_pair_mask(r: Result) -> np.ndarray | None:
+    """Which of ``r.relative``'s enclosures are scan pairs (``lidar.pair_boxes``: consecutive
+    scans matched alone), not a submap member's box in its anchor's frame (those are the
+    submaps' own); None without any."""
+    rp, sm = r.relative, r.submaps
+    if rp is None or len(rp) == 0 or sm is None:
+        return None
+    owner = np.repeat(np.arange(len(sm)), np.diff(sm.member_offsets))
+    member: dict = {}
+    for a, b, box in zip(np.asarray(sm.anchor)[owner].tolist(), np.asarray(sm.member_row).tolist(), sm.member_box):
+        member.setdefault((a, b), []).append(box)
+    mask = np.array([not any(np.array_equal(box, m) for m in member.get((int(a), int(b)), ()))
+                     for (a, b), box in zip(rp.pairs, rp.box)], bool)
+    return mask if mask.any() else None
+
+
+def scan_pair_containment(r: Result, truth: GroundTruth) -> Containment | None:
+    """Every scan pair's relative enclosure (later scan in the earlier one's robot frame) against
+    the true relative pose (truth at the two scans' stamps)."""
+    mask = scan_pair_mask(r)
+    if mask is None or truth.pose is None or truth.pose_stamp is None:
+        return None
+    pairs, box = r.relative.pairs[mask], r.relative.box[mask]
+    st = r.poses.stamp
+    ta, tb = truth_at(truth, st[pairs[:, 0]]), truth_at(truth, st[pairs[:, 1]])
+    have = np.all(np.isfinite(ta), axis=1) & np.all(np.isfinite(tb), axis=1)
+    rel = relative_pose(ta[have], tb[have])
+    box = box[have]
+    ok = in_box(box[:, :2], rel[:, :2]) & angle_in(box[:, 2, 0], box[:, 2, 1], rel[:, 2])
+    err = np.linalg.norm(box_centre(box[:, :2]) - rel[:, :2], axis=-1)
+    bad = pairs[have][~ok]
+    return Containment("pose_scan_pair", int(have.sum()), int(ok.sum()), not_checked=int((~have).sum()),
+                       failures=[f"scan rows {int(a)} -> {int(b)}" for a, b in bad], centre_error=err)
+
+
 def segments_meet_cells(segs: np.ndarray, cells: np.ndarray, eps: float, origin, margin: float = 1e-6) -> np.ndarray:
     """Whether each cell ``(column, row)`` of a grid (side ``eps``, corner ``origin``; closed
     squares grown by ``margin``: the safe side for a check of free cells) meets a segment
@@ -500,6 +535,11 @@ def final_widths(r: Result) -> dict[str, WidthStat]:
             out[kind] = width_stat(box_width(b[:, :2]))
             th = b[:, 2, 1] - b[:, 2, 0]
             out[kind + "_heading"] = width_stat(np.where(box_is_empty(b), np.nan, th))
+    mask = scan_pair_mask(r)
+    if mask is not None:
+        b = r.relative.box[mask]
+        out["pose_scan_pair"] = width_stat(box_width(b[:, :2]))
+        out["pose_scan_pair_heading"] = width_stat(b[:, 2, 1] - b[:, 2, 0])
     return out
 
 
@@ -519,6 +559,7 @@ def compute_report(r: Result) -> Report:
             pair_containment(r.pairs, truth) if r.pairs is not None else None,
             poses,
             relative_containment(r, truth),
+            scan_pair_containment(r, truth),
             free_cell_containment(r, framed),
             global_free_containment(r, framed),
         ):

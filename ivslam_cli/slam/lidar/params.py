@@ -78,6 +78,8 @@ class Params:
     loop_candidates: int = 2
     loop_boxes: int = 8000
     loop_stride: int = 1
+    pair_boxes: int = 0
+    pair_stride: int = 1
     threads: int = 0
 
     @property
@@ -118,5 +120,6 @@ class Params:
             loop_window=tuple(float(v) for v in cfg["lidar.loop_window"]),
             loop_wide=float(cfg["lidar.loop_wide"]),
             loop_candidates=int(cfg["lidar.loop_candidates"]), loop_boxes=int(cfg["lidar.loop_boxes"]),
-            loop_stride=int(cfg["lidar.loop_stride"]), threads=int(cfg["lidar.threads"]),
+            loop_stride=int(cfg["lidar.loop_stride"]), pair_boxes=int(cfg["lidar.pair_boxes"]),
+            pair_stride=int(cfg["lidar.pair_stride"]), threads=int(cfg["lidar.threads"]),
         )

@@ -208,10 +208,13 @@ def solve(log: LogData, params: Params, progress=None) -> LidarOutput:
         lo_sub = submap_logodds(scans, used, submaps)
         grid, logodds = mosaic(submaps, lo_sub)
         keep = submaps.member_row != submaps.anchor[np.repeat(np.arange(len(submaps)), np.diff(submaps.member_offsets))]
-        relative = RelativePoses(
-            pairs=np.column_stack([np.repeat(submaps.anchor, np.diff(submaps.member_offsets)),
-                                   submaps.member_row])[keep].astype(np.int64).reshape(-1, 2),
-            box=np.ascontiguousarray(submaps.member_box[keep]).reshape(-1, 3, 2))
+        rel_pairs = np.column_stack([np.repeat(submaps.anchor, np.diff(submaps.member_offsets)),
+                                     submaps.member_row])[keep].astype(np.int64).reshape(-1, 2)
+        rel_box = np.ascontiguousarray(submaps.member_box[keep]).reshape(-1, 3, 2)
+        if tracking.pairs is not None:  # consecutive scans matched alone
+            rel_pairs = np.concatenate([rel_pairs, tracking.pairs[0]])
+            rel_box = np.concatenate([rel_box, tracking.pairs[1]])
+        relative = RelativePoses(pairs=rel_pairs, box=np.ascontiguousarray(rel_box))
         cells = [submaps.grid(m).state for m in range(len(submaps))]
         empty_cells = int(sum(int(np.count_nonzero(c == CELL_EMPTY)) for c in cells))
         obstacle_cells = int(sum(int(np.count_nonzero(c == CELL_OBSTACLE)) for c in cells))

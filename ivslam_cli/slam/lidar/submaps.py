@@ -49,6 +49,7 @@ from ivslam_cli.slam.lidar.map_update import extent_limits
 from ivslam_cli.slam.lidar.matcher import hull
 from ivslam_cli.slam.lidar.params import Params
 from ivslam_cli.slam.lidar.prediction import PosePrediction, sweep_motion, trajectory
+from ivslam_cli.slam.lidar.scan_pairs import scan_pairs
 from ivslam_cli.slam.lidar.submap_track import Track, reset_node, threads, width
 from ivslam_cli.slam.motion_kernel import (
     meet_node,
@@ -114,6 +115,7 @@ class SubmapTracking:
     sweep: np.ndarray | None = None  # (S', 2) per used row: motion bound (d, a) while its beams are taken
     smin: np.ndarray | None = None  # (S',) per used row: no cell nearer its sensor proven free (sweep_free_from)
     beams: Scans | None = None  # the scans as matched and mapped: each beam turned by the sweep's nominal turn
+    pairs: tuple | None = None  # (rows (P, 2), boxes (P, 3, 2)): consecutive scans matched alone (scan_pairs)
 
 
 def _centre(b: np.ndarray) -> tuple[float, float, float]:
@@ -427,6 +429,13 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                 submaps.append(s_new)
                 active.append(s_new)
                 last = (0.0, 0.0, 0.0)
+        pairs = None
+        if params.pair_boxes > 0 and params.contract:
+            known = {}
+            for s in submaps:  # a scan in the submap anchored at the row before it: its box there
+                if len(s.rows) > 1 and s.rows[1] == s.anchor_row + 1:
+                    known[s.rows[1]] = s.rel[1]
+            pairs = scan_pairs(track, m, used, {row for row, _ in relocalised}, known)
     finally:
         for s in submaps:
             track.settle(s)
@@ -494,4 +503,4 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                           node_stamp=m.node_stamp, dropped=dropped)
     return SubmapTracking(pred, submaps, home, relative, mapped, contracted, contradicted, compose_empty,
                           relocalised, q_relaxed, forward, predicted, tested, smoothed, stats, is_old, graph, open_loop,
-                          anchor_before, set_cells, q_rematched, q_held, sweep[used], smin[used], beams)
+                          anchor_before, set_cells, q_rematched, q_held, sweep[used], smin[used], beams, pairs)
