@@ -39,6 +39,19 @@ bounds what one match can reach, not the tracker, which meets many scans.
 **A recorded log, pairs at rest** (``--log``): two scans between which the odometry shows no
 motion have the identity as their true relative pose; the same two-scan witnesses are searched
 around it (no truth needed), beside our matcher on the pair.
+
+**A recorded log with benchmark relations** (``--log --relations FILE``, Kümmerle et al. 2009):
+for every relation between two consecutive scans, (1) the fewest beams (of either scan, the
+larger count) that break the bounds at any relative pose within 2 cm and 5 mrad of the relation
+— the q the data need if the relation is right to that much; (2) the x, y and θ extents of the
+witnesses (a grid of 2 cm and 5 mrad over our matcher's hull grown by 2 cm and 10 mrad, within
+the prior) at each
+``--q``: the floor of what one pair can prove (a coarse grid only lowers it); (3) our scan-pair match (:mod:`ivslam_cli.slam.lidar.scan_pairs`:
+the motion model's step box as the prior, the config's ``pair_boxes`` and ``pair_stride``) on the
+same pair, its widths and whether the relation is inside.
+
+    python -m bench.bench_lidar_floor --log ../shared/datasets/intel_lab/intel_gfs.json.xz \
+        --config configs/intel_lab.toml --relations ../shared/datasets/intel_lab/intel.relations.xz --q 5,10
 """
 
 from __future__ import annotations
@@ -277,7 +290,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--config", type=Path, help="with --log: its configuration (the bounds)")
     ap.add_argument("--at-rest", default="0:3,0:7,0:12",
                     help="with --log: pairs j:k of scans between which the odometry shows no motion")
+    ap.add_argument("--relations", type=Path, help="with --log: benchmark relations (pairs of consecutive scans)")
     args = ap.parse_args(argv)
+    if args.log is not None and args.relations is not None:
+        return relations_floor(args.log, args.config, args.relations, [int(x) for x in args.q.split(",")])
     if args.log is not None:
         return at_rest(args.log, args.config, [tuple(int(v) for v in p.split(":")) for p in args.at_rest.split(",")],
                        [int(x) for x in args.q.split(",")])
@@ -379,6 +395,144 @@ def at_rest(path: Path, config: Path | None, pairs_: list[tuple[int, int]], qs: 
                          if not in_union(union, p)]
             cells.append(f"{lo + hi:>11.4f} {float(union[:, 5].max() - union[:, 4].min()):>10.4f}")
         print(f"{j:>3}:{k:<3} " + " ".join(cells), flush=True)
+    for f in failures:
+        print("SOUNDNESS FAILURE:", f)
+    return 1 if failures else 0
+
+
+@njit(cache=True)
+def _both_broken(x, y, th, mount, S, A, ra, ns, nr, cap):
+    """The larger count of broken beams of the two scans at relative robot pose ``(x, y, th)``."""
+    mx, my, myaw = mount
+    c, s = math.cos(th), math.sin(th)
+    sx, sy = x + c * mx - s * my, y + s * mx + c * my
+    a = pair_breaks(sx, sy, th + myaw, S[0], S[1], S[2], ra, mx, my, myaw, A[3], A[4], A[5], ns, nr, cap)
+    if a > cap:
+        return a
+    return max(a, pair_breaks(mx, my, myaw, A[0], A[1], A[2], ra, sx, sy, th + myaw, S[3], S[4], S[5], ns, nr, cap))
+
+
+@njit(cache=True)
+def fewest_broken(t, half, step, half_th, step_th, mount, S, A, ra, ns, nr):
+    """The fewest broken beams (:func:`_both_broken`) on a grid within ``half`` (``step``) and
+    ``half_th`` (``step_th``) of the relative pose ``t``."""
+    n, m = int(round(half / step)), int(round(half_th / step_th))
+    best = 1 << 30
+    for kk in range(-m, m + 1):
+        for ii in range(-n, n + 1):
+            for jj in range(-n, n + 1):
+                v = _both_broken(t[0] + ii * step, t[1] + jj * step, t[2] + kk * step_th, mount, S, A, ra, ns, nr,
+                                 best - 1)
+                best = min(best, v)
+    return best
+
+
+@njit(cache=True)
+def _first_witness(x0, y0, th, step, outer, inner, by_x, rev, mount, S, A, ra, q, ns, nr):
+    """The first grid line (of ``outer`` lines, from the low end or, ``rev``, the high end;
+    columns of constant x when ``by_x``, else rows) holding a witness at heading ``th``; -1 if
+    none."""
+    for a in range(outer):
+        u = outer - 1 - a if rev else a
+        for v in range(inner):
+            i, j = (u, v) if by_x else (v, u)
+            if _both_broken(x0 + i * step, y0 + j * step, th, mount, S, A, ra, ns, nr, q) <= q:
+                return u
+    return -1
+
+
+@njit(cache=True)
+def witness_extents(box, step, step_th, mount, S, A, ra, q, ns, nr, out):
+    """``out`` (6,) = the x, y, θ extents of the witnesses (at most ``q`` broken beams of each
+    scan) on a grid over ``box`` (6,), each heading searched from the four sides inward; returns
+    the headings with a witness."""
+    found = 0
+    nx, ny = int((box[1] - box[0]) / step) + 1, int((box[3] - box[2]) / step) + 1
+    nt = int((box[5] - box[4]) / step_th) + 1
+    for kk in range(nt):
+        th = box[4] + kk * step_th
+        lo_x = _first_witness(box[0], box[2], th, step, nx, ny, True, False, mount, S, A, ra, q, ns, nr)
+        if lo_x < 0:
+            continue
+        hi_x = _first_witness(box[0], box[2], th, step, nx, ny, True, True, mount, S, A, ra, q, ns, nr)
+        lo_y = _first_witness(box[0], box[2], th, step, ny, nx, False, False, mount, S, A, ra, q, ns, nr)
+        hi_y = _first_witness(box[0], box[2], th, step, ny, nx, False, True, mount, S, A, ra, q, ns, nr)
+        out[0], out[1] = min(out[0], box[0] + lo_x * step), max(out[1], box[0] + hi_x * step)
+        out[2], out[3] = min(out[2], box[2] + lo_y * step), max(out[3], box[2] + hi_y * step)
+        out[4], out[5] = min(out[4], th), max(out[5], th)
+        found += 1
+    return found
+
+
+def relations_floor(path: Path, config: Path | None, relations: Path, qs: list[int]) -> int:
+    """The table of ``--relations`` (see the module docstring); 1 if a witness lies outside our
+    pair enclosure at the config's q."""
+    from ivslam_cli.config import resolve_config
+    from ivslam_cli.logs import read_log
+    from ivslam_cli.paving.tiles import TileMap
+    from ivslam_cli.report.relations import match_stamps, read_relations
+    from ivslam_cli.slam.lidar.matcher import Matcher, hull
+    from ivslam_cli.slam.lidar.params import Params
+    from ivslam_cli.slam.lidar.prediction import trajectory
+    from ivslam_cli.slam.lidar.scan_pairs import pair_prior
+
+    log = read_log(path)
+    params = Params.from_config(resolve_config(config, {}, log_bounds=log.bounds))
+    b = params.beams
+    rel = read_relations(relations)
+    st = np.asarray(log.scans.stamp, float)
+    a_, _ = match_stamps(st, rel.t1, 1e-4)
+    b_, _ = match_stamps(st, rel.t2, 1e-4)
+    rows = np.flatnonzero((a_ >= 0) & (b_ >= 0) & (b_ - a_ == 1))
+    used, _, m = trajectory(log, params, log.scans)[:3]
+    mount = tuple(float(v) for v in log.scans.mount)
+    matcher = Matcher(params, log.scans)
+    budget = params.pair_boxes or params.match_boxes
+    print(f"{path.name}: {rows.size} relations between consecutive scans; our pair match: {budget} boxes, every "
+          f"{params.pair_stride} beam(s), q = {params.q_beams}; witnesses on a grid of 2 cm and 5 mrad")
+    print(f"{'pair':>9} {'fewest':>6} " + " ".join(f"{'floor q=' + str(q) + ' x/y/θ':>22}" for q in qs)
+          + f" {'ours x/y/θ':>22} inside")
+    fewest, floors, ours, failures, outside = [], {q: [] for q in qs}, [], [], 0
+    t0 = time.perf_counter()
+    for r in rows:
+        j, k = int(a_[r]), int(b_[r])
+        S, A = pair_scan(log, k, b.range_abs, b.range_rel), pair_scan(log, j, b.range_abs, b.range_rel)
+        t = np.asarray(rel.rel[r], float)
+        n = fewest_broken(t, 0.02, 0.002, 0.005, 0.001, mount, S, A, float(b.bearing), 9, 7)
+        fewest.append(n)
+        rj, rk = (int(np.searchsorted(used, i)) for i in (j, k))
+        if rk >= used.size or used[rj] != j or used[rk] != k or (prior := pair_prior(m, rj, rk)) is None:
+            print(f"{j:>4}:{k:<4} no prior (a scan not used, or a motion step without solution)")
+            continue
+        tm = TileMap(params.eps)
+        union, ok, _ = matcher.match(k, prior[None, :], tm, [(j, np.zeros(6))], budget=budget,
+                                     stride=params.pair_stride)
+        h = hull(union)
+        inside = in_union(union, t)
+        outside += not inside
+        ours.append(h[1::2] - h[0::2])
+        cells = []
+        for q in qs:
+            box = h + np.array([-0.02, 0.02, -0.02, 0.02, -0.01, 0.01])  # beyond it: witnesses our union misses
+            box[0::2], box[1::2] = np.maximum(box[0::2], prior[0::2]), np.minimum(box[1::2], prior[1::2])
+            out = np.array([np.inf, -np.inf, np.inf, -np.inf, np.inf, -np.inf])
+            witness_extents(box, 0.02, 0.005, mount, S, A, float(b.bearing), q, 9, 7, out)
+            w = np.where(np.isfinite(out[1::2] - out[0::2]), out[1::2] - out[0::2], 0.0)
+            floors[q].append(w)
+            if q == params.q_beams and np.isfinite(out).all() and not (
+                    np.all(h[0::2] <= out[0::2]) and np.all(out[1::2] <= h[1::2])):
+                failures.append(f"pair {j}:{k}: witnesses {np.round(out, 4).tolist()} beyond our hull")
+            cells.append(f"{w[0]:>7.3f}{w[1]:>7.3f}{w[2]:>8.4f}")
+        cells.append(f"{ours[-1][0]:>7.3f}{ours[-1][1]:>7.3f}{ours[-1][2]:>8.4f}")
+        print(f"{j:>4}:{k:<4} {n:>6} " + " ".join(cells) + f" {'yes' if inside else 'NO'}", flush=True)
+    print(f"{'median':>9} {np.median(fewest):>6.0f} " + " ".join(
+        "".join(f"{v:>7.3f}" for v in np.median(floors[q], axis=0)[:2]) + f"{np.median(floors[q], axis=0)[2]:>8.4f}"
+        for q in qs) + "".join(f"{v:>7.3f}" for v in np.median(ours, axis=0)[:2])
+          + f"{np.median(ours, axis=0)[2]:>8.4f}")
+    need = np.array(fewest)
+    print(f"fewest broken beams near the relations: {np.bincount(need).tolist()} (count by number); "
+          f"{int((need > params.q_beams).sum())} relations need more than q = {params.q_beams}; "
+          f"{outside} relations outside our pair enclosure; {time.perf_counter() - t0:.0f} s")
     for f in failures:
         print("SOUNDNESS FAILURE:", f)
     return 1 if failures else 0

@@ -69,7 +69,7 @@ class LidarOutput:
     scans: Scans  # the scans as used (returns beyond lidar.max_range marked invalid)
     logodds: LogOddsGrid | None = None
     submaps: Submaps | None = None
-    relative: RelativePoses | None = None  # (anchor row, member row) for every submap membership
+    relative: RelativePoses | None = None  # (anchor row, member row) for every submap membership, then the scan pairs
     tracking: object | None = None  # the submap pass (its submaps' maps and trajectories), dead reckoning
     tmap: object | None = None  # the one map, given poses
     loops: object | None = None  # Loops record (loop closure)

@@ -79,7 +79,7 @@ def scan_pairs(track, m, used: np.ndarray, skip: set, known: dict | None = None)
             return None
         h = hull(union)
         lo, hi = np.maximum(h[0::2], prior[0::2]), np.minimum(h[1::2], prior[1::2])
-        return np.column_stack([lo, hi])
+        return np.column_stack([lo, hi]) if np.all(lo <= hi) else None
 
     rows = [j for j in range(1, used.size) if j not in skip and (j - 1) not in skip]
     boxes = track.map(one, rows)
