@@ -187,21 +187,13 @@ def pair_witness(tx, ty, th, half, step, mount, S, A, ra, q, ns, nr):
     ``step`` within ``half`` of ``(tx, ty)``), scan ``S`` against scan ``A`` at the frame's
     origin; ``S``, ``A``: (angles, lo, hi, free ranges, a0, inc) of the valid beams (free ranges
     over every beam). Returns ``(found, x, y)``."""
-    mx, my, myaw = mount
     n = int(round(half / step))
-    c = math.cos(th)
-    s = math.sin(th)
     for ii in range(-n, n + 1):
         for jj in range(-n, n + 1):
             x = tx + ii * step
             y = ty + jj * step
-            sx = x + c * mx - s * my
-            sy = y + s * mx + c * my
-            if pair_breaks(sx, sy, th + myaw, S[0], S[1], S[2], ra, mx, my, myaw, A[3], A[4], A[5], ns, nr, q) > q:
-                continue
-            if pair_breaks(mx, my, myaw, A[0], A[1], A[2], ra, sx, sy, th + myaw, S[3], S[4], S[5], ns, nr, q) > q:
-                continue
-            return True, x, y
+            if _both_broken(x, y, th, mount, S, A, ra, ns, nr, q) <= q:
+                return True, x, y
     return False, 0.0, 0.0
 
 

@@ -256,6 +256,19 @@ def pose_containment(poses: Poses, truth: GroundTruth, max_gap: float = MAX_TRUT
     )
 
 
+def _relative_check(r: Result, truth: GroundTruth, a_rows: np.ndarray, b_rows: np.ndarray, box: np.ndarray):
+    """Relative enclosures ``box`` (pose row b in pose row a's robot frame) against the true
+    relative poses at the two rows' stamps: ``(have, ok, centre error)``, ``ok`` over the rows
+    with both truths (``have``)."""
+    st = r.poses.stamp
+    ta, tb = truth_at(truth, st[a_rows]), truth_at(truth, st[b_rows])
+    have = np.all(np.isfinite(ta), axis=1) & np.all(np.isfinite(tb), axis=1)
+    rel = relative_pose(ta[have], tb[have])
+    box = box[have]
+    ok = in_box(box[:, :2], rel[:, :2]) & angle_in(box[:, 2, 0], box[:, 2, 1], rel[:, 2])
+    return have, ok, np.linalg.norm(box_centre(box[:, :2]) - rel[:, :2], axis=-1)
+
+
 def relative_containment(r: Result, truth: GroundTruth) -> Containment | None:
     """Every scan's box in its submap's frame against the true pose relative to the true pose
     of the submap's anchor (truth at the two scans' stamps)."""
@@ -267,13 +280,7 @@ def relative_containment(r: Result, truth: GroundTruth) -> Containment | None:
     keep = a_rows != b_rows
     if not keep.any():
         return None
-    st = r.poses.stamp
-    ta, tb = truth_at(truth, st[a_rows[keep]]), truth_at(truth, st[b_rows[keep]])
-    have = np.all(np.isfinite(ta), axis=1) & np.all(np.isfinite(tb), axis=1)
-    rel = relative_pose(ta[have], tb[have])
-    box = sm.member_box[keep][have]
-    ok = in_box(box[:, :2], rel[:, :2]) & angle_in(box[:, 2, 0], box[:, 2, 1], rel[:, 2])
-    err = np.linalg.norm(box_centre(box[:, :2]) - rel[:, :2], axis=-1)
+    have, ok, err = _relative_check(r, truth, a_rows[keep], b_rows[keep], sm.member_box[keep])
     rows = b_rows[keep][have]
     subs = owner[keep][have]
     return Containment("pose_relative", int(have.sum()), int(ok.sum()), not_checked=int((~have).sum()),
@@ -303,14 +310,8 @@ def scan_pair_containment(r: Result, truth: GroundTruth) -> Containment | None:
     mask = scan_pair_mask(r)
     if mask is None or truth.pose is None or truth.pose_stamp is None:
         return None
-    pairs, box = r.relative.pairs[mask], r.relative.box[mask]
-    st = r.poses.stamp
-    ta, tb = truth_at(truth, st[pairs[:, 0]]), truth_at(truth, st[pairs[:, 1]])
-    have = np.all(np.isfinite(ta), axis=1) & np.all(np.isfinite(tb), axis=1)
-    rel = relative_pose(ta[have], tb[have])
-    box = box[have]
-    ok = in_box(box[:, :2], rel[:, :2]) & angle_in(box[:, 2, 0], box[:, 2, 1], rel[:, 2])
-    err = np.linalg.norm(box_centre(box[:, :2]) - rel[:, :2], axis=-1)
+    pairs = r.relative.pairs[mask]
+    have, ok, err = _relative_check(r, truth, pairs[:, 0], pairs[:, 1], r.relative.box[mask])
     bad = pairs[have][~ok]
     return Containment("pose_scan_pair", int(have.sum()), int(ok.sum()), not_checked=int((~have).sum()),
                        failures=[f"scan rows {int(a)} -> {int(b)}" for a, b in bad], centre_error=err)

@@ -46,25 +46,17 @@ def pair_prior(m, a: int, b: int) -> np.ndarray | None:
     return out[0]
 
 
-def scan_pairs(track, m, used: np.ndarray, skip: set, known: dict | None = None) -> tuple[np.ndarray, np.ndarray]:
+def scan_pairs(track, m, used: np.ndarray, skip: set) -> tuple[np.ndarray, np.ndarray]:
     """The enclosures of every consecutive pair of used rows ``(j - 1, j)`` (see the module
     docstring), matched on ``track``'s threads with its matchers (the scans as tracked:
-    deskewed, with their sweep); rows in ``skip`` (relocalised) get none. ``known[j]``: an
-    enclosure (6,) of row ``j`` in row ``j - 1``'s frame already proven (the tracking's, in a
-    submap anchored at ``j - 1``), met with the prior. Returns ``(pairs (P, 2) rows, boxes (P,
-    3, 2))``."""
-    p, scans = track.p, track.scans
-    known = known or {}
+    deskewed, with their sweep); rows in ``skip`` (relocalised) get none. Returns ``(pairs (P,
+    2) rows, boxes (P, 3, 2))``."""
+    p = track.p
 
     def one(j: int):
         prior = pair_prior(m, j - 1, j)
         if prior is None or not np.all(np.isfinite(prior)):
             return None
-        if j in known:
-            lo, hi = np.maximum(prior[0::2], known[j][0::2]), np.minimum(prior[1::2], known[j][1::2])
-            if not np.all(lo <= hi):
-                return None  # the two disagree: a broken assumption, recorded by the tracking
-            prior = np.column_stack([lo, hi]).reshape(6)
         a, b = int(used[j - 1]), int(used[j])
         q = track.q_for((a, b))
         refs = [(a, np.zeros(6))]

@@ -431,11 +431,7 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                 last = (0.0, 0.0, 0.0)
         pairs = None
         if params.pair_boxes > 0 and params.contract:
-            known = {}
-            for s in submaps:  # a scan in the submap anchored at the row before it: its box there
-                if len(s.rows) > 1 and s.rows[1] == s.anchor_row + 1:
-                    known[s.rows[1]] = s.rel[1]
-            pairs = scan_pairs(track, m, used, {row for row, _ in relocalised}, known)
+            pairs = scan_pairs(track, m, used, {row for row, _ in relocalised})
     finally:
         for s in submaps:
             track.settle(s)

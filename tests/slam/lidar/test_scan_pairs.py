@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ivslam_cli.report.core import relative_pose, scan_pair_mask, truth_at
+from ivslam_cli.report.core import angle_in, in_box, relative_pose, scan_pair_mask, truth_at
 from ivslam_cli.slam.lidar.pipeline import run
 from ivslam_cli.slam.lidar.prediction import trajectory
 from ivslam_cli.slam.lidar.scan_pairs import pair_prior
@@ -19,8 +19,7 @@ WIDE = {"bounds.odom_v": 1.0, "bounds.odom_w": 2.0}  # sound (wider than the sim
 
 def _inside(box, t):
     """Is the pose ``t`` (3,) in the box (3, 2), the heading modulo 2π?"""
-    th = t[2] + 2 * np.pi * np.round((box[2].mean() - t[2]) / (2 * np.pi))
-    return bool(np.all(box[:2, 0] <= t[:2]) and np.all(t[:2] <= box[:2, 1]) and box[2, 0] <= th <= box[2, 1])
+    return bool(in_box(box[:2], t[:2]) and angle_in(box[2, 0], box[2, 1], t[2]))
 
 
 @pytest.mark.parametrize("seed", seeds(ci=6, dev=2))
