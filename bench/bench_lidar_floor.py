@@ -44,10 +44,11 @@ around it (no truth needed), beside our matcher on the pair.
 for every relation between two consecutive scans, (1) the fewest beams (of either scan, the
 larger count) that break the bounds at any relative pose within 2 cm and 5 mrad of the relation
 — the q the data need if the relation is right to that much; (2) the x, y and θ extents of the
-witnesses (a grid of 2 cm and 5 mrad over our matcher's hull grown by 2 cm and 10 mrad, within
+witnesses (a grid, `--grid`, default 2 cm and 5 mrad, over our matcher's hull grown by 2 cm and 10 mrad, within
 the prior) at each
 ``--q``: the floor of what one pair can prove (a coarse grid only lowers it); (3) our scan-pair match (:mod:`ivslam_cli.slam.lidar.scan_pairs`:
-the motion model's step box as the prior, the config's ``pair_boxes`` and ``pair_stride``) on the
+the motion model's step box as the prior, the config's ``pair_boxes``, ``pair_stride`` and
+``pair_resolution``) on the
 same pair, its widths and whether the relation is inside.
 
     python -m bench.bench_lidar_floor --log ../shared/datasets/intel_lab/intel_gfs.json.xz \
@@ -283,9 +284,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--at-rest", default="0:3,0:7,0:12",
                     help="with --log: pairs j:k of scans between which the odometry shows no motion")
     ap.add_argument("--relations", type=Path, help="with --log: benchmark relations (pairs of consecutive scans)")
+    ap.add_argument("--grid", default="0.02,0.005",
+                    help="with --relations: the witnesses' grid, metres and radians (finer: a higher floor, slower)")
     args = ap.parse_args(argv)
     if args.log is not None and args.relations is not None:
-        return relations_floor(args.log, args.config, args.relations, [int(x) for x in args.q.split(",")])
+        step, step_th = (float(v) for v in args.grid.split(","))
+        return relations_floor(args.log, args.config, args.relations, [int(x) for x in args.q.split(",")], step,
+                               step_th)
     if args.log is not None:
         return at_rest(args.log, args.config, [tuple(int(v) for v in p.split(":")) for p in args.at_rest.split(",")],
                        [int(x) for x in args.q.split(",")])
@@ -456,7 +461,8 @@ def witness_extents(box, step, step_th, mount, S, A, ra, q, ns, nr, out):
     return found
 
 
-def relations_floor(path: Path, config: Path | None, relations: Path, qs: list[int]) -> int:
+def relations_floor(path: Path, config: Path | None, relations: Path, qs: list[int], step: float = 0.02,
+                    step_th: float = 0.005) -> int:
     """The table of ``--relations`` (see the module docstring); 1 if a witness lies outside our
     pair enclosure at the config's q."""
     from ivslam_cli.config import resolve_config
@@ -481,7 +487,7 @@ def relations_floor(path: Path, config: Path | None, relations: Path, qs: list[i
     matcher = Matcher(params, log.scans)
     budget = params.pair_boxes or params.match_boxes
     print(f"{path.name}: {rows.size} relations between consecutive scans; our pair match: {budget} boxes, every "
-          f"{params.pair_stride} beam(s), q = {params.q_beams}; witnesses on a grid of 2 cm and 5 mrad")
+          f"{params.pair_stride} beam(s), {params.pair_resolution} m, q = {params.q_beams}; witnesses on a grid of {step:g} m and {step_th:g} rad")
     print(f"{'pair':>9} {'fewest':>6} " + " ".join(f"{'floor q=' + str(q) + ' x/y/θ':>22}" for q in qs)
           + f" {'ours x/y/θ':>22} inside")
     fewest, floors, ours, failures, outside = [], {q: [] for q in qs}, [], [], 0
@@ -498,7 +504,7 @@ def relations_floor(path: Path, config: Path | None, relations: Path, qs: list[i
             continue
         tm = TileMap(params.eps)
         union, ok, _ = matcher.match(k, prior[None, :], tm, [(j, np.zeros(6))], budget=budget,
-                                     stride=params.pair_stride)
+                                     stride=params.pair_stride, slices=1, resolution=params.pair_resolution)
         h = hull(union)
         inside = in_union(union, t)
         outside += not inside
@@ -508,7 +514,7 @@ def relations_floor(path: Path, config: Path | None, relations: Path, qs: list[i
             box = h + np.array([-0.02, 0.02, -0.02, 0.02, -0.01, 0.01])  # beyond it: witnesses our union misses
             box[0::2], box[1::2] = np.maximum(box[0::2], prior[0::2]), np.minimum(box[1::2], prior[1::2])
             out = np.array([np.inf, -np.inf, np.inf, -np.inf, np.inf, -np.inf])
-            witness_extents(box, 0.02, 0.005, mount, S, A, float(b.bearing), q, 9, 7, out)
+            witness_extents(box, step, step_th, mount, S, A, float(b.bearing), q, 9, 7, out)
             w = np.where(np.isfinite(out[1::2] - out[0::2]), out[1::2] - out[0::2], 0.0)
             floors[q].append(w)
             if q == params.q_beams and np.isfinite(out).all() and not (

@@ -432,7 +432,7 @@ def bound_kernel(roots, n_roots, ranges, valid, a0, inc, mx, my, myaw, r_abs, r_
     return out, tested
 
 
-def slices(kept: np.ndarray, max_boxes: int) -> np.ndarray:
+def join_slices(kept: np.ndarray, max_boxes: int) -> np.ndarray:
     """The union ``kept`` (n, 6) as at most ``max_boxes`` boxes, one per heading slice: boxes with
     the same heading interval are joined (hull in x, y), then neighbouring slices (by heading)
     are joined until at most ``max_boxes`` remain (each join keeps every kept pose)."""
@@ -575,25 +575,30 @@ class Matcher:
         return (r, v, a0, inc), rules, float(np.median(z))
 
     def match(self, k: int, roots: np.ndarray, tmap, refs, budget: int | None = None,
-              stride: int | None = None, q: int | None = None) -> tuple[np.ndarray, bool, int]:
+              stride: int | None = None, q: int | None = None, slices: int | None = None,
+              resolution: float | None = None) -> tuple[np.ndarray, bool, int]:
         """Match scan ``k`` from the prior ``roots`` against the submap ``tmap``'s proven-free
         cells and the ``refs`` scans ((scan, robot box) pairs: their free space for rule A, their
         beam ends for rule B); ``budget``: sub-boxes tested at most (default ``match_boxes``),
         ``stride``: every n-th beam (default ``match_stride``); ``q``: beams allowed to break each
-        rule (default ``q_beams``)."""
+        rule (default ``q_beams``); ``slices``: heading slices at most (default ``match_slices``;
+        1: the hull alone, the whole budget on its four sides); ``resolution``: the slices' x and
+        y leaves (default ``match_resolution``)."""
         p = self.p
         stride = int(p.match_stride if stride is None else stride)
+        n_slices = int(p.match_slices if slices is None else slices)
+        fine = float(p.match_resolution if resolution is None else resolution)
         roots = np.ascontiguousarray(roots, float).reshape(-1, 6)
         setup = self.kernel_args(k, roots, tmap, refs, stride, q)
         if setup is None:
             return roots, True, 0
         scan, rules, split_reach = setup
         budget = int(p.match_boxes if budget is None else budget)
-        need = p.match_slices + roots.shape[0] + 66
+        need = n_slices + roots.shape[0] + 66
         if self.kept.shape[0] < need:
             self.kept = np.empty((need, 6))
-        n_kept, tested = bound_kernel(roots, roots.shape[0], *scan, *rules, float(p.match_resolution), split_reach,
-                                      budget, int(p.match_slices), self.kept, float(p.match_heading_resolution))
+        n_kept, tested = bound_kernel(roots, roots.shape[0], *scan, *rules, fine, split_reach, budget, n_slices,
+                                      self.kept, float(p.match_heading_resolution))
         if n_kept == 0:
             return roots, False, int(tested)
-        return slices(self.kept[:n_kept].copy(), int(p.match_slices)), True, int(tested)
+        return join_slices(self.kept[:n_kept].copy(), n_slices), True, int(tested)

@@ -80,6 +80,7 @@ class Params:
     loop_stride: int = 1
     pair_boxes: int = 0
     pair_stride: int = 1
+    pair_resolution: float = 0.01
     threads: int = 0
 
     @property
@@ -121,5 +122,6 @@ class Params:
             loop_wide=float(cfg["lidar.loop_wide"]),
             loop_candidates=int(cfg["lidar.loop_candidates"]), loop_boxes=int(cfg["lidar.loop_boxes"]),
             loop_stride=int(cfg["lidar.loop_stride"]), pair_boxes=int(cfg["lidar.pair_boxes"]),
-            pair_stride=int(cfg["lidar.pair_stride"]), threads=int(cfg["lidar.threads"]),
+            pair_stride=int(cfg["lidar.pair_stride"]), pair_resolution=float(cfg["lidar.pair_resolution"]),
+            threads=int(cfg["lidar.threads"]),
         )

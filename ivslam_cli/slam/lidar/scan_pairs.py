@@ -9,6 +9,8 @@ between the two stamps, from an exact start (dead reckoning, as for a submap's f
 The matcher (:mod:`.matcher`: rule A against the earlier scan's free cells and cones, rule B
 against its beam ends, every ``pair_stride``-th beam, ``pair_boxes`` pose sub-boxes at most) keeps every
 pose at which both scans agree but for q beams of each; the enclosure is the hull of that set.
+Only the hull is kept, so the search is not cut into heading slices: after the heading's two
+bounds, the whole budget goes to the four sides of x and y, found to ``pair_resolution``.
 This is the scan-to-scan relation of the benchmark of Kümmerle et al. (2009), enclosed.
 
 Guarantee: if the motion bounds hold over the steps between the two scans and at most q of
@@ -46,35 +48,37 @@ def pair_prior(m, a: int, b: int) -> np.ndarray | None:
     return out[0]
 
 
-def scan_pairs(track, m, used: np.ndarray, skip: set) -> tuple[np.ndarray, np.ndarray]:
-    """The enclosures of every consecutive pair of used rows ``(j - 1, j)`` (see the module
-    docstring), matched on ``track``'s threads with its matchers (the scans as tracked:
-    deskewed, with their sweep); rows in ``skip`` (relocalised) get none. Returns ``(pairs (P,
-    2) rows, boxes (P, 3, 2))``."""
+def pair_enclosure(track, m, used: np.ndarray, j: int) -> np.ndarray | None:
+    """The enclosure (3, 2) of rows ``(j - 1, j)`` (see the module docstring), matched with
+    ``track``'s matcher of the calling thread (the scans as tracked: deskewed, with their
+    sweep), or None."""
     p = track.p
+    prior = pair_prior(m, j - 1, j)
+    if prior is None or not np.all(np.isfinite(prior)):
+        return None
+    a, b = int(used[j - 1]), int(used[j])
+    q = track.q_for((a, b))
+    refs = [(a, np.zeros(6))]
+    matcher = track.matcher()
+    tmap = TileMap(p.eps)
+    track.map_scan(tmap, a, np.zeros(6))  # for rule A where the cones cannot serve as references
+    kw = dict(budget=p.pair_boxes, stride=p.pair_stride, slices=1, resolution=p.pair_resolution)
+    union, ok, _ = matcher.match(b, prior[None, :], tmap, refs, q=q, **kw)
+    if not ok and q is None and p.q_retry > p.q_beams:
+        union, ok, _ = matcher.match(b, prior[None, :], tmap, refs, q=p.q_retry, **kw)
+    if not ok:
+        return None
+    h = hull(union)
+    lo, hi = np.maximum(h[0::2], prior[0::2]), np.minimum(h[1::2], prior[1::2])
+    return np.column_stack([lo, hi]) if np.all(lo <= hi) else None
 
-    def one(j: int):
-        prior = pair_prior(m, j - 1, j)
-        if prior is None or not np.all(np.isfinite(prior)):
-            return None
-        a, b = int(used[j - 1]), int(used[j])
-        q = track.q_for((a, b))
-        refs = [(a, np.zeros(6))]
-        matcher = track.matcher()
-        tmap = TileMap(p.eps)
-        track.map_scan(tmap, a, np.zeros(6))  # for rule A where the cones cannot serve as references
-        union, ok, _ = matcher.match(b, prior[None, :], tmap, refs, budget=p.pair_boxes, stride=p.pair_stride, q=q)
-        if not ok and q is None and p.q_retry > p.q_beams:
-            union, ok, _ = matcher.match(b, prior[None, :], tmap, refs, budget=p.pair_boxes, stride=p.pair_stride,
-                                         q=p.q_retry)
-        if not ok:
-            return None
-        h = hull(union)
-        lo, hi = np.maximum(h[0::2], prior[0::2]), np.minimum(h[1::2], prior[1::2])
-        return np.column_stack([lo, hi]) if np.all(lo <= hi) else None
 
+def scan_pairs(track, m, used: np.ndarray, skip: set) -> tuple[np.ndarray, np.ndarray]:
+    """The enclosures of every consecutive pair of used rows ``(j - 1, j)``, matched on
+    ``track``'s threads; rows in ``skip`` (relocalised) get none. Returns ``(pairs (P, 2) rows,
+    boxes (P, 3, 2))``."""
     rows = [j for j in range(1, used.size) if j not in skip and (j - 1) not in skip]
-    boxes = track.map(one, rows)
+    boxes = track.map(lambda j: pair_enclosure(track, m, used, j), rows)
     keep = [i for i, b in enumerate(boxes) if b is not None]
     pairs = np.array([[rows[i] - 1, rows[i]] for i in keep], np.int64).reshape(-1, 2)
     return pairs, np.array([boxes[i] for i in keep], float).reshape(-1, 3, 2)
