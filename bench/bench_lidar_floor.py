@@ -44,9 +44,10 @@ around it (no truth needed), beside our matcher on the pair.
 for every relation between two consecutive scans, (1) the fewest beams (of either scan, the
 larger count) that break the bounds at any relative pose within 2 cm and 5 mrad of the relation
 — the q the data need if the relation is right to that much; (2) the x, y and θ extents of the
-witnesses (a grid, `--grid`, default 2 cm and 5 mrad, over our matcher's hull grown by 2 cm and 10 mrad, within
-the prior) at each
-``--q``: the floor of what one pair can prove (a coarse grid only lowers it); (3) our scan-pair match (:mod:`ivslam_cli.slam.lidar.scan_pairs`:
+witnesses (a grid, ``--grid``, default 2 cm and 5 mrad, over our matcher's hull grown by 2 cm and
+10 mrad, within the prior; then each extreme witness pushed outward by a pattern search whose
+steps are halved ``--push`` times, default 3) at each ``--q``: the floor of what one pair can
+prove (a coarse search only lowers it); (3) our scan-pair match (:mod:`ivslam_cli.slam.lidar.scan_pairs`:
 the motion model's step box as the prior, the config's ``pair_boxes``, ``pair_stride`` and
 ``pair_resolution``) on the
 same pair, its widths and whether the relation is inside.
@@ -286,11 +287,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--relations", type=Path, help="with --log: benchmark relations (pairs of consecutive scans)")
     ap.add_argument("--grid", default="0.02,0.005",
                     help="with --relations: the witnesses' grid, metres and radians (finer: a higher floor, slower)")
+    ap.add_argument("--push", type=int, default=3,
+                    help="with --relations: each extreme witness pushed outward, the grid's steps halved this many times")
     args = ap.parse_args(argv)
     if args.log is not None and args.relations is not None:
         step, step_th = (float(v) for v in args.grid.split(","))
         return relations_floor(args.log, args.config, args.relations, [int(x) for x in args.q.split(",")], step,
-                               step_th)
+                               step_th, args.push)
     if args.log is not None:
         return at_rest(args.log, args.config, [tuple(int(v) for v in p.split(":")) for p in args.at_rest.split(",")],
                        [int(x) for x in args.q.split(",")])
@@ -427,42 +430,91 @@ def fewest_broken(t, half, step, half_th, step_th, mount, S, A, ra, ns, nr):
 @njit(cache=True)
 def _first_witness(x0, y0, th, step, outer, inner, by_x, rev, mount, S, A, ra, q, ns, nr):
     """The first grid line (of ``outer`` lines, from the low end or, ``rev``, the high end;
-    columns of constant x when ``by_x``, else rows) holding a witness at heading ``th``; -1 if
-    none."""
+    columns of constant x when ``by_x``, else rows) holding a witness at heading ``th``, and the
+    witness's place on it: ``(line, place)``, ``(-1, -1)`` if none."""
     for a in range(outer):
         u = outer - 1 - a if rev else a
         for v in range(inner):
             i, j = (u, v) if by_x else (v, u)
             if _both_broken(x0 + i * step, y0 + j * step, th, mount, S, A, ra, ns, nr, q) <= q:
-                return u
-    return -1
+                return u, v
+    return -1, -1
 
 
 @njit(cache=True)
-def witness_extents(box, step, step_th, mount, S, A, ra, q, ns, nr, out):
+def witness_extents(box, step, step_th, mount, S, A, ra, q, ns, nr, out, at):
     """``out`` (6,) = the x, y, θ extents of the witnesses (at most ``q`` broken beams of each
-    scan) on a grid over ``box`` (6,), each heading searched from the four sides inward; returns
-    the headings with a witness."""
+    scan) on a grid over ``box`` (6,), each heading searched from the four sides inward;
+    ``at[s]`` the witness (x, y, θ) at extent ``s``. Returns the headings with a witness."""
     found = 0
     nx, ny = int((box[1] - box[0]) / step) + 1, int((box[3] - box[2]) / step) + 1
     nt = int((box[5] - box[4]) / step_th) + 1
     for kk in range(nt):
         th = box[4] + kk * step_th
-        lo_x = _first_witness(box[0], box[2], th, step, nx, ny, True, False, mount, S, A, ra, q, ns, nr)
+        lo_x, v0 = _first_witness(box[0], box[2], th, step, nx, ny, True, False, mount, S, A, ra, q, ns, nr)
         if lo_x < 0:
             continue
-        hi_x = _first_witness(box[0], box[2], th, step, nx, ny, True, True, mount, S, A, ra, q, ns, nr)
-        lo_y = _first_witness(box[0], box[2], th, step, ny, nx, False, False, mount, S, A, ra, q, ns, nr)
-        hi_y = _first_witness(box[0], box[2], th, step, ny, nx, False, True, mount, S, A, ra, q, ns, nr)
-        out[0], out[1] = min(out[0], box[0] + lo_x * step), max(out[1], box[0] + hi_x * step)
-        out[2], out[3] = min(out[2], box[2] + lo_y * step), max(out[3], box[2] + hi_y * step)
-        out[4], out[5] = min(out[4], th), max(out[5], th)
+        hi_x, v1 = _first_witness(box[0], box[2], th, step, nx, ny, True, True, mount, S, A, ra, q, ns, nr)
+        lo_y, u2 = _first_witness(box[0], box[2], th, step, ny, nx, False, False, mount, S, A, ra, q, ns, nr)
+        hi_y, u3 = _first_witness(box[0], box[2], th, step, ny, nx, False, True, mount, S, A, ra, q, ns, nr)
+        pts = ((lo_x, v0), (hi_x, v1), (u2, lo_y), (u3, hi_y))
+        for e in range(4):
+            x, y = box[0] + pts[e][0] * step, box[2] + pts[e][1] * step
+            v = x if e < 2 else y
+            if (e % 2 == 0 and v < out[e]) or (e % 2 == 1 and v > out[e]):
+                out[e] = v
+                at[e, 0], at[e, 1], at[e, 2] = x, y, th
+        if th < out[4]:
+            out[4] = th
+            at[4, 0], at[4, 1], at[4, 2] = box[0] + lo_x * step, box[2] + v0 * step, th
+        if th > out[5]:
+            out[5] = th
+            at[5, 0], at[5, 1], at[5, 2] = box[0] + lo_x * step, box[2] + v0 * step, th
         found += 1
     return found
 
 
+@njit(cache=True)
+def push_witnesses(out, at, lim, step, step_th, levels, mount, S, A, ra, q, ns, nr):
+    """Each extent ``out[s]`` of the grid's witnesses pushed outward: from its witness ``at[s]``,
+    a move of one step along that side's axis (with lateral offsets of up to two steps in the
+    other two) is kept when it lands on a witness within ``lim`` (the prior), the steps halved
+    ``levels`` times when none does. Every pose kept is a witness, so the extents stay a floor
+    (higher than the grid's)."""
+    for side in range(6):
+        if not np.isfinite(out[side]):
+            continue
+        d = side // 2
+        sgn = -1.0 if side % 2 == 0 else 1.0
+        p = at[side].copy()
+        f = 1.0
+        for _ in range(levels + 1):
+            moved = True
+            while moved:
+                moved = False
+                st = np.array([step * f, step * f, step_th * f])
+                for a in range(-2, 3):
+                    for b in range(-2, 3):
+                        c = p.copy()
+                        c[d] += sgn * st[d]
+                        o1, o2 = (d + 1) % 3, (d + 2) % 3
+                        c[o1] += a * st[o1]
+                        c[o2] += b * st[o2]
+                        if not (lim[0] <= c[0] <= lim[1] and lim[2] <= c[1] <= lim[3] and lim[4] <= c[2] <= lim[5]):
+                            continue
+                        if _both_broken(c[0], c[1], c[2], mount, S, A, ra, ns, nr, q) <= q:
+                            p = c
+                            moved = True
+                            break
+                    if moved:
+                        break
+            f *= 0.5
+        out[side] = p[d]
+        at[side] = p
+
+
 def relations_floor(path: Path, config: Path | None, relations: Path, qs: list[int], step: float = 0.02,
-                    step_th: float = 0.005) -> int:
+                    step_th: float = 0.005, push: int = 3) -> int:
     """The table of ``--relations`` (see the module docstring); 1 if a witness lies outside our
     pair enclosure at the config's q."""
     from ivslam_cli.config import resolve_config
@@ -487,7 +539,8 @@ def relations_floor(path: Path, config: Path | None, relations: Path, qs: list[i
     matcher = Matcher(params, log.scans)
     budget = params.pair_boxes or params.match_boxes
     print(f"{path.name}: {rows.size} relations between consecutive scans; our pair match: {budget} boxes, every "
-          f"{params.pair_stride} beam(s), {params.pair_resolution} m, q = {params.q_beams}; witnesses on a grid of {step:g} m and {step_th:g} rad")
+          f"{params.pair_stride} beam(s), {params.pair_resolution} m, q = {params.q_beams}; witnesses on a grid of {step:g} m and {step_th:g} rad, "
+          f"pushed outward to steps of 1/{2 ** push:g} of it")
     print(f"{'pair':>9} {'fewest':>6} " + " ".join(f"{'floor q=' + str(q) + ' x/y/θ':>22}" for q in qs)
           + f" {'ours x/y/θ':>22} inside")
     fewest, floors, ours, failures, outside = [], {q: [] for q in qs}, [], [], 0
@@ -514,7 +567,10 @@ def relations_floor(path: Path, config: Path | None, relations: Path, qs: list[i
             box = h + np.array([-0.02, 0.02, -0.02, 0.02, -0.01, 0.01])  # beyond it: witnesses our union misses
             box[0::2], box[1::2] = np.maximum(box[0::2], prior[0::2]), np.minimum(box[1::2], prior[1::2])
             out = np.array([np.inf, -np.inf, np.inf, -np.inf, np.inf, -np.inf])
-            witness_extents(box, step, step_th, mount, S, A, float(b.bearing), q, 9, 7, out)
+            at = np.zeros((6, 3))
+            witness_extents(box, step, step_th, mount, S, A, float(b.bearing), q, 9, 7, out, at)
+            if push:
+                push_witnesses(out, at, prior, step, step_th, push, mount, S, A, float(b.bearing), q, 9, 7)
             w = np.where(np.isfinite(out[1::2] - out[0::2]), out[1::2] - out[0::2], 0.0)
             floors[q].append(w)
             if q == params.q_beams and np.isfinite(out).all() and not (

@@ -127,3 +127,45 @@ def test_pair_witnesses_hold_a_world_and_lie_in_our_matchers_union():
                       & (union[:, 4] <= w[2]) & (w[2] <= union[:, 5]))
     t = relative_pose(np.asarray(log.truth.pose[j], float), np.asarray(log.truth.pose[k], float))
     assert not pair_witness(t[0], t[1], t[2] + 0.3, 0.12, 0.002, tuple(float(v) for v in mount), S, A, ra, q, 9, 7)[0]
+
+
+def test_pushed_witness_extents_are_witnesses_beyond_the_grid():
+    """The relations' floor: every extreme the pattern search reaches is a witness (at most q
+    broken beams of each scan, the same check :func:`_both_broken` makes, and by the
+    independent vectorised form) inside the limits, at or beyond the grid's extent; our
+    matcher's union keeps each one."""
+    from bench.bench_lidar_floor import _both_broken, pair_floor, pair_scan, push_witnesses, witness_extents
+    from ivslam_cli.config import resolve_config
+    from ivslam_cli.slam.lidar.params import Params
+
+    log = simulate(SimConfig(scenario="lidar", world="rooms", sensor="urg-04lx", seed=5, duration=3.0))
+    params = Params.from_config(resolve_config(None, {}, log_bounds=log.bounds))
+    b, mount, q = params.beams, tuple(float(v) for v in log.scans.mount), 5
+    ra = float(b.bearing)
+    k, j = 25, 15
+    union = pair_floor(log, k, j, q, params)[3]
+    S, A = pair_scan(log, k, b.range_abs, b.range_rel), pair_scan(log, j, b.range_abs, b.range_rel)
+    h = np.array([union[:, 0].min(), union[:, 1].max(), union[:, 2].min(), union[:, 3].max(), union[:, 4].min(),
+                  union[:, 5].max()])
+    lim = h + np.array([-0.05, 0.05, -0.05, 0.05, -0.02, 0.02])
+    out = np.array([np.inf, -np.inf, np.inf, -np.inf, np.inf, -np.inf])
+    at = np.zeros((6, 3))
+    assert witness_extents(lim, 0.02, 0.005, mount, S, A, ra, q, 9, 7, out, at) > 0
+    grid = out.copy()
+    push_witnesses(out, at, lim, 0.02, 0.005, 3, mount, S, A, ra, q, 9, 7)
+    assert np.all(out[0::2] <= grid[0::2]) and np.all(out[1::2] >= grid[1::2]) and np.any(out != grid)
+    all_s = S[4] + S[5] * np.arange(S[3].size)
+    all_a = A[4] + A[5] * np.arange(A[3].size)
+    a_sensor = sensor_pose(np.zeros(3), mount)
+    for side in range(6):
+        w = at[side]
+        assert out[side] == w[side // 2]
+        assert np.all(lim[0::2] <= w) and np.all(w <= lim[1::2])
+        assert _both_broken(w[0], w[1], w[2], mount, S, A, ra, 9, 7, q) <= q
+        s_sensor = sensor_pose(w, mount)
+        inside_a = _free_by_cones(_region_points(s_sensor, S[0], S[1], S[2], ra).reshape(-1, 2), a_sensor, all_a, A[3], ra)
+        inside_s = _free_by_cones(_region_points(a_sensor, A[0], A[1], A[2], ra).reshape(-1, 2), s_sensor, all_s, S[3], ra)
+        assert inside_a.reshape(S[0].size, -1).all(axis=1).sum() <= q
+        assert inside_s.reshape(A[0].size, -1).all(axis=1).sum() <= q
+        assert np.any((union[:, 0] <= w[0]) & (w[0] <= union[:, 1]) & (union[:, 2] <= w[1]) & (w[1] <= union[:, 3])
+                      & (union[:, 4] <= w[2]) & (w[2] <= union[:, 5]))
