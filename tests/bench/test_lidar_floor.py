@@ -97,6 +97,20 @@ def _region_points(sensor, ang, lo, hi, ra, n=9):
     return np.stack([sensor[0] + R * np.cos(T), sensor[1] + R * np.sin(T)], -1).reshape(ang.size, n * n, 2)
 
 
+def _assert_witness_in(w, S, A, mount, ra, q, union):
+    """Pose ``w`` of scan ``S`` in scan ``A``'s frame leaves at most ``q`` beams of each scan
+    whose whole end region (sampled densely) is in the other's free cones, and lies in ``union``."""
+    all_s = S[4] + S[5] * np.arange(S[3].size)
+    all_a = A[4] + A[5] * np.arange(A[3].size)
+    a_sensor, s_sensor = sensor_pose(np.zeros(3), mount), sensor_pose(w, mount)
+    inside_a = _free_by_cones(_region_points(s_sensor, S[0], S[1], S[2], ra).reshape(-1, 2), a_sensor, all_a, A[3], ra)
+    inside_s = _free_by_cones(_region_points(a_sensor, A[0], A[1], A[2], ra).reshape(-1, 2), s_sensor, all_s, S[3], ra)
+    assert inside_a.reshape(S[0].size, -1).all(axis=1).sum() <= q
+    assert inside_s.reshape(A[0].size, -1).all(axis=1).sum() <= q
+    assert np.any((union[:, 0] <= w[0]) & (w[0] <= union[:, 1]) & (union[:, 2] <= w[1]) & (w[1] <= union[:, 3])
+                  & (union[:, 4] <= w[2]) & (w[2] <= union[:, 5]))
+
+
 def test_pair_witnesses_hold_a_world_and_lie_in_our_matchers_union():
     """Each two-scan witness leaves at most q beams of each scan whose whole end region is in the
     other's free cones (checked by an independent vectorised form); every other beam has a point
@@ -114,17 +128,8 @@ def test_pair_witnesses_hold_a_world_and_lie_in_our_matchers_union():
     below, above, wit, union = pair_floor(log, k, j, q, params)
     assert len(wit) >= 3 and below + above > 0
     S, A = pair_scan(log, k, b.range_abs, b.range_rel), pair_scan(log, j, b.range_abs, b.range_rel)
-    all_s = S[4] + S[5] * np.arange(S[3].size)
-    all_a = A[4] + A[5] * np.arange(A[3].size)
-    a_sensor = sensor_pose(np.zeros(3), mount)
     for w in wit:
-        s_sensor = sensor_pose(w, mount)
-        inside_a = _free_by_cones(_region_points(s_sensor, S[0], S[1], S[2], ra).reshape(-1, 2), a_sensor, all_a, A[3], ra)
-        inside_s = _free_by_cones(_region_points(a_sensor, A[0], A[1], A[2], ra).reshape(-1, 2), s_sensor, all_s, S[3], ra)
-        assert inside_a.reshape(S[0].size, -1).all(axis=1).sum() <= q
-        assert inside_s.reshape(A[0].size, -1).all(axis=1).sum() <= q
-        assert np.any((union[:, 0] <= w[0]) & (w[0] <= union[:, 1]) & (union[:, 2] <= w[1]) & (w[1] <= union[:, 3])
-                      & (union[:, 4] <= w[2]) & (w[2] <= union[:, 5]))
+        _assert_witness_in(w, S, A, mount, ra, q, union)
     t = relative_pose(np.asarray(log.truth.pose[j], float), np.asarray(log.truth.pose[k], float))
     assert not pair_witness(t[0], t[1], t[2] + 0.3, 0.12, 0.002, tuple(float(v) for v in mount), S, A, ra, q, 9, 7)[0]
 
@@ -154,18 +159,9 @@ def test_pushed_witness_extents_are_witnesses_beyond_the_grid():
     grid = out.copy()
     push_witnesses(out, at, lim, 0.02, 0.005, 3, mount, S, A, ra, q, 9, 7)
     assert np.all(out[0::2] <= grid[0::2]) and np.all(out[1::2] >= grid[1::2]) and np.any(out != grid)
-    all_s = S[4] + S[5] * np.arange(S[3].size)
-    all_a = A[4] + A[5] * np.arange(A[3].size)
-    a_sensor = sensor_pose(np.zeros(3), mount)
     for side in range(6):
         w = at[side]
         assert out[side] == w[side // 2]
         assert np.all(lim[0::2] <= w) and np.all(w <= lim[1::2])
         assert _both_broken(w[0], w[1], w[2], mount, S, A, ra, 9, 7, q) <= q
-        s_sensor = sensor_pose(w, mount)
-        inside_a = _free_by_cones(_region_points(s_sensor, S[0], S[1], S[2], ra).reshape(-1, 2), a_sensor, all_a, A[3], ra)
-        inside_s = _free_by_cones(_region_points(a_sensor, A[0], A[1], A[2], ra).reshape(-1, 2), s_sensor, all_s, S[3], ra)
-        assert inside_a.reshape(S[0].size, -1).all(axis=1).sum() <= q
-        assert inside_s.reshape(A[0].size, -1).all(axis=1).sum() <= q
-        assert np.any((union[:, 0] <= w[0]) & (w[0] <= union[:, 1]) & (union[:, 2] <= w[1]) & (w[1] <= union[:, 3])
-                      & (union[:, 4] <= w[2]) & (w[2] <= union[:, 5]))
+        _assert_witness_in(w, S, A, mount, ra, q, union)
