@@ -524,7 +524,7 @@ def relations_floor(path: Path, config: Path | None, relations: Path, qs: list[i
     from ivslam_cli.slam.lidar.matcher import Matcher, hull
     from ivslam_cli.slam.lidar.params import Params
     from ivslam_cli.slam.lidar.prediction import trajectory
-    from ivslam_cli.slam.lidar.scan_pairs import pair_prior
+    from ivslam_cli.slam.lidar.scan_pairs import pair_match_args, pair_prior
 
     log = read_log(path)
     params = Params.from_config(resolve_config(config, {}, log_bounds=log.bounds))
@@ -537,10 +537,11 @@ def relations_floor(path: Path, config: Path | None, relations: Path, qs: list[i
     used, _, m = trajectory(log, params, log.scans)[:3]
     mount = tuple(float(v) for v in log.scans.mount)
     matcher = Matcher(params, log.scans)
-    budget = params.pair_boxes or params.match_boxes
-    print(f"{path.name}: {rows.size} relations between consecutive scans; our pair match: {budget} boxes, every "
-          f"{params.pair_stride} beam(s), {params.pair_resolution} m, q = {params.q_beams}; witnesses on a grid of {step:g} m and {step_th:g} rad, "
-          f"pushed outward to steps of 1/{2 ** push:g} of it")
+    kw = pair_match_args(params)
+    pushed = f", pushed outward to steps of 1/{2 ** push:g} of it" if push else ""
+    print(f"{path.name}: {rows.size} relations between consecutive scans; our pair match: {kw['budget']} boxes, "
+          f"every {kw['stride']} beam(s), {kw['resolution']} m, q = {params.q_beams}; witnesses on a grid of "
+          f"{step:g} m and {step_th:g} rad{pushed}")
     print(f"{'pair':>9} {'fewest':>6} " + " ".join(f"{'floor q=' + str(q) + ' x/y/θ':>22}" for q in qs)
           + f" {'ours x/y/θ':>22} inside")
     fewest, floors, ours, failures, outside = [], {q: [] for q in qs}, [], [], 0
@@ -556,8 +557,7 @@ def relations_floor(path: Path, config: Path | None, relations: Path, qs: list[i
             print(f"{j:>4}:{k:<4} no prior (a scan not used, or a motion step without solution)")
             continue
         tm = TileMap(params.eps)
-        union, ok, _ = matcher.match(k, prior[None, :], tm, [(j, np.zeros(6))], budget=budget,
-                                     stride=params.pair_stride, slices=1, resolution=params.pair_resolution)
+        union, ok, _ = matcher.match(k, prior[None, :], tm, [(j, np.zeros(6))], **kw)
         h = hull(union)
         inside = in_union(union, t)
         outside += not inside

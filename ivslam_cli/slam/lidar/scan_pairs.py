@@ -48,6 +48,13 @@ def pair_prior(m, a: int, b: int) -> np.ndarray | None:
     return out[0]
 
 
+def pair_match_args(p) -> dict:
+    """The matcher's settings for a pair (``Matcher.match`` keywords): ``pair_boxes`` (or
+    ``match_boxes`` when pairs are off), every ``pair_stride``-th beam, one slice (only the
+    hull is kept), x and y to ``pair_resolution``."""
+    return dict(budget=p.pair_boxes or p.match_boxes, stride=p.pair_stride, slices=1, resolution=p.pair_resolution)
+
+
 def pair_enclosure(track, m, used: np.ndarray, j: int) -> np.ndarray | None:
     """The enclosure (3, 2) of rows ``(j - 1, j)`` (see the module docstring), matched with
     ``track``'s matcher of the calling thread (the scans as tracked: deskewed, with their
@@ -62,7 +69,7 @@ def pair_enclosure(track, m, used: np.ndarray, j: int) -> np.ndarray | None:
     matcher = track.matcher()
     tmap = TileMap(p.eps)
     track.map_scan(tmap, a, np.zeros(6))  # for rule A where the cones cannot serve as references
-    kw = dict(budget=p.pair_boxes, stride=p.pair_stride, slices=1, resolution=p.pair_resolution)
+    kw = pair_match_args(p)
     union, ok, _ = matcher.match(b, prior[None, :], tmap, refs, q=q, **kw)
     if not ok and q is None and p.q_retry > p.q_beams:
         union, ok, _ = matcher.match(b, prior[None, :], tmap, refs, q=p.q_retry, **kw)
