@@ -13,10 +13,17 @@ Only the hull is kept, so the search is not cut into heading slices: after the h
 bounds, the whole budget goes to the four sides of x and y, found to ``pair_resolution``.
 This is the scan-to-scan relation of the benchmark of Kümmerle et al. (2009), enclosed.
 
+The pairs are matched before the tracking, all at once on the tracker's threads (they need
+nothing the tracking finds), and they serve it: a scan's prior in a submap that holds the scan
+before it is met with that scan's box there ⊕ the pair (:meth:`.submap_track.Track.match`),
+and in a submap that holds the scan before it alone (its anchor) the pair *is* the match.
+
 Guarantee: if the motion bounds hold over the steps between the two scans and at most q of
 the beams of each scan break the static world, the true relative pose (the later robot pose in
 the earlier one's frame) is in the enclosure. q is ``q_beams``, or ``q_retry`` for a pair with
-a scan the tracking found q-relaxed, or when no pose agrees with ``q_beams`` broken beams. A
+a scan the tracking found q-relaxed, or when no pose agrees with ``q_beams`` broken beams
+(a pair matched with ``q_beams`` is matched again with ``q_retry`` once the tracking finds one
+of its scans q-relaxed, before the tracking or the result uses it). A
 pair with a relocalised scan (its motion step broke its bounds) or whose motion steps have no
 solution, or where no pose agrees even with ``q_retry``, gets no enclosure.
 """
@@ -55,16 +62,19 @@ def pair_match_args(p) -> dict:
     return dict(budget=p.pair_boxes or p.match_boxes, stride=p.pair_stride, slices=1, resolution=p.pair_resolution)
 
 
-def pair_enclosure(track, m, used: np.ndarray, j: int) -> np.ndarray | None:
+def pair_enclosure(track, m, used: np.ndarray, j: int, q: int | None = None) -> tuple[np.ndarray | None, int]:
     """The enclosure (3, 2) of rows ``(j - 1, j)`` (see the module docstring), matched with
     ``track``'s matcher of the calling thread (the scans as tracked: deskewed, with their
-    sweep), or None."""
+    sweep), or None; with the q it holds under (``q``, or as :meth:`Track.q_for` says, or
+    ``q_retry`` when no pose agrees with ``q_beams``)."""
     p = track.p
+    a, b = int(used[j - 1]), int(used[j])
+    if q is None:
+        q = track.q_for((a, b))
+    q_eff = p.q_beams if q is None else q
     prior = pair_prior(m, j - 1, j)
     if prior is None or not np.all(np.isfinite(prior)):
-        return None
-    a, b = int(used[j - 1]), int(used[j])
-    q = track.q_for((a, b))
+        return None, q_eff
     refs = [(a, np.zeros(6))]
     matcher = track.matcher()
     tmap = TileMap(p.eps)
@@ -72,20 +82,60 @@ def pair_enclosure(track, m, used: np.ndarray, j: int) -> np.ndarray | None:
     kw = pair_match_args(p)
     union, ok, _ = matcher.match(b, prior[None, :], tmap, refs, q=q, **kw)
     if not ok and q is None and p.q_retry > p.q_beams:
+        q_eff = p.q_retry
         union, ok, _ = matcher.match(b, prior[None, :], tmap, refs, q=p.q_retry, **kw)
     if not ok:
-        return None
+        return None, q_eff
     h = hull(union)
     lo, hi = np.maximum(h[0::2], prior[0::2]), np.minimum(h[1::2], prior[1::2])
-    return np.column_stack([lo, hi]) if np.all(lo <= hi) else None
+    return (np.column_stack([lo, hi]) if np.all(lo <= hi) else None), q_eff
 
 
-def scan_pairs(track, m, used: np.ndarray, skip: set) -> tuple[np.ndarray, np.ndarray]:
-    """The enclosures of every consecutive pair of used rows ``(j - 1, j)``, matched on
-    ``track``'s threads; rows in ``skip`` (relocalised) get none. Returns ``(pairs (P, 2) rows,
-    boxes (P, 3, 2))``."""
-    rows = [j for j in range(1, used.size) if j not in skip and (j - 1) not in skip]
-    boxes = track.map(lambda j: pair_enclosure(track, m, used, j), rows)
-    keep = [i for i, b in enumerate(boxes) if b is not None]
-    pairs = np.array([[rows[i] - 1, rows[i]] for i in keep], np.int64).reshape(-1, 2)
-    return pairs, np.array([boxes[i] for i in keep], float).reshape(-1, 3, 2)
+BATCH = 64  # pairs matched between two progress reports
+
+
+class Pairs:
+    """Every consecutive pair's enclosure, matched before the tracking (in parallel on
+    ``track``'s threads) with ``q_beams``, and again with ``q_retry`` when the tracking finds
+    one of its scans q-relaxed: :meth:`get` gives a pair only under the q its scans need now."""
+
+    def __init__(self, track, m, used: np.ndarray, progress=None) -> None:
+        self.track, self.m, self.used = track, m, used
+        rows = list(range(1, used.size))
+        got = []
+        for i in range(0, len(rows), BATCH):  # in batches, to tell ``progress(fraction, label)``
+            if progress is not None:
+                progress(i / max(len(rows), 1), f"scan pairs {i}/{len(rows)}")
+            got += track.map(lambda j: pair_enclosure(track, m, used, j), rows[i:i + BATCH])
+        self.box = {j: g for j, g in zip(rows, got)}  # j -> (box (3, 2) or None, q)
+
+    def need(self, j: int) -> int:
+        p, relaxed = self.track.p, self.track.relaxed
+        if p.q_retry > p.q_beams and (relaxed[int(self.used[j - 1])] or relaxed[int(self.used[j])]):
+            return p.q_retry
+        return p.q_beams
+
+    def get(self, j: int, q: int | None = None) -> tuple[np.ndarray | None, int]:
+        """Rows ``(j - 1, j)``'s enclosure (3, 2) under at least ``q`` (and what the scans
+        need), matched again when the one held was found with less (None when none), and the q
+        it holds under."""
+        if j not in self.box:
+            return None, 0
+        need = max(self.need(j), self.track.p.q_beams if q is None else q)
+        box, q_had = self.box[j]
+        if q_had < need:
+            box, q_had = pair_enclosure(self.track, self.m, self.used, j, q=need)
+            self.box[j] = (box, q_had)
+        return box, q_had
+
+    def final(self, skip: set) -> tuple[np.ndarray, np.ndarray]:
+        """``(pairs (P, 2) rows, boxes (P, 3, 2))`` under the q the tracking ended with; rows in
+        ``skip`` (relocalised) get none."""
+        rows = [j for j in self.box if j not in skip and (j - 1) not in skip]
+        redo = [j for j in rows if self.box[j][1] < self.need(j)]
+        for j, g in zip(redo, self.track.map(lambda j: pair_enclosure(self.track, self.m, self.used, j,
+                                                                       q=self.need(j)), redo)):
+            self.box[j] = g
+        keep = [j for j in rows if self.box[j][0] is not None]
+        pairs = np.array([[j - 1, j] for j in keep], np.int64).reshape(-1, 2)
+        return pairs, np.array([self.box[j][0] for j in keep], float).reshape(-1, 3, 2)

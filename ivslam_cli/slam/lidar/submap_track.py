@@ -11,9 +11,14 @@ static world (people, glass) is likely still there a moment later, and a scan wi
 seconds are *held*, matched with ``q_retry`` from the start. A q-relaxed or held scan is no
 reference (the "previous scan") for later scans, and every match against it allows ``q_retry``.
 
+With scan pairs (``lidar.pair_boxes``, :mod:`.scan_pairs`), a scan's dead-reckoned box in a
+submap that holds the scan before it is met with that scan's box there ⊕ the pair's
+enclosure; where that submap holds nothing but the scan before it (its anchor), the pair,
+every beam matched against that same scan, stands for the match.
+
 Guarantee: if the scan's true pose is in its dead-reckoned box in a submap's frame, the
 submap's map is sound, and at most the q it was matched with of its beams (and of its
-references') break the static world, the box :meth:`Track.commit` returns holds the true pose
+references', and of the scan before it with a pair) break the static world, the box :meth:`Track.commit` returns holds the true pose
 in that frame, and the cells it maps are free (P_EMPTY) or may hold a surface (P_OBSTACLE) in
 that frame.
 """
@@ -28,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ivslam_cli.interval.pose import compose, meet
 from ivslam_cli.logs.model import Scans
 from ivslam_cli.slam.lidar.map_update import UpdateResult, check_extent, map_union_free, update_map
 from ivslam_cli.slam.lidar.matcher import Matcher, hull
@@ -123,6 +129,7 @@ class Track:
         self.relaxed = np.zeros(len(scans), bool)
         self.hold_until = -math.inf  # scans up to this stamp are matched with q_retry from the start
         self.local = threading.local()
+        self.pairs = None  # scan_pairs.Pairs: each scan's prior also met with the previous one's box ⊕ their pair
         self.pool = ThreadPoolExecutor(max_workers=n_threads) if n_threads > 1 else None
 
     def close(self) -> None:
@@ -263,9 +270,16 @@ class Track:
         if s.anchor_row == j:
             out.r = np.zeros(6)  # the frame is the anchor's pose
             return out
-        r = relative_box(s, m, j, k) if prior is None else prior
-        out.dead_reckoned = out.r = r
-        if not (params.contract and np.all(np.isfinite(r))):
+        r0 = relative_box(s, m, j, k) if prior is None else prior
+        out.dead_reckoned = out.r = r0
+        if not (params.contract and np.all(np.isfinite(r0))):
+            return out
+        r = out.r = self.pair_met(s, j, r0, q)
+        if self.pairs is not None and s.anchor_row == j - 1 and len(s.rows) == 1 and r is not r0:
+            # the submap holds the previous scan alone: its match is the pair's (every beam)
+            _, q_had = self.pairs.get(j, q)
+            out.matched, out.q, out.ok, out.union = True, q, True, r[None, :].copy()
+            out.q_relaxed = q is None and q_had > params.q_beams
             return out
         roots = r[None, :]
         if s.union is not None and s.union_row >= 0:
@@ -288,6 +302,12 @@ class Track:
         if not ok and params.q_retry > params.q_beams and q is None:
             # more than q beams contradict every predicted pose: people, glass, mixed
             # returns? match again allowing q_retry beams before doubting the motion
+            r = self.pair_met(s, j, r0, params.q_retry)
+            if r is not out.r:
+                out.r = r
+                roots = met_rows(roots, r)
+                if roots.shape[0] == 0:
+                    roots = r[None, :]
             union, ok, nt = matcher.match(scan, roots, s.tmap, refs, q=params.q_retry)
             out.tested += nt
             out.q_relaxed = bool(ok)
@@ -295,7 +315,7 @@ class Track:
             # no pose of the prediction agrees with the submap: the motion step broke its
             # bounds (an odometry jump)? search the relocalisation window around it
             wx, wt = params.relocalise
-            wide = r + np.array([-wx, wx, -wx, wx, -wt, wt])
+            wide = r0 + np.array([-wx, wx, -wx, wx, -wt, wt])
             union, ok, nt = matcher.match(scan, wide[None, :], s.tmap, refs, q=q)
             out.tested += nt
             if ok:
@@ -303,6 +323,22 @@ class Track:
                 out.r = wide
         out.ok, out.union = bool(ok), union
         return out
+
+    def pair_met(self, s, j: int, r: np.ndarray, q: int | None) -> np.ndarray:
+        """Row ``j``'s box ``r`` (6,) in submap ``s``'s frame met with the previous row's box
+        there ⊕ the pair's enclosure (held under ``q``), when ``s`` holds row ``j - 1``; ``r``
+        itself otherwise, or when they do not meet."""
+        if self.pairs is None or not s.rows or s.rows[-1] != j - 1:
+            return r
+        box, _ = self.pairs.get(j, q)
+        if box is None:
+            return r
+        g = np.empty((3, 2))
+        compose(np.ascontiguousarray(s.rel[-1], float).reshape(3, 2), np.ascontiguousarray(box, float), 1, g)
+        met = np.empty((3, 2))
+        if not meet(np.ascontiguousarray(r, float).reshape(3, 2), g, met):
+            return r
+        return met.reshape(6)
 
     def commit(self, s, j: int, k: int, scan: int, rp: float, rt: float, out: Tracked,
                relaxed: bool) -> tuple[np.ndarray, Tracked]:

@@ -49,7 +49,7 @@ from ivslam_cli.slam.lidar.map_update import extent_limits
 from ivslam_cli.slam.lidar.matcher import hull
 from ivslam_cli.slam.lidar.params import Params
 from ivslam_cli.slam.lidar.prediction import PosePrediction, sweep_motion, trajectory
-from ivslam_cli.slam.lidar.scan_pairs import scan_pairs
+from ivslam_cli.slam.lidar.scan_pairs import Pairs
 from ivslam_cli.slam.lidar.submap_track import Track, reset_node, threads, width
 from ivslam_cli.slam.motion_kernel import (
     meet_node,
@@ -316,9 +316,14 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
     Pdr = Pg.copy()  # the dead reckoning alone (no contraction reaches it): the open-loop reference
     loops_on = bool(params.loop_closure and params.contract)
     try:
+        f0 = 0.0  # the share of the progress bar the pairs take
+        if params.pair_boxes > 0 and params.contract:
+            f0 = 0.4
+            # matched first: they seed the tracking
+            track.pairs = Pairs(track, m, used, None if progress is None else lambda f, t: progress(f0 * f, t))
         for j in range(S):
             if progress is not None:
-                progress(j / S, f"scan {j}/{S}")
+                progress(f0 + (1.0 - f0) * j / S, f"scan {j}/{S}")
             k = int(m.node[j])
             scan = int(used[j])
             rp, rt = float(m.reach[j, 0]), float(m.reach[j, 1])
@@ -430,8 +435,8 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                 active.append(s_new)
                 last = (0.0, 0.0, 0.0)
         pairs = None
-        if params.pair_boxes > 0 and params.contract:
-            pairs = scan_pairs(track, m, used, {row for row, _ in relocalised})
+        if track.pairs is not None:
+            pairs = track.pairs.final({row for row, _ in relocalised})
     finally:
         for s in submaps:
             track.settle(s)

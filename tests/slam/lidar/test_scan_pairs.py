@@ -55,3 +55,27 @@ def test_no_pairs_by_default():
     log, params, out = run_sim(1, "rooms", steps=10)
     assert params.pair_boxes == 0 and out.tracking.pairs is None
     assert scan_pair_mask(run(log, params)) is None
+
+
+@pytest.mark.parametrize("seed", seeds(ci=3, dev=1))
+def test_scan_pairs_seed_the_tracking(seed):
+    """With pairs, a scan's box in the submap its predecessor anchors lies in the pair's
+    enclosure (the pair stands for that match), and the tracking's relative boxes are narrower
+    than without pairs (wide odometry bounds: the tracker's budget runs out on every fourth beam
+    where the pair tests every beam). The truth is checked in the test above."""
+    world = ("rooms", "corridor", "pillars")[seed % 3]
+    _, _, out = run_sim(seed, world, steps=30, overrides={**WIDE, "lidar.pair_boxes": 4000})
+    _, _, plain = run_sim(seed, world, steps=30, overrides=WIDE)
+    pairs, boxes = out.tracking.pairs
+    pair_of = {int(b): box for (a, b), box in zip(pairs, boxes)}
+    seen = 0
+    for s in out.tracking.submaps:
+        for row, rel in zip(s.rows, s.rel):
+            if row == s.anchor_row + 1 and row in pair_of:
+                box = pair_of[row]
+                assert np.all(rel[0::2] >= box[:, 0] - 1e-9) and np.all(rel[1::2] <= box[:, 1] + 1e-9), (row, rel, box)
+                seen += 1
+    assert seen >= 2
+    w, w0 = out.stats["median_relative_width"], plain.stats["median_relative_width"]
+    h, h0 = out.stats["median_relative_heading"], plain.stats["median_relative_heading"]
+    assert w <= w0 and h < h0, (w, w0, h, h0)
