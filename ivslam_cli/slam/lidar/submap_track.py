@@ -244,13 +244,15 @@ class Track:
         held = p.q_retry > p.q_beams and t <= self.hold_until
         if held:
             self.relaxed[scan] = True
-        outs = self.map(lambda s: self.match(s, j, k, scan, q=p.q_retry if held else None), active)
+        newest = active[-1]
+        outs = self.map(lambda s: self.match(s, j, k, scan, q=p.q_retry if held else None, older=s is not newest),
+                        active)
         if any(o.q_relaxed for o in outs):
             self.relaxed[scan] = True
             self.hold_until = t + p.q_hold if p.q_hold > 0 else -math.inf
             again = [i for i, o in enumerate(outs) if o.matched and o.q is None and not o.q_relaxed]
             if p.q_retry > p.q_beams and again:
-                redo = self.map(lambda i: self.match(active[i], j, k, scan, q=p.q_retry,
+                redo = self.map(lambda i: self.match(active[i], j, k, scan, q=p.q_retry, older=active[i] is not newest,
                                                      prior=outs[i].dead_reckoned), again)
                 for i, o in zip(again, redo):
                     o.tested += outs[i].tested
@@ -259,7 +261,8 @@ class Track:
         relaxed = bool(self.relaxed[scan])
         return self.map(lambda so: self.commit(so[0], j, k, scan, rp, rt, so[1], relaxed), list(zip(active, outs))), held
 
-    def match(self, s, j: int, k: int, scan: int, q: int | None = None, prior: np.ndarray | None = None) -> Tracked:
+    def match(self, s, j: int, k: int, scan: int, q: int | None = None, prior: np.ndarray | None = None,
+              older: bool = False) -> Tracked:
         """Scan row ``j`` matched against submap ``s`` (nothing in ``s`` but its dead reckoning
         changes): ``q`` beams allowed (default: as :meth:`q_for` says, with a ``q_retry`` retry);
         ``prior`` the dead-reckoned box when it is known."""
@@ -275,6 +278,8 @@ class Track:
         if not (params.contract and np.all(np.isfinite(r0))):
             return out
         r = out.r = self.pair_met(s, j, r0, q)
+        if older and 0 < params.max_pose_width < width(r):
+            return out  # an overlap's scan too wide there to be mapped: the newest submap tracks it
         if self.pairs is not None and s.anchor_row == j - 1 and len(s.rows) == 1 and r is not r0:
             # the submap holds the previous scan alone: its match is the pair's (every beam)
             _, q_had = self.pairs.get(j, q)
