@@ -426,6 +426,7 @@ def track_submaps(log: LogData, params: Params, scans: Scans, progress=None) -> 
                 s_new.rows.append(j)
                 s_new.rel.append(np.zeros(6))
                 s_new.mapped.append(j)
+                mapped[j] = True  # at its own anchor, exactly
                 s_new.last_row = j
                 s_new.last_box = np.zeros(6)
                 for t in active:

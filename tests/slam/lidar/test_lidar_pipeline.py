@@ -77,6 +77,17 @@ def test_simulated_urg_runs_keep_the_truth(seed):
     assert c["pose_relative"][1] >= len(log.scans) - 1
 
 
+def test_a_scan_mapped_only_at_its_own_anchor_counts_as_mapped():
+    """A scan too wide to be mapped in the submaps that track it, which then anchors a submap
+    (mapped there at the frame's origin), counts as mapped: ``scans_mapped`` is the number of
+    scans some submap maps."""
+    log, params, out = run_sim(2, "rooms", steps=12,
+                               overrides={"lidar.max_pose_width": 1e-6, "lidar.submap_width": 1e-3})
+    rows = {r for s in out.tracking.submaps for r in s.mapped}
+    assert len(out.tracking.submaps) >= 8 and len(rows) >= 8
+    assert out.stats["scans_mapped"] == len(rows) == int(out.tracking.mapped.sum())
+
+
 def test_the_first_pose_frame_and_the_world_frame_both_hold_the_truth(tmp_path):
     """The same log with and without --initial-pose-from-truth: both reports find every pose
     contained (the truth compared in the result's frame), none says SOUNDNESS FAILURE."""
