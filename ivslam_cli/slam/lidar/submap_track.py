@@ -250,6 +250,9 @@ class Track:
         if any(o.q_relaxed for o in outs):
             self.relaxed[scan] = True
             self.hold_until = t + p.q_hold if p.q_hold > 0 else -math.inf
+            for i, o in enumerate(outs):  # a box met with a q_beams pair but not matched: met anew
+                if not o.matched and o.dead_reckoned is not None and o.r is not o.dead_reckoned:
+                    o.r = self.pair_met(active[i], j, o.dead_reckoned, p.q_retry)
             again = [i for i, o in enumerate(outs) if o.matched and o.q is None and not o.q_relaxed]
             if p.q_retry > p.q_beams and again:
                 redo = self.map(lambda i: self.match(active[i], j, k, scan, q=p.q_retry, older=active[i] is not newest,
@@ -286,16 +289,7 @@ class Track:
             out.matched, out.q, out.ok, out.union = True, q, True, r[None, :].copy()
             out.q_relaxed = q is None and q_had > params.q_beams
             return out
-        roots = r[None, :]
-        if s.union is not None and s.union_row >= 0:
-            jp = s.union_row
-            kp = int(m.node[jp])
-            prop = np.empty_like(s.union)
-            ok = propagate_boxes(s.P[kp - s.k0], s.union, m.reach[jp], m.kind[s.k0:], m.U[s.k0:],
-                                 kp - s.k0, k - s.k0, m.reach[j], prop)
-            met = met_rows(prop[ok], r)
-            if met.shape[0]:
-                roots = met
+        roots = self._roots(s, j, k, r)
         refs = [(s.anchor_scan, np.zeros(6))]
         if s.last_row >= 0 and s.last_row != s.anchor_row:
             refs.append((int(used[s.last_row]), s.last_box))
@@ -307,12 +301,9 @@ class Track:
         if not ok and params.q_retry > params.q_beams and q is None:
             # more than q beams contradict every predicted pose: people, glass, mixed
             # returns? match again allowing q_retry beams before doubting the motion
-            r = self.pair_met(s, j, r0, params.q_retry)
-            if r is not out.r:
-                out.r = r
-                roots = met_rows(roots, r)
-                if roots.shape[0] == 0:
-                    roots = r[None, :]
+            if r is not r0:  # the prior met with the pair under q_retry, the roots from it anew
+                r = out.r = self.pair_met(s, j, r0, params.q_retry)
+                roots = self._roots(s, j, k, r)
             union, ok, nt = matcher.match(scan, roots, s.tmap, refs, q=params.q_retry)
             out.tested += nt
             out.q_relaxed = bool(ok)
@@ -328,6 +319,21 @@ class Track:
                 out.r = wide
         out.ok, out.union = bool(ok), union
         return out
+
+    def _roots(self, s, j: int, k: int, r: np.ndarray) -> np.ndarray:
+        """The match's roots for row ``j`` (node ``k``) in submap ``s`` from its prior ``r``
+        (6,): the submap's last pose set propagated to node ``k`` and met with ``r``, or ``r``."""
+        m = self.m
+        if s.union is not None and s.union_row >= 0:
+            jp = s.union_row
+            kp = int(m.node[jp])
+            prop = np.empty_like(s.union)
+            ok = propagate_boxes(s.P[kp - s.k0], s.union, m.reach[jp], m.kind[s.k0:], m.U[s.k0:],
+                                 kp - s.k0, k - s.k0, m.reach[j], prop)
+            met = met_rows(prop[ok], r)
+            if met.shape[0]:
+                return met
+        return r[None, :]
 
     def pair_met(self, s, j: int, r: np.ndarray, q: int | None) -> np.ndarray:
         """Row ``j``'s box ``r`` (6,) in submap ``s``'s frame met with the previous row's box
